@@ -1,0 +1,29 @@
+# pcr_layer(NAME DIR DEPS...): one static library per layer from every .cpp below DIR.
+# New files are picked up on the next build (CONFIGURE_DEPENDS), so adding a source needs no edit here.
+function(pcr_layer name dir)
+  file(GLOB_RECURSE srcs CONFIGURE_DEPENDS "${CMAKE_CURRENT_SOURCE_DIR}/${dir}/*.cpp")
+  if(NOT srcs)
+    add_library(${name} INTERFACE)
+    target_include_directories(${name} INTERFACE ${CMAKE_SOURCE_DIR}/src ${CMAKE_SOURCE_DIR}/include)
+    target_link_libraries(${name} INTERFACE ${ARGN})
+    return()
+  endif()
+  add_library(${name} STATIC ${srcs})
+  target_include_directories(${name} PUBLIC ${CMAKE_SOURCE_DIR}/src ${CMAKE_SOURCE_DIR}/include)
+  target_link_libraries(${name} PUBLIC ${ARGN})
+  set_target_properties(${name} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+endfunction()
+
+# pcr_test(NAME DIR LIBS...): one GoogleTest executable from every .cpp below tests/DIR.
+function(pcr_test name dir)
+  file(GLOB_RECURSE srcs CONFIGURE_DEPENDS "${CMAKE_SOURCE_DIR}/tests/${dir}/*.cpp")
+  if(NOT srcs)
+    return()
+  endif()
+  add_executable(${name} ${srcs})
+  target_link_libraries(${name} PRIVATE ${ARGN} pcr_test_support GTest::gtest GTest::gtest_main)
+  target_compile_definitions(${name} PRIVATE PCR_SHARED_DIR="${PCR_SHARED_DIR}"
+                                             PCR_SOURCE_DIR="${CMAKE_SOURCE_DIR}")
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ENVIRONMENT
+                       "PCR_SHARED_DIR=${PCR_SHARED_DIR}")
+endfunction()

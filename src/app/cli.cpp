@@ -1,0 +1,36 @@
+#include <spdlog/spdlog.h>
+
+#include <exception>
+
+#include "app/commands.h"
+#include "pcr/version.h"
+
+namespace pcr::app {
+
+int Main(int argc, char** argv) {
+  CLI::App app{"PCR-ORB: stereo/monocular visual SLAM with dynamic-point filtering for driving scenes"};
+  app.set_version_flag("--version", std::string(kVersion));
+  app.require_subcommand(1);
+  std::string log_level = "info";
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
+      ->capture_default_str();
+  app.parse_complete_callback([&] { spdlog::set_level(spdlog::level::from_str(log_level)); });
+  spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
+
+  AddInfoCommand(app);
+  AddEvalCommand(app);
+  AddSynthCommand(app);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace pcr::app

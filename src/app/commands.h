@@ -1,0 +1,16 @@
+#pragma once
+// Subcommands of the pcr_orb executable. Each Add*Command registers one CLI11 subcommand whose
+// callback does the work; errors are thrown (pcr::InputError, pcr::ConfigError, std::exception)
+// and reported once by Main().
+#include <CLI/CLI.hpp>
+
+namespace pcr::app {
+
+void AddInfoCommand(CLI::App& app);   // cmd_info.cpp: describe a KITTI sequence / raw drive
+void AddEvalCommand(CLI::App& app);   // cmd_eval.cpp: ATE / RPE / KITTI metrics
+void AddSynthCommand(CLI::App& app);  // cmd_synth.cpp: write a synthetic KITTI-format sequence
+
+// Runs the command line; returns the process exit code.
+int Main(int argc, char** argv);
+
+}  // namespace pcr::app

@@ -1,0 +1,42 @@
+#pragma once
+// Motion-only optimisation (the paper's Eq. 6): cam_from_world = argmin over the valid features of
+// rho(||z - h(T, X)||^2 weighted by the feature's information), with monocular (u, v) and stereo
+// (u, v, u_right) reprojection residuals, a Huber kernel and ORB-SLAM's outlier rounds
+// (chi-square 5.991 mono, 7.815 stereo). Map points are held fixed.
+#include <Eigen/Core>
+#include <vector>
+
+#include "slam/common/camera.h"
+#include "slam/common/pose.h"
+
+namespace pcr {
+
+struct PoseObservation {
+  Eigen::Vector3d p_in_world;
+  Eigen::Vector2d uv_px;       // left-image keypoint
+  double u_right_px = -1;      // < 0: monocular residual
+  double information = 1.0;    // 1 / sigma^2 of the keypoint's octave (sigma in pixels)
+  double weight = 1.0;         // static-confidence weight from the dynamic filter, in (0, 1]
+  bool excluded = false;       // excluded by the dynamic filter: never used
+};
+
+struct PoseOptimizerOptions {
+  int rounds = 4;                 // outlier-classification rounds
+  int iterations_per_round = 10;  // solver iterations per round
+  double chi2_mono = 5.991;       // 95% chi-square, 2 dof
+  double chi2_stereo = 7.815;     // 95% chi-square, 3 dof
+  bool IsValid(std::string* why) const;
+};
+
+struct PoseOptimizationResult {
+  SE3 cam_from_world = SE3::Identity();
+  std::vector<bool> inlier;  // per observation; excluded observations are false
+  int num_inliers = 0;
+  double final_cost = 0;
+};
+
+PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_world_init,
+                                    const std::vector<PoseObservation>& observations,
+                                    const PoseOptimizerOptions& options = {});
+
+}  // namespace pcr

@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Fails when a layer includes what ../shared/ARCHITECTURE.md forbids it:
+#  - src/slam and src/nodes: no TBB, CUDA or YAML headers;
+#  - src/slam: nothing from nodes, graph, gpu, app, io, eval or sim;
+#  - io, eval, sim: only slam/common from the slam layer, nothing from nodes/graph/app;
+#  - only src/graph includes the TBB flow graph.
+set -u
+root=${1:-.}
+cd "$root" || exit 2
+fail=0
+report() { echo "layering: $1"; echo "$2" | sed 's/^/  /'; fail=1; }
+hits=$(grep -rnE '#include *[<"](oneapi/tbb|tbb/|cuda|yaml-cpp)' src/slam src/nodes 2>/dev/null)
+[ -n "$hits" ] && report "TBB/CUDA/YAML header below src/graph" "$hits"
+hits=$(grep -rnE '#include *"(nodes|graph|gpu|app|io|eval|sim)/' src/slam 2>/dev/null)
+[ -n "$hits" ] && report "src/slam includes a layer above it" "$hits"
+hits=$(grep -rnE '#include *"(slam/(features|map|tracking|mapping|optim|dynamic|loop|geometry)|nodes|graph|app)/' src/io src/eval src/sim 2>/dev/null)
+[ -n "$hits" ] && report "io/eval/sim reach beyond slam/common" "$hits"
+hits=$(grep -rlE '#include *[<"]oneapi/tbb/flow_graph' src | grep -v '^src/graph/')
+[ -n "$hits" ] && report "flow graph included outside src/graph" "$hits"
+hits=$(grep -rnE '\b(std::thread|usleep|sleep_for)\b' src/slam 2>/dev/null)
+[ -n "$hits" ] && report "threads or sleeps in src/slam" "$hits"
+hits=$(find src -name '*.cu' -not -path 'src/gpu/*')
+[ -n "$hits" ] && report ".cu file outside src/gpu" "$hits"
+if [ $fail -eq 0 ]; then echo "layering: ok"; fi
+exit $fail
