@@ -1,0 +1,32 @@
+#include "slam/common/timing.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace pcr {
+
+double Percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const double pos = std::clamp(q, 0.0, 100.0) / 100.0 * static_cast<double>(values.size() - 1);
+  const size_t lo = static_cast<size_t>(std::floor(pos));
+  const size_t hi = std::min(lo + 1, values.size() - 1);
+  const double frac = pos - static_cast<double>(lo);
+  return values[lo] + (values[hi] - values[lo]) * frac;
+}
+
+TimingSummary TimingSeries::Summarize() const {
+  TimingSummary s;
+  s.count = samples_ms_.size();
+  if (s.count == 0) return s;
+  s.total_ms = std::accumulate(samples_ms_.begin(), samples_ms_.end(), 0.0);
+  s.mean_ms = s.total_ms / static_cast<double>(s.count);
+  s.p50_ms = Percentile(samples_ms_, 50);
+  s.p95_ms = Percentile(samples_ms_, 95);
+  s.p99_ms = Percentile(samples_ms_, 99);
+  s.max_ms = *std::max_element(samples_ms_.begin(), samples_ms_.end());
+  return s;
+}
+
+}  // namespace pcr
