@@ -1,0 +1,147 @@
+#include "io/dataset.h"
+
+#include <algorithm>
+#include <array>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+#include "io/kitti_odometry.h"
+#include "io/kitti_raw.h"
+#include "slam/common/error.h"
+
+namespace pcr {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr std::array<unsigned char, 8> kPngSignature = {0x89, 'P',  'N',  'G',
+                                                        '\r', '\n', 0x1a, '\n'};
+// The last 12 bytes of every complete PNG: zero length, "IEND", CRC.
+constexpr std::array<unsigned char, 12> kPngIend = {0,   0,   0,    0,    'I',  'E',
+                                                    'N', 'D', 0xae, 0x42, 0x60, 0x82};
+
+bool HasPngExtension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return ext == ".png";
+}
+
+std::vector<unsigned char> ReadBytes(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw InputError(path, 0, "image file not found");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "cannot open image file");
+  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)),
+                                   std::istreambuf_iterator<char>());
+  if (in.bad()) throw InputError(path, 0, "read error");
+  return bytes;
+}
+
+void CheckPng(const std::string& path, const std::vector<unsigned char>& bytes) {
+  if (bytes.size() < kPngSignature.size() + kPngIend.size() ||
+      !std::equal(kPngSignature.begin(), kPngSignature.end(), bytes.begin()))
+    throw InputError(path, 0, "not a PNG file (bad signature)");
+  if (!std::equal(kPngIend.begin(), kPngIend.end(), bytes.end() - kPngIend.size()))
+    throw InputError(path, 0, "truncated PNG (no IEND chunk at the end)");
+}
+
+const std::string& PathAt(const std::vector<std::string>& paths, size_t i, const char* what) {
+  if (i >= paths.size())
+    throw std::out_of_range(std::string(what) + " image index " + std::to_string(i) +
+                            " out of range (" + std::to_string(paths.size()) + " images)");
+  return paths[i];
+}
+
+}  // namespace
+
+cv::Mat LoadImageChecked(const std::string& path, int flags) {
+  const std::vector<unsigned char> bytes = ReadBytes(path);
+  if (HasPngExtension(path)) CheckPng(path, bytes);
+  cv::Mat image;
+  try {
+    image = cv::imdecode(bytes, flags);
+  } catch (const cv::Exception& e) {
+    throw InputError(path, 0, std::string("cannot decode image: ") + e.what());
+  }
+  if (image.empty()) throw InputError(path, 0, "cannot decode image");
+  return image;
+}
+
+cv::Size ImageSizeOf(const std::string& path) {
+  if (HasPngExtension(path)) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(path, 0, "image file not found");
+    std::array<unsigned char, 24> header{};
+    in.read(reinterpret_cast<char*>(header.data()), header.size());
+    const bool ihdr = in.gcount() == 24 &&
+                      std::equal(kPngSignature.begin(), kPngSignature.end(), header.begin()) &&
+                      header[12] == 'I' && header[13] == 'H' && header[14] == 'D' &&
+                      header[15] == 'R';
+    if (!ihdr) throw InputError(path, 0, "not a PNG file (no IHDR header)");
+    const auto be32 = [&](int at) {
+      return (static_cast<uint32_t>(header[at]) << 24) |
+             (static_cast<uint32_t>(header[at + 1]) << 16) |
+             (static_cast<uint32_t>(header[at + 2]) << 8) | static_cast<uint32_t>(header[at + 3]);
+    };
+    const uint32_t width = be32(16), height = be32(20);
+    if (width == 0 || height == 0 || width > (1u << 20) || height > (1u << 20))
+      throw InputError(path, 0, "PNG header gives an invalid image size");
+    return {static_cast<int>(width), static_cast<int>(height)};
+  }
+  return LoadImageChecked(path, cv::IMREAD_UNCHANGED).size();
+}
+
+std::vector<std::string> ListFiles(const std::string& dir, const std::string& extension) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw InputError(dir, 0, "directory not found");
+  std::vector<std::string> paths;
+  for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
+    if (!entry.is_regular_file()) continue;
+    const std::string name = entry.path().filename().string();
+    if (name.size() > extension.size() &&
+        name.compare(name.size() - extension.size(), extension.size(), extension) == 0)
+      paths.push_back(entry.path().string());
+  }
+  std::sort(paths.begin(), paths.end());
+  return paths;
+}
+
+cv::Mat LoadGreyImage(const std::string& path) {
+  // Decoded as stored, then converted with cvtColor so grey values match
+  // cvtColor(LoadLeftColor(i)) (the decoder's own colour-to-grey conversion differs slightly).
+  cv::Mat image = LoadImageChecked(path, cv::IMREAD_ANYCOLOR);
+  if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
+  if (image.channels() == 4) cv::cvtColor(image, image, cv::COLOR_BGRA2GRAY);
+  if (image.type() != CV_8UC1) throw InputError(path, 0, "unsupported pixel format");
+  return image;
+}
+
+cv::Mat Dataset::LoadLeft(size_t i) const { return LoadGreyImage(PathAt(left_paths, i, "left")); }
+
+cv::Mat Dataset::LoadRight(size_t i) const {
+  return LoadGreyImage(PathAt(right_paths, i, "right"));
+}
+
+cv::Mat Dataset::LoadLeftColor(size_t i) const {
+  return LoadImageChecked(PathAt(left_color_paths, i, "colour"), cv::IMREAD_COLOR);
+}
+
+Dataset OpenDataset(const std::string& path, KittiCameras cams) {
+  std::error_code ec;
+  if (!fs::is_directory(path, ec)) throw InputError(path, 0, "dataset directory not found");
+  const fs::path dir(path);
+  if (fs::is_directory(dir / "image_00" / "data", ec) ||
+      fs::is_directory(dir / "image_02" / "data", ec))
+    return OpenKittiRaw(path, cams);
+  if (fs::exists(dir / "calib.txt", ec)) return OpenKittiOdometry(path, cams);
+  throw InputError(path, 0,
+                   "not a KITTI odometry sequence (calib.txt, image_0/) nor a raw drive "
+                   "(image_00/data/)");
+}
+
+}  // namespace pcr

@@ -1,0 +1,64 @@
+#pragma once
+// A recorded image sequence (KITTI odometry sequence or raw drive) as plain data: calibration,
+// timestamps, image paths and optional ground truth. Images are read lazily and checked, so a
+// truncated or unreadable file throws pcr::InputError naming it.
+#include <cstdint>
+#include <opencv2/core/mat.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "slam/common/camera.h"
+#include "slam/common/pose.h"
+
+namespace pcr {
+
+// Which KITTI camera pair to read: cameras 0/1 (grey) or 2/3 (colour).
+enum class KittiCameras { kGray, kColor };
+
+struct Dataset {
+  std::string name;  // "06", "2011_09_26_drive_0005_sync"
+  std::string root;  // the directory that was opened
+  StereoRig rig;     // rectified left camera; baseline_m = 0 when there is no right image stream
+  std::vector<int64_t> t_ns;  // per frame, strictly increasing
+  // world_from_cam0 (rectified camera 0) per frame, t_ns and frame_index set; frame 0 is the
+  // identity for raw drives (OXTS), as in the KITTI odometry pose files.
+  std::optional<Trajectory> ground_truth;
+  std::string ground_truth_source;  // poses/NN.txt or the OXTS folder; empty without ground truth
+  std::vector<std::string> left_paths;
+  std::vector<std::string> right_paths;       // empty for a monocular sequence
+  std::vector<std::string> left_color_paths;  // camera 2 colour images when present, else empty
+
+  size_t size() const { return left_paths.size(); }
+  bool has_right() const { return !right_paths.empty(); }
+  bool has_color() const { return !left_color_paths.empty(); }
+  double DurationSeconds() const {
+    return t_ns.size() < 2 ? 0.0 : NsToSeconds(t_ns.back() - t_ns.front());
+  }
+
+  // CV_8UC1; colour files are converted to grey. Throws InputError for an unreadable file and
+  // std::out_of_range for a bad index.
+  cv::Mat LoadLeft(size_t i) const;
+  cv::Mat LoadRight(size_t i) const;
+  // CV_8UC3 BGR from left_color_paths (camera 2, which sits about 6 cm from camera 0).
+  cv::Mat LoadLeftColor(size_t i) const;
+};
+
+// Reads and decodes an image file. PNG files must carry the PNG signature and end with an IEND
+// chunk (OpenCV silently decodes truncated PNGs). flags as for cv::imdecode.
+cv::Mat LoadImageChecked(const std::string& path, int flags);
+
+// Reads an image as CV_8UC1: grey files as they are, colour files through cv::cvtColor.
+cv::Mat LoadGreyImage(const std::string& path);
+
+// Width and height of a PNG from its IHDR chunk (other formats are decoded).
+cv::Size ImageSizeOf(const std::string& path);
+
+// Sorted paths of the files in `dir` whose names end with `extension` (e.g. ".png").
+std::vector<std::string> ListFiles(const std::string& dir, const std::string& extension);
+
+// Opens a KITTI odometry sequence directory or a KITTI raw drive directory, decided by the
+// layout (calib.txt + image_0/image_2 vs image_00/data).
+Dataset OpenDataset(const std::string& path, KittiCameras cams = KittiCameras::kGray);
+
+}  // namespace pcr

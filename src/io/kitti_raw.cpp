@@ -1,0 +1,261 @@
+#include "io/kitti_raw.h"
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+
+#include "io/kitti_calib.h"
+#include "io/text_parse.h"
+#include "slam/common/error.h"
+
+namespace pcr {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kEarthRadiusM = 6378137.0;
+constexpr double kDegToRad = std::numbers::pi / 180.0;
+
+// Splits "a<sep>b<sep>c" into exactly n integers, else InputError.
+std::vector<int64_t> SplitInts(std::string_view text, char sep, size_t n, const std::string& name,
+                               int line, const char* what) {
+  std::vector<int64_t> values;
+  size_t begin = 0;
+  while (true) {
+    const size_t end = text.find(sep, begin);
+    const std::string_view part = text.substr(begin, end - begin);
+    if (part.empty() || part.find_first_not_of("0123456789") != std::string_view::npos)
+      throw InputError(name, line, std::string("malformed ") + what);
+    values.push_back(io::ParseInt(part, name, line));
+    if (end == std::string_view::npos) break;
+    begin = end + 1;
+  }
+  if (values.size() != n) throw InputError(name, line, std::string("malformed ") + what);
+  return values;
+}
+
+int64_t ParseDateTimeNs(std::string_view date, std::string_view time, const std::string& name,
+                        int line) {
+  const std::vector<int64_t> ymd = SplitInts(date, '-', 3, name, line, "date (want YYYY-MM-DD)");
+  const std::chrono::year_month_day day{std::chrono::year(static_cast<int>(ymd[0])),
+                                        std::chrono::month(static_cast<unsigned>(ymd[1])),
+                                        std::chrono::day(static_cast<unsigned>(ymd[2]))};
+  if (ymd[0] < 1970 || ymd[0] > 2200 || !day.ok()) throw InputError(name, line, "invalid date");
+  const size_t first_colon = time.find(':');
+  const size_t second_colon =
+      first_colon == std::string_view::npos ? first_colon : time.find(':', first_colon + 1);
+  if (second_colon == std::string_view::npos)
+    throw InputError(name, line, "malformed time (want HH:MM:SS.fraction)");
+  const std::vector<int64_t> hm =
+      SplitInts(time.substr(0, second_colon), ':', 2, name, line, "time (want HH:MM:SS.fraction)");
+  const std::string_view seconds = time.substr(second_colon + 1);
+  if (seconds.empty() || seconds.front() == '-' || seconds.front() == '+' ||
+      seconds.find_first_of("eE") != std::string_view::npos)
+    throw InputError(name, line, "malformed seconds");
+  const int64_t seconds_ns = io::ParseSecondsToNs(seconds, name, line);
+  if (hm[0] > 23 || hm[1] > 59 || seconds_ns >= 61'000'000'000)
+    throw InputError(name, line, "time of day out of range");
+  const int64_t days = std::chrono::sys_days(day).time_since_epoch().count();
+  return ((days * 24 + hm[0]) * 60 + hm[1]) * 60 * 1'000'000'000 + seconds_ns;
+}
+
+SE3 MakePose(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation) {
+  SE3 pose = SE3::Identity();
+  pose.linear() = rotation;
+  pose.translation() = translation;
+  return pose;
+}
+
+std::vector<std::string> CameraImages(const fs::path& camera_dir) {
+  std::error_code ec;
+  if (!fs::is_directory(camera_dir / "data", ec)) return {};
+  return ListFiles((camera_dir / "data").string(), ".png");
+}
+
+}  // namespace
+
+OxtsPacket ParseOxtsPacket(std::istream& in, const std::string& name) {
+  io::LineReader reader(in, name);
+  std::string line;
+  std::vector<double> v;
+  int data_line = 0;
+  while (reader.Next(&line)) {
+    if (io::IsBlank(line)) continue;
+    if (data_line != 0) throw InputError(name, reader.line_no(), "more than one OXTS record");
+    data_line = reader.line_no();
+    v = io::ParseExactly(line, 30, name, data_line);
+  }
+  if (data_line == 0) throw InputError(name, 0, "empty OXTS file");
+  OxtsPacket packet;
+  packet.lat_deg = v[0];
+  packet.lon_deg = v[1];
+  packet.alt_m = v[2];
+  packet.roll_rad = v[3];
+  packet.pitch_rad = v[4];
+  packet.yaw_rad = v[5];
+  packet.forward_speed_mps = v[8];
+  if (std::abs(packet.lat_deg) >= 89.0 || std::abs(packet.lon_deg) > 180.0)
+    throw InputError(name, data_line, "latitude/longitude out of range");
+  return packet;
+}
+
+OxtsPacket ReadOxtsPacket(const std::string& path) {
+  std::ifstream in = io::OpenInputFile(path);
+  return ParseOxtsPacket(in, path);
+}
+
+std::vector<int64_t> ReadRawTimestamps(std::istream& in, const std::string& name) {
+  std::vector<int64_t> times_ns;
+  io::LineReader reader(in, name);
+  std::string line;
+  int first_blank_line = 0;
+  while (reader.Next(&line)) {
+    if (io::IsBlank(line)) {
+      if (first_blank_line == 0) first_blank_line = reader.line_no();
+      continue;
+    }
+    if (first_blank_line != 0)
+      throw InputError(name, first_blank_line, "blank line before the end of the file");
+    const std::vector<std::string_view> tokens = io::SplitWhitespace(line);
+    if (tokens.size() != 2)
+      throw InputError(name, reader.line_no(),
+                       "expected 'YYYY-MM-DD HH:MM:SS.fraction', found " +
+                           std::to_string(tokens.size()) + " fields");
+    const int64_t t_ns = ParseDateTimeNs(tokens[0], tokens[1], name, reader.line_no());
+    if (!times_ns.empty() && t_ns <= times_ns.back())
+      throw InputError(name, reader.line_no(), "timestamps must increase strictly");
+    times_ns.push_back(t_ns);
+  }
+  return times_ns;
+}
+
+std::vector<int64_t> ReadRawTimestamps(const std::string& path) {
+  std::ifstream in = io::OpenInputFile(path);
+  return ReadRawTimestamps(in, path);
+}
+
+SE3 WorldFromImu(const OxtsPacket& packet, double mercator_scale) {
+  const double x_m = mercator_scale * kEarthRadiusM * packet.lon_deg * kDegToRad;
+  const double y_m = mercator_scale * kEarthRadiusM *
+                     std::log(std::tan((90.0 + packet.lat_deg) * std::numbers::pi / 360.0));
+  const Eigen::Matrix3d rotation = (Eigen::AngleAxisd(packet.yaw_rad, Eigen::Vector3d::UnitZ()) *
+                                    Eigen::AngleAxisd(packet.pitch_rad, Eigen::Vector3d::UnitY()) *
+                                    Eigen::AngleAxisd(packet.roll_rad, Eigen::Vector3d::UnitX()))
+                                       .toRotationMatrix();
+  return MakePose(rotation, Eigen::Vector3d(x_m, y_m, packet.alt_m));
+}
+
+SE3 ReadCam0FromImu(const std::string& calib_dir) {
+  const fs::path dir(calib_dir);
+  const CalibFile cam_to_cam = CalibFile::Read((dir / "calib_cam_to_cam.txt").string());
+  const CalibFile velo_to_cam = CalibFile::Read((dir / "calib_velo_to_cam.txt").string());
+  const CalibFile imu_to_velo = CalibFile::Read((dir / "calib_imu_to_velo.txt").string());
+  const SE3 rect0_from_cam0 = MakePose(cam_to_cam.Rotation("R_rect_00"), Eigen::Vector3d::Zero());
+  const SE3 cam0_from_velo = MakePose(velo_to_cam.Rotation("R"), velo_to_cam.Vector3("T"));
+  const SE3 velo_from_imu = MakePose(imu_to_velo.Rotation("R"), imu_to_velo.Vector3("T"));
+  return rect0_from_cam0 * cam0_from_velo * velo_from_imu;
+}
+
+Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE3& cam0_from_imu,
+                                const std::vector<int64_t>& t_ns) {
+  Trajectory trajectory;
+  if (packets.empty()) return trajectory;
+  const double mercator_scale = std::cos(packets.front().lat_deg * kDegToRad);
+  const SE3 imu_from_cam0 = cam0_from_imu.inverse();
+  // Positions are taken relative to the first packet's before composing, so that frame 0 is
+  // exactly the identity and no precision is lost to Mercator coordinates of ~1e6 m.
+  const Eigen::Vector3d origin_m = WorldFromImu(packets.front(), mercator_scale).translation();
+  const auto local_world_from_cam0 = [&](const OxtsPacket& packet) {
+    SE3 world_from_imu = WorldFromImu(packet, mercator_scale);
+    world_from_imu.translation() -= origin_m;
+    return world_from_imu * imu_from_cam0;
+  };
+  const SE3 origin_from_world = local_world_from_cam0(packets.front()).inverse();
+  for (size_t i = 0; i < packets.size(); ++i) {
+    StampedPose pose;
+    pose.t_ns = i < t_ns.size() ? t_ns[i] : 0;
+    pose.frame_index = static_cast<int64_t>(i);
+    pose.world_from_cam =
+        i == 0 ? SE3::Identity() : origin_from_world * local_world_from_cam0(packets[i]);
+    trajectory.push_back(pose);
+  }
+  return trajectory;
+}
+
+Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams) {
+  std::error_code ec;
+  if (!fs::is_directory(drive_dir, ec)) throw InputError(drive_dir, 0, "drive directory not found");
+  fs::path dir(drive_dir);
+  if (dir.filename().empty()) dir = dir.parent_path();
+  const fs::path calib_dir = dir.parent_path();
+
+  Dataset dataset;
+  dataset.root = dir.string();
+  dataset.name = dir.filename().string();
+
+  const bool color = cams == KittiCameras::kColor;
+  const std::string left_name = color ? "image_02" : "image_00";
+  const std::string right_name = color ? "image_03" : "image_01";
+  const fs::path left_dir = dir / left_name;
+  if (!fs::is_directory(left_dir / "data", ec))
+    throw InputError((left_dir / "data").string(), 0, "image directory not found");
+  dataset.left_paths = ListFiles((left_dir / "data").string(), ".png");
+  if (dataset.left_paths.empty())
+    throw InputError((left_dir / "data").string(), 0, "no PNG images");
+  dataset.right_paths = CameraImages(dir / right_name);
+  if (!dataset.right_paths.empty() && dataset.right_paths.size() != dataset.left_paths.size())
+    throw InputError((dir / right_name / "data").string(), 0,
+                     std::to_string(dataset.right_paths.size()) + " images but " + left_name +
+                         " has " + std::to_string(dataset.left_paths.size()));
+  dataset.left_color_paths = color ? dataset.left_paths : CameraImages(dir / "image_02");
+  if (dataset.left_color_paths.size() != dataset.left_paths.size())
+    dataset.left_color_paths.clear();
+
+  const std::string times_path = (left_dir / "timestamps.txt").string();
+  dataset.t_ns = ReadRawTimestamps(times_path);
+  if (dataset.t_ns.size() < dataset.size())
+    throw InputError(times_path, 0,
+                     std::to_string(dataset.t_ns.size()) + " timestamps but " +
+                         std::to_string(dataset.size()) + " images");
+  dataset.t_ns.resize(dataset.size());
+
+  const CalibFile cam_to_cam = CalibFile::Read((calib_dir / "calib_cam_to_cam.txt").string());
+  const Eigen::Matrix<double, 3, 4> p_left =
+      cam_to_cam.Matrix3x4(color ? "P_rect_02" : "P_rect_00");
+  PinholeCamera& cam = dataset.rig.left;
+  cam.fx = p_left(0, 0);
+  cam.fy = p_left(1, 1);
+  cam.cx = p_left(0, 2);
+  cam.cy = p_left(1, 2);
+  const cv::Size size = ImageSizeOf(dataset.left_paths.front());
+  cam.width_px = size.width;
+  cam.height_px = size.height;
+  if (dataset.has_right()) {
+    const Eigen::Matrix<double, 3, 4> p_right =
+        cam_to_cam.Matrix3x4(color ? "P_rect_03" : "P_rect_01");
+    dataset.rig.baseline_m = (p_left(0, 3) - p_right(0, 3)) / cam.fx;
+    if (!(dataset.rig.baseline_m > 0))
+      throw InputError(cam_to_cam.name(), 0, "stereo baseline from P_rect is not positive");
+  }
+  std::string why;
+  if (!dataset.rig.IsValid(&why))
+    throw InputError(cam_to_cam.name(), 0, "calibration gives an invalid camera: " + why);
+
+  const fs::path oxts_dir = dir / "oxts" / "data";
+  if (fs::is_directory(oxts_dir, ec)) {
+    const std::vector<std::string> oxts_paths = ListFiles(oxts_dir.string(), ".txt");
+    if (oxts_paths.size() < dataset.size())
+      throw InputError(oxts_dir.string(), 0,
+                       std::to_string(oxts_paths.size()) + " OXTS records but " +
+                           std::to_string(dataset.size()) + " images");
+    std::vector<OxtsPacket> packets;
+    for (size_t i = 0; i < dataset.size(); ++i) packets.push_back(ReadOxtsPacket(oxts_paths[i]));
+    dataset.ground_truth =
+        OxtsToCam0Trajectory(packets, ReadCam0FromImu(calib_dir.string()), dataset.t_ns);
+    dataset.ground_truth_source = oxts_dir.string();
+  }
+  return dataset;
+}
+
+}  // namespace pcr

@@ -1,0 +1,49 @@
+#pragma once
+// KITTI raw drive: DATE/DATE_drive_NNNN_sync/{image_00..image_03/data/*.png + timestamps.txt,
+// oxts/data/*.txt} with calib_cam_to_cam.txt, calib_velo_to_cam.txt and calib_imu_to_velo.txt in
+// DATE/. Ground truth comes from OXTS (GPS/INS) expressed in the rectified camera 0 frame.
+#include <cstdint>
+#include <istream>
+#include <string>
+#include <vector>
+
+#include "io/dataset.h"
+
+namespace pcr {
+
+// One OXTS record (oxts/data/%010d.txt: 30 numbers on one line; see oxts/dataformat.txt).
+struct OxtsPacket {
+  double lat_deg = 0, lon_deg = 0, alt_m = 0;
+  double roll_rad = 0, pitch_rad = 0, yaw_rad = 0;  // yaw 0 = east, counter-clockwise positive
+  double forward_speed_mps = 0;                     // vf, column 9 of the record
+};
+
+OxtsPacket ReadOxtsPacket(const std::string& path);
+OxtsPacket ParseOxtsPacket(std::istream& in, const std::string& name);
+
+// "2011-09-26 13:04:32.351950336" lines -> nanoseconds since the Unix epoch (the clock is taken
+// as UTC). Times must increase strictly.
+std::vector<int64_t> ReadRawTimestamps(const std::string& path);
+std::vector<int64_t> ReadRawTimestamps(std::istream& in, const std::string& name);
+
+// world_from_imu for one packet in a local Mercator frame (x east, y north, z up; earth radius
+// 6378137 m; mercator_scale = cos(latitude of the first packet)), R = Rz(yaw) Ry(pitch) Rx(roll).
+SE3 WorldFromImu(const OxtsPacket& packet, double mercator_scale);
+
+// Rectified camera 0 from IMU: R_rect_00 * cam0_from_velo * velo_from_imu, from the three calib
+// files in calib_dir.
+SE3 ReadCam0FromImu(const std::string& calib_dir);
+
+// world_from_cam0 per packet relative to the first (pose 0 = identity):
+// inv(W_0) * W_i with W_i = WorldFromImu(p_i) * inv(cam0_from_imu). t_ns[i] and frame_index = i
+// are set (t_ns may be empty: times 0).
+Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE3& cam0_from_imu,
+                                const std::vector<int64_t>& t_ns);
+
+// Rig from P_rect_00/P_rect_01 (kGray) or P_rect_02/P_rect_03 (kColor), baseline
+// (P_left[0][3] - P_right[0][3]) / fx. timestamps.txt may hold more lines than there are images
+// (the first N are used) but not fewer. Ground truth from oxts/data when present (OXTS files
+// must then cover every frame). image_02 fills left_color_paths when present.
+Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams = KittiCameras::kGray);
+
+}  // namespace pcr

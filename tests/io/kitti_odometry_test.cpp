@@ -1,0 +1,208 @@
+#include "io/kitti_odometry.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "io/kitti_raw.h"
+#include "io_test_util.h"
+#include "support/data_paths.h"
+
+namespace pcr {
+namespace {
+
+namespace fs = std::filesystem;
+using test::ExpectInputError;
+using test::WriteText;
+
+const char kCalib[] =
+    "P0: 700 0 600 0 0 710 180 0 0 0 1 0\n"
+    "P1: 700 0 600 -378 0 710 180 0 0 0 1 0\n"
+    "P2: 700 0 600 42 0 710 180 0.1 0 0 1 0.003\n"
+    "P3: 700 0 600 -336 0 710 180 2 0 0 1 0.003\n";
+
+// A small synthetic odometry layout: root/sequences/03/{image_0,image_1,...}, root/poses/03.txt.
+class SyntheticOdometry : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = test::MakeTempDir("pcr_odom");
+    seq_ = root_ + "/sequences/03";
+    WriteText(seq_ + "/calib.txt", kCalib);
+    WriteText(seq_ + "/times.txt", "0.0\n0.1\n0.2\n");
+    WriteText(root_ + "/poses/03.txt",
+              "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 1\n1 0 0 0 0 1 0 0 0 0 1 2\n"
+              "1 0 0 0 0 1 0 0 0 0 1 3\n");
+    WriteImages("image_0", 3, CV_8UC1);
+    WriteImages("image_1", 3, CV_8UC1);
+  }
+  void TearDown() override { fs::remove_all(root_); }
+
+  void WriteImages(const std::string& camera, int n, int type) {
+    fs::create_directories(seq_ + "/" + camera);
+    for (int i = 0; i < n; ++i) {
+      cv::Mat image(24, 32, type, cv::Scalar(10 * i, 20, 30));
+      char name[32];
+      std::snprintf(name, sizeof(name), "/%06d.png", i);
+      ASSERT_TRUE(cv::imwrite(seq_ + "/" + camera + name, image));
+    }
+  }
+
+  std::string root_, seq_;
+};
+
+TEST_F(SyntheticOdometry, ReadsRigTimesImagesAndGroundTruth) {
+  const Dataset d = OpenKittiOdometry(seq_);
+  EXPECT_EQ(d.name, "03");
+  ASSERT_EQ(d.size(), 3u);
+  EXPECT_TRUE(d.has_right());
+  EXPECT_FALSE(d.has_color());
+  EXPECT_DOUBLE_EQ(d.rig.left.fx, 700);
+  EXPECT_DOUBLE_EQ(d.rig.left.fy, 710);
+  EXPECT_DOUBLE_EQ(d.rig.left.cx, 600);
+  EXPECT_DOUBLE_EQ(d.rig.left.cy, 180);
+  EXPECT_DOUBLE_EQ(d.rig.baseline_m, 0.54);
+  EXPECT_EQ(d.rig.left.width_px, 32);
+  EXPECT_EQ(d.rig.left.height_px, 24);
+  EXPECT_EQ(d.t_ns[2], 200'000'000);
+  ASSERT_TRUE(d.ground_truth.has_value());
+  ASSERT_EQ(d.ground_truth->size(), 3u);  // the 4th pose is beyond the images and dropped
+  EXPECT_EQ((*d.ground_truth)[2].t_ns, 200'000'000);
+  EXPECT_EQ((*d.ground_truth)[2].frame_index, 2);
+  EXPECT_DOUBLE_EQ((*d.ground_truth)[2].world_from_cam.translation().z(), 2.0);
+  const cv::Mat left = d.LoadLeft(2);
+  EXPECT_EQ(left.type(), CV_8UC1);
+  EXPECT_EQ(left.at<uint8_t>(0, 0), 20);
+  EXPECT_EQ(d.LoadRight(1).at<uint8_t>(5, 5), 10);
+  EXPECT_THROW(d.LoadLeft(3), std::out_of_range);
+  // OpenDataset detects the odometry layout.
+  EXPECT_EQ(OpenDataset(seq_ + "/").size(), 3u);
+}
+
+TEST_F(SyntheticOdometry, ColourCamerasUseP2P3AndConvertToGrey) {
+  WriteImages("image_2", 3, CV_8UC3);
+  WriteImages("image_3", 3, CV_8UC3);
+  const Dataset d = OpenKittiOdometry(seq_, KittiCameras::kColor);
+  // baseline = (P2[0][3] - P3[0][3]) / fx = (42 + 336) / 700.
+  EXPECT_NEAR(d.rig.baseline_m, 0.54, 1e-12);
+  EXPECT_TRUE(d.has_color());
+  const cv::Mat grey = d.LoadLeft(1);
+  EXPECT_EQ(grey.type(), CV_8UC1);
+  const cv::Mat colour = d.LoadLeftColor(1);
+  EXPECT_EQ(colour.type(), CV_8UC3);
+  EXPECT_EQ(colour.at<cv::Vec3b>(0, 0), cv::Vec3b(10, 20, 30));
+  // BGR (10, 20, 30) -> 0.114*10 + 0.587*20 + 0.299*30 = 21.9
+  EXPECT_EQ(grey.at<uint8_t>(0, 0), 22);
+  // The grey sequence also offers the colour left images when image_2 is complete.
+  EXPECT_TRUE(OpenKittiOdometry(seq_).has_color());
+}
+
+TEST_F(SyntheticOdometry, MonocularWhenNoRightImages) {
+  fs::remove_all(seq_ + "/image_1");
+  const Dataset d = OpenKittiOdometry(seq_);
+  EXPECT_FALSE(d.has_right());
+  EXPECT_EQ(d.rig.baseline_m, 0.0);
+  EXPECT_FALSE(d.rig.IsStereo());
+}
+
+TEST_F(SyntheticOdometry, ImageCountMustMatchTimes) {
+  WriteText(seq_ + "/times.txt", "0.0\n0.1\n");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "times.txt", 0, "2 timestamps but 3 images");
+  WriteText(seq_ + "/times.txt", "0.0\n0.1\n0.2\n");
+  fs::remove(seq_ + "/image_1/000002.png");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "image_1", 0, "2 images but image_0 has 3");
+}
+
+TEST_F(SyntheticOdometry, MissingPiecesAreNamed) {
+  ExpectInputError([&] { OpenKittiOdometry(root_ + "/sequences/99"); }, "sequences/99", 0,
+                   "not found");
+  ExpectInputError([&] { OpenDataset(root_ + "/sequences/99"); }, "sequences/99", 0, "not found");
+  ExpectInputError([&] { OpenDataset(root_); }, root_, 0, "not a KITTI");
+  WriteText(seq_ + "/calib.txt", "P0: 700 0 600 0 0 710 180 0 0 0 1 0\n");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "calib.txt", 0,
+                   "missing calibration entry 'P1'");
+  WriteText(seq_ + "/calib.txt",
+            "P0: 700 0 600 0 0 710 180 0 0 0 1 0\nP1: 700 0 600 -378 0 710 180 0 0 0 1\n");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "calib.txt", 2, "entry 'P1': expected 12");
+  WriteText(seq_ + "/calib.txt", kCalib);
+  WriteText(root_ + "/poses/03.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "poses/03.txt", 0, "1 poses but 3 frames");
+  fs::remove(root_ + "/poses/03.txt");
+  EXPECT_FALSE(OpenKittiOdometry(seq_).ground_truth.has_value());
+  fs::remove(seq_ + "/times.txt");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "times.txt", 0, "not found");
+}
+
+TEST_F(SyntheticOdometry, TruncatedPngIsRejectedNamingTheFile) {
+  // Cut a real KITTI PNG in half: OpenCV would still decode the top part.
+  const std::string real = test::SharedPath("data/kitti/sequences/06/image_0/000000.png");
+  std::ifstream in(real, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 1000u);
+  const std::string cut = seq_ + "/image_0/000001.png";
+  WriteText(cut, bytes.substr(0, bytes.size() / 2));
+  const Dataset d = OpenKittiOdometry(seq_);
+  ExpectInputError([&] { d.LoadLeft(1); }, "image_0/000001.png", 0, "truncated PNG");
+  WriteText(cut, bytes.substr(0, bytes.size() - 1));  // only the last CRC byte missing
+  ExpectInputError([&] { d.LoadLeft(1); }, "image_0/000001.png", 0, "truncated PNG");
+  WriteText(cut, "GIF89a not a png at all, but long enough");
+  ExpectInputError([&] { d.LoadLeft(1); }, "image_0/000001.png", 0, "not a PNG");
+  // The intact real file decodes.
+  WriteText(cut, bytes);
+  EXPECT_EQ(d.LoadLeft(1).size(), cv::Size(1226, 370));
+  // A truncated first image is caught when the size is read from its header.
+  WriteText(seq_ + "/image_0/000000.png", bytes.substr(0, 20));
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "image_0/000000.png", 0, "IHDR");
+}
+
+TEST(RealOdometry, Sequence06IsStereo) {
+  const Dataset d = OpenKittiOdometry(test::SharedPath("data/kitti/sequences/06"));
+  EXPECT_EQ(d.name, "06");
+  EXPECT_EQ(d.size(), 51u);
+  EXPECT_TRUE(d.has_right());
+  EXPECT_NEAR(d.rig.baseline_m, 0.537, 1e-3);
+  EXPECT_NEAR(d.rig.baseline_m, 379.8145 / 707.0912, 1e-12);
+  // seq 06 carries the 2011_09_30 calibration (P0 fx = 707.0912), not seq 00's 718.856.
+  EXPECT_NEAR(d.rig.left.fx, 707.0912, 1e-9);
+  EXPECT_NEAR(d.rig.left.cx, 601.8873, 1e-9);
+  EXPECT_NEAR(d.rig.left.cy, 183.1104, 1e-9);
+  EXPECT_EQ(d.rig.left.width_px, 1226);
+  EXPECT_EQ(d.rig.left.height_px, 370);
+  ASSERT_TRUE(d.ground_truth.has_value());
+  EXPECT_EQ(d.ground_truth->size(), 51u);
+  EXPECT_NEAR(d.DurationSeconds(), NsToSeconds(d.t_ns.back()), 1e-12);
+  const cv::Mat right = d.LoadRight(50);
+  EXPECT_EQ(right.type(), CV_8UC1);
+  EXPECT_EQ(right.size(), cv::Size(1226, 370));
+  // The car drives forward: ground truth ends ahead (+z) of the start.
+  EXPECT_GT(d.ground_truth->back().world_from_cam.translation().z(), 5.0);
+}
+
+TEST(RealOdometry, Sequence00IsMonocular) {
+  const Dataset d = OpenKittiOdometry(test::SharedPath("data/kitti/sequences/00"));
+  EXPECT_EQ(d.size(), 100u);
+  EXPECT_FALSE(d.has_right());
+  EXPECT_EQ(d.rig.baseline_m, 0.0);
+  EXPECT_NEAR(d.rig.left.fx, 718.856, 1e-9);
+  EXPECT_EQ(d.rig.left.width_px, 1241);
+  EXPECT_EQ(d.rig.left.height_px, 376);
+  ASSERT_TRUE(d.ground_truth.has_value());
+  EXPECT_EQ(d.ground_truth->size(), 100u);
+  EXPECT_EQ(d.LoadLeft(99).size(), cv::Size(1241, 376));
+  EXPECT_THROW(d.LoadRight(0), std::out_of_range);
+}
+
+TEST(RealOdometry, Sequence07AndAutoDetect) {
+  const Dataset d = OpenDataset(test::SharedPath("data/kitti/sequences/07"));
+  EXPECT_EQ(d.size(), 160u);
+  EXPECT_FALSE(d.has_right());
+  EXPECT_EQ(d.rig.left.width_px, 1226);
+  ASSERT_TRUE(d.ground_truth.has_value());
+  EXPECT_EQ(d.ground_truth->size(), 160u);
+  // KITTI records at about 10 Hz.
+  EXPECT_NEAR((d.size() - 1) / d.DurationSeconds(), 10.0, 0.5);
+}
+
+}  // namespace
+}  // namespace pcr
