@@ -8,7 +8,8 @@
 namespace pcr::app {
 
 int Main(int argc, char** argv) {
-  CLI::App app{"PCR-ORB: stereo/monocular visual SLAM with dynamic-point filtering for driving scenes"};
+  CLI::App app{
+      "PCR-ORB: stereo/monocular visual SLAM with dynamic-point filtering for driving scenes"};
   app.set_version_flag("--version", std::string(kVersion));
   app.require_subcommand(1);
   std::string log_level = "info";
@@ -18,6 +19,7 @@ int Main(int argc, char** argv) {
   app.parse_complete_callback([&] { spdlog::set_level(spdlog::level::from_str(log_level)); });
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
 
+  AddRunCommand(app);
   AddInfoCommand(app);
   AddEvalCommand(app);
   AddSynthCommand(app);

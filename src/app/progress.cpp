@@ -56,9 +56,8 @@ void Progress::Draw(bool final, const std::string& detail) {
                 detail.c_str());
     if (final) std::printf("\n");
   } else {
-    std::printf("%s: %lld/%lld (%3.0f%%) %.1fs %s\n", label_.c_str(),
-                static_cast<long long>(done_), static_cast<long long>(total_), 100.0 * frac,
-                elapsed_s, detail.c_str());
+    std::printf("%s: %lld/%lld (%3.0f%%) %.1fs %s\n", label_.c_str(), static_cast<long long>(done_),
+                static_cast<long long>(total_), 100.0 * frac, elapsed_s, detail.c_str());
   }
   std::fflush(stdout);
 }

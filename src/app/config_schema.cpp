@@ -1,0 +1,158 @@
+#include "app/config_schema.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "slam/common/error.h"
+
+namespace pcr::app {
+namespace {
+
+int LineOf(const YAML::Node& node) { return node.Mark().line >= 0 ? node.Mark().line + 1 : 0; }
+
+template <typename T>
+T Convert(const YAML::Node& node, const std::string& source, const std::string& what,
+          const char* type_name) {
+  if (!node.IsScalar())
+    throw InputError(source, LineOf(node), what + ": expected a " + type_name + " value");
+  try {
+    return node.as<T>();
+  } catch (const YAML::Exception&) {
+    throw InputError(source, LineOf(node),
+                     what + ": '" + node.Scalar() + "' is not a valid " + type_name);
+  }
+}
+
+void Assign(const ConfigSchema::FieldPtr& ptr, const YAML::Node& value, const std::string& source,
+            const std::string& what) {
+  std::visit(
+      [&](auto* field) {
+        using T = std::remove_pointer_t<decltype(field)>;
+        if constexpr (std::is_same_v<T, int>) {
+          *field = Convert<int>(value, source, what, "integer");
+        } else if constexpr (std::is_same_v<T, double>) {
+          const double v = Convert<double>(value, source, what, "number");
+          if (!std::isfinite(v))
+            throw InputError(source, LineOf(value), what + ": value must be finite");
+          *field = v;
+        } else if constexpr (std::is_same_v<T, bool>) {
+          *field = Convert<bool>(value, source, what, "boolean (true/false)");
+        } else {
+          *field = Convert<std::string>(value, source, what, "string");
+        }
+      },
+      ptr);
+}
+
+}  // namespace
+
+void ConfigSchema::Add(const std::string& section, const std::string& key, FieldPtr field,
+                       const std::string& doc) {
+  if (Find(section, key))
+    throw std::logic_error("config key registered twice: " + section + "." + key);
+  fields_.push_back({section, key, doc, field});
+}
+
+bool ConfigSchema::Has(const std::string& section, const std::string& key) const {
+  return Find(section, key) != nullptr;
+}
+
+const ConfigSchema::Field* ConfigSchema::Find(const std::string& section,
+                                              const std::string& key) const {
+  for (const Field& f : fields_)
+    if (f.section == section && f.key == key) return &f;
+  return nullptr;
+}
+
+void ConfigSchema::LoadFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, 0, "cannot open configuration file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  LoadString(ss.str(), path);
+}
+
+void ConfigSchema::LoadString(const std::string& text, const std::string& source_name) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::ParserException& e) {
+    throw InputError(source_name, e.mark.line + 1, "malformed YAML: " + e.msg);
+  }
+  if (root.IsNull()) return;  // empty file: all defaults
+  if (!root.IsMap()) throw InputError(source_name, LineOf(root), "expected a map of sections");
+  // All or nothing: a file that fails half-way leaves the configuration as it was.
+  using Value = std::variant<int, double, bool, std::string>;
+  std::vector<Value> saved;
+  for (const Field& f : fields_) std::visit([&](auto* p) { saved.emplace_back(*p); }, f.ptr);
+  try {
+    Apply(root, source_name);
+  } catch (...) {
+    for (size_t i = 0; i < fields_.size(); ++i)
+      std::visit([&](auto* p) { *p = std::get<std::remove_pointer_t<decltype(p)>>(saved[i]); },
+                 fields_[i].ptr);
+    throw;
+  }
+}
+
+void ConfigSchema::Apply(const YAML::Node& root, const std::string& source) {
+  std::set<std::string> sections;
+  for (const Field& f : fields_) sections.insert(f.section);
+  for (const auto& sec : root) {
+    const std::string section = sec.first.as<std::string>();
+    if (!sections.count(section)) {
+      std::string known;
+      for (const auto& s : sections) known += (known.empty() ? "" : ", ") + s;
+      throw InputError(source, LineOf(sec.first),
+                       "unknown section '" + section + "' (known: " + known + ")");
+    }
+    if (sec.second.IsNull()) continue;
+    if (!sec.second.IsMap())
+      throw InputError(source, LineOf(sec.second), "section '" + section + "' must be a map");
+    for (const auto& kv : sec.second) {
+      const std::string key = kv.first.as<std::string>();
+      const Field* f = Find(section, key);
+      if (!f)
+        throw InputError(source, LineOf(kv.first), "unknown key '" + section + "." + key + "'");
+      Assign(f->ptr, kv.second, source, section + "." + key);
+    }
+  }
+}
+
+void ConfigSchema::Set(const std::string& assignment, const std::string& source_name) {
+  const auto eq = assignment.find('=');
+  const auto dot = assignment.find('.');
+  if (eq == std::string::npos || dot == std::string::npos || dot > eq)
+    throw InputError(source_name, 0, "override '" + assignment + "' is not section.key=value");
+  const std::string section = assignment.substr(0, dot);
+  const std::string key = assignment.substr(dot + 1, eq - dot - 1);
+  const Field* f = Find(section, key);
+  if (!f) throw InputError(source_name, 0, "unknown key '" + section + "." + key + "'");
+  Assign(f->ptr, YAML::Load(assignment.substr(eq + 1)), source_name, section + "." + key);
+}
+
+std::string ConfigSchema::Dump() const {
+  YAML::Emitter out;
+  out << YAML::BeginMap;
+  std::vector<std::string> order;
+  for (const Field& f : fields_)
+    if (std::find(order.begin(), order.end(), f.section) == order.end()) order.push_back(f.section);
+  for (const std::string& section : order) {
+    out << YAML::Key << section << YAML::Value << YAML::BeginMap;
+    for (const Field& f : fields_) {
+      if (f.section != section) continue;
+      if (!f.doc.empty()) out << YAML::Comment(f.doc);
+      out << YAML::Key << f.key << YAML::Value;
+      std::visit([&](auto* field) { out << *field; }, f.ptr);
+    }
+    out << YAML::EndMap;
+  }
+  out << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
+}
+
+}  // namespace pcr::app

@@ -1,0 +1,201 @@
+#include "app/run_slam.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "eval/plot.h"
+#include "eval/report.h"
+#include "io/trajectory_io.h"
+#include "slam/common/error.h"
+
+namespace pcr::app {
+namespace {
+
+StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera) {
+  StereoRig rig = dataset.rig;
+  if (!camera.Active()) return rig;
+  auto differs = [](double a, double b) { return std::abs(a - b) > 0.01 * std::abs(b); };
+  if (differs(camera.fx, rig.left.fx) || differs(camera.cx, rig.left.cx) ||
+      (camera.baseline_m > 0 && differs(camera.baseline_m, rig.baseline_m)))
+    spdlog::warn("camera override differs from the dataset calibration by more than 1%");
+  rig.left.fx = camera.fx;
+  rig.left.fy = camera.fy;
+  rig.left.cx = camera.cx;
+  rig.left.cy = camera.cy;
+  if (camera.baseline_m > 0) rig.baseline_m = camera.baseline_m;
+  return rig;
+}
+
+nlohmann::json TimingJson(const TimingSummary& s) {
+  return {{"count", s.count},   {"mean_ms", s.mean_ms}, {"p50_ms", s.p50_ms},
+          {"p95_ms", s.p95_ms}, {"p99_ms", s.p99_ms},   {"max_ms", s.max_ms}};
+}
+
+}  // namespace
+
+FrameRange FrameRange::Parse(const std::string& text, size_t size) {
+  FrameRange r{0, size};
+  if (text.empty()) return r;
+  const auto colon = text.find(':');
+  if (colon == std::string::npos) throw ConfigError("--frames '" + text + "' is not A:B");
+  try {
+    const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
+    if (!a.empty()) r.first = std::stoul(a);
+    if (!b.empty()) r.end = std::stoul(b);
+  } catch (const std::exception&) {
+    throw ConfigError("--frames '" + text + "': A and B must be frame numbers");
+  }
+  if (r.end > size) r.end = size;
+  if (r.first >= r.end)
+    throw ConfigError("--frames '" + text + "' selects no frame of " + std::to_string(size));
+  return r;
+}
+
+RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, FrameRange range,
+                   const FrameCallback& on_frame) {
+  if (range.end == 0 || range.end > dataset.size()) range.end = dataset.size();
+  if (!dataset.has_right())
+    throw ConfigError(dataset.root + ": stereo mode needs a right image stream (image_1)");
+  RunSummary summary;
+  summary.dataset_name = dataset.name;
+  summary.range = range;
+  const auto start = std::chrono::steady_clock::now();
+
+  SlamSystem slam(EffectiveRig(dataset, config.camera), config.slam);
+  std::vector<int64_t> indices;
+  for (size_t i = range.first; i < range.end; ++i) {
+    FrameOutput out;
+    try {
+      const cv::Mat left = dataset.LoadLeft(i);
+      const cv::Mat right = dataset.LoadRight(i);
+      out = slam.ProcessFrame(static_cast<int64_t>(i), dataset.t_ns[i], left, right);
+    } catch (const std::exception& e) {
+      summary.error = e.what();
+      spdlog::error("frame {}: {} (keeping the {} frames done)", i, e.what(), indices.size());
+      break;
+    }
+    indices.push_back(static_cast<int64_t>(i));
+    ++summary.frames_in;
+    switch (out.status) {
+      case TrackingStatus::kOk:
+        ++summary.frames_tracked;
+        break;
+      case TrackingStatus::kLost:
+        ++summary.frames_lost;
+        break;
+      case TrackingStatus::kNotInitialized:
+        ++summary.frames_not_initialized;
+        break;
+    }
+    summary.stages["orb_left"].Add(out.times_ms.orb_left);
+    summary.stages["orb_right"].Add(out.times_ms.orb_right);
+    summary.stages["stereo"].Add(out.times_ms.stereo);
+    summary.stages["tracking"].Add(out.times_ms.tracking);
+    if (out.keyframe_inserted) summary.stages["local_mapping"].Add(out.times_ms.local_mapping);
+    summary.stages["total"].Add(out.times_ms.total);
+    summary.keyframes = out.num_keyframes;
+    summary.map_points = out.num_map_points;
+    if (on_frame) on_frame(summary.frames_in, range.end - range.first, out);
+  }
+  summary.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  // Refined poses of tracked frames; hold the last known pose elsewhere.
+  summary.tracked = slam.RefinedTrajectory();
+  std::map<int64_t, SE3> refined;
+  for (const StampedPose& p : summary.tracked) refined[p.frame_index] = p.world_from_cam;
+  SE3 last = SE3::Identity();
+  for (int64_t i : indices) {
+    StampedPose p;
+    p.frame_index = i;
+    p.t_ns = dataset.t_ns[static_cast<size_t>(i)];
+    const auto it = refined.find(i);
+    summary.frame_tracked.push_back(it != refined.end());
+    if (it != refined.end()) last = it->second;
+    p.world_from_cam = last;
+    summary.per_frame.push_back(p);
+  }
+
+  if (dataset.ground_truth && summary.tracked.size() >= 3) {
+    Trajectory gt;
+    for (int64_t i : indices) gt.push_back((*dataset.ground_truth)[static_cast<size_t>(i)]);
+    summary.eval_options.alignment.mode = eval::AlignMode::kSe3;
+    summary.eval_options.kitti.lengths_m = {5, 10, 20, 40, 80, 100, 200, 400, 800};
+    try {
+      summary.evaluation =
+          eval::Evaluate(eval::AssociateByFrameIndex(gt, summary.tracked), summary.eval_options);
+    } catch (const std::exception& e) {
+      spdlog::warn("evaluation skipped: {}", e.what());
+    }
+  }
+  return summary;
+}
+
+void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
+                     const std::string& config_yaml) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throw InputError(out_dir, 0, "cannot create output directory: " + ec.message());
+  WriteKittiTrajectory(out_dir + "/trajectory.txt", s.per_frame);
+  WriteTumTrajectory(out_dir + "/trajectory_tum.txt", s.tracked);
+  {
+    std::ofstream cfg(out_dir + "/config.yaml");
+    cfg << config_yaml;
+    if (!cfg) throw InputError(out_dir + "/config.yaml", 0, "cannot write");
+  }
+  nlohmann::json j;
+  j["dataset"] = s.dataset_name;
+  j["frames"] = {{"first", s.range.first}, {"end", s.range.end},
+                 {"in", s.frames_in},      {"tracked", s.frames_tracked},
+                 {"lost", s.frames_lost},  {"not_initialized", s.frames_not_initialized}};
+  j["keyframes"] = s.keyframes;
+  j["map_points"] = s.map_points;
+  j["wall_s"] = s.wall_s;
+  j["fps"] = s.wall_s > 0 ? static_cast<double>(s.frames_in) / s.wall_s : 0.0;
+  for (const auto& [name, series] : s.stages) j["stages"][name] = TimingJson(series.Summarize());
+  if (!s.error.empty()) j["error"] = s.error;
+  if (s.evaluation) {
+    const eval::EvalResult& e = *s.evaluation;
+    j["ate_m"] = {{"rmse", e.ape.trans_m.rmse},
+                  {"mean", e.ape.trans_m.mean},
+                  {"median", e.ape.trans_m.median},
+                  {"max", e.ape.trans_m.max},
+                  {"matched", e.matched}};
+    j["rpe_m"] = {{"rmse", e.rpe.trans_m.rmse}, {"max", e.rpe.trans_m.max}};
+    std::ofstream ev(out_dir + "/evaluation.json");
+    ev << eval::ToJson(e, s.eval_options).dump(2) << "\n";
+    eval::PlotOptions plot;
+    plot.title = "PCR-ORB " + s.dataset_name + " (top view, SE(3)-aligned)";
+    eval::WriteTrajectoryPlot(out_dir + "/trajectory.png",
+                              eval::GroundTruthAndEstimate(e.reference, e.aligned_estimate), plot);
+  }
+  std::ofstream stats(out_dir + "/stats.json");
+  stats << j.dump(2) << "\n";
+  if (!stats) throw InputError(out_dir + "/stats.json", 0, "cannot write");
+}
+
+std::string FormatRunSummary(const RunSummary& s) {
+  std::ostringstream o;
+  o << "frames: " << s.frames_in << " in, " << s.frames_tracked << " tracked, " << s.frames_lost
+    << " lost, " << s.frames_not_initialized << " not initialised; " << s.keyframes
+    << " keyframes, " << s.map_points << " map points; "
+    << fmt::format("{:.1f} s ({:.1f} fps)\n", s.wall_s,
+                   s.wall_s > 0 ? static_cast<double>(s.frames_in) / s.wall_s : 0.0);
+  o << fmt::format("{:<14} {:>6} {:>9} {:>9} {:>9} {:>9}\n", "stage", "calls", "mean ms", "p50 ms",
+                   "p95 ms", "p99 ms");
+  for (const auto& [name, series] : s.stages) {
+    const TimingSummary t = series.Summarize();
+    o << fmt::format("{:<14} {:>6} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f}\n", name, t.count, t.mean_ms,
+                     t.p50_ms, t.p95_ms, t.p99_ms);
+  }
+  if (s.evaluation) o << eval::FormatReport(*s.evaluation, s.eval_options);
+  if (!s.error.empty()) o << "run stopped early: " << s.error << "\n";
+  return o.str();
+}
+
+}  // namespace pcr::app

@@ -1,0 +1,32 @@
+#pragma once
+// The `run` configuration: SLAM options bound to YAML keys (config/*.yaml), loaded once at the
+// edge.
+#include <string>
+
+#include "app/config_schema.h"
+#include "slam/system/slam_system.h"
+
+namespace pcr::app {
+
+// Optional camera override (all zero: use the dataset's calibration).
+struct CameraOverride {
+  double fx = 0, fy = 0, cx = 0, cy = 0, baseline_m = 0;
+  bool Active() const { return fx > 0 || fy > 0 || cx > 0 || cy > 0 || baseline_m > 0; }
+  // Either all of fx, fy, cx, cy (and baseline_m for stereo) or none.
+  bool IsValid(std::string* why) const;
+};
+
+struct RunConfig {
+  SlamOptions slam;
+  CameraOverride camera;
+};
+
+// Registers every configurable field of `config` in `schema`.
+void BindRunConfig(RunConfig& config, ConfigSchema& schema);
+
+// Defaults, then the file (if not empty), then "section.key=value" overrides; validated.
+// Throws InputError (file, line) for bad files and ConfigError for invalid values.
+RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>& overrides,
+                        std::string* effective_yaml);
+
+}  // namespace pcr::app

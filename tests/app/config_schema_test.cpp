@@ -1,0 +1,102 @@
+#include "app/config_schema.h"
+
+#include <gtest/gtest.h>
+
+#include "slam/common/error.h"
+
+namespace pcr::app {
+namespace {
+
+struct Opts {
+  int count = 5;
+  double scale = 1.2;
+  bool flag = false;
+  std::string name = "x";
+};
+
+ConfigSchema MakeSchema(Opts& o) {
+  ConfigSchema s;
+  s.Add("orb", "count", &o.count);
+  s.Add("orb", "scale", &o.scale);
+  s.Add("misc", "flag", &o.flag);
+  s.Add("misc", "name", &o.name);
+  return s;
+}
+
+TEST(ConfigSchema, OverridesOnlyGivenKeys) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  s.LoadString("orb:\n  count: 9\nmisc:\n  flag: true\n", "t.yaml");
+  EXPECT_EQ(o.count, 9);
+  EXPECT_DOUBLE_EQ(o.scale, 1.2);
+  EXPECT_TRUE(o.flag);
+  EXPECT_EQ(o.name, "x");
+}
+
+TEST(ConfigSchema, UnknownKeyNamesFileAndLine) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  try {
+    s.LoadString("orb:\n  count: 9\n  cuont: 3\n", "cfg.yaml");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 3);
+    EXPECT_NE(std::string(e.what()).find("cfg.yaml:3: unknown key 'orb.cuont'"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(s.LoadString("nosuch:\n  a: 1\n", "cfg.yaml"), InputError);
+}
+
+TEST(ConfigSchema, WrongTypeAndMalformedYamlRejected) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  try {
+    s.LoadString("orb:\n  count: many\n", "cfg.yaml");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 2);
+    EXPECT_NE(std::string(e.what()).find("not a valid integer"), std::string::npos);
+  }
+  EXPECT_THROW(s.LoadString("orb: [1, 2\n", "bad.yaml"), InputError);
+  EXPECT_THROW(s.LoadString("orb:\n  scale: .nan\n", "nan.yaml"), InputError);
+  EXPECT_EQ(o.count, 5);  // nothing applied by the failed loads above
+  EXPECT_THROW(s.LoadString("orb:\n  count: 8\n  scale: big\n", "half.yaml"), InputError);
+  EXPECT_EQ(o.count, 5);  // the valid first key of a failing file is rolled back
+}
+
+TEST(ConfigSchema, DumpRoundTrips) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  o.count = 17;
+  o.name = "kitti";
+  const std::string dumped = s.Dump();
+  Opts o2;
+  ConfigSchema s2 = MakeSchema(o2);
+  s2.LoadString(dumped, "dump");
+  EXPECT_EQ(o2.count, 17);
+  EXPECT_EQ(o2.name, "kitti");
+  EXPECT_DOUBLE_EQ(o2.scale, 1.2);
+}
+
+TEST(ConfigSchema, CommandLineOverride) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  s.Set("orb.scale=1.5", "--set");
+  EXPECT_DOUBLE_EQ(o.scale, 1.5);
+  EXPECT_THROW(s.Set("orb.scale", "--set"), InputError);
+  EXPECT_THROW(s.Set("orb.nokey=1", "--set"), InputError);
+}
+
+TEST(ConfigSchema, MissingFileNamed) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  try {
+    s.LoadFile("/nonexistent/cfg.yaml");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/cfg.yaml"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace pcr::app

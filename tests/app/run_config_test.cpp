@@ -1,0 +1,126 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "app/run_slam.h"
+#include "app/slam_config.h"
+#include "slam/common/error.h"
+#include "support/data_paths.h"
+
+namespace pcr::app {
+namespace {
+
+std::string WriteFile(const std::string& dir, const std::string& name, const std::string& text) {
+  const std::string path = dir + "/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+TEST(RunConfig, KittiPresetsLoadAndValidate) {
+  for (const char* preset : {"kitti00-02", "kitti03", "kitti04-12"}) {
+    std::string yaml;
+    const RunConfig c =
+        LoadRunConfig(std::string(PCR_SOURCE_DIR) + "/config/" + preset + ".yaml", {}, &yaml);
+    EXPECT_EQ(c.slam.orb.num_features, 2000) << preset;
+    EXPECT_TRUE(c.camera.Active()) << preset;
+    EXPECT_NEAR(c.camera.baseline_m, 0.537, 1e-3) << preset;
+    EXPECT_NE(yaml.find("num_features: 2000"), std::string::npos);
+  }
+  const RunConfig c =
+      LoadRunConfig(std::string(PCR_SOURCE_DIR) + "/config/kitti04-12.yaml", {}, nullptr);
+  EXPECT_DOUBLE_EQ(c.camera.fx, 707.0912);
+}
+
+TEST(RunConfig, NegativeCountRejectedWithReason) {
+  const std::string dir = test::MakeTempDir("pcr_cfg");
+  const std::string path = WriteFile(dir, "bad.yaml", "orb:\n  num_features: -5\n");
+  try {
+    LoadRunConfig(path, {}, nullptr);
+    FAIL() << "accepted a negative feature count";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("num_features"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(LoadRunConfig("", {"orb.num_levels=0"}, nullptr), ConfigError);
+}
+
+TEST(RunConfig, PartialCameraSectionIsMissingKeys) {
+  const std::string dir = test::MakeTempDir("pcr_cfg");
+  const std::string path = WriteFile(dir, "cam.yaml", "camera:\n  fx: 700\n  fy: 700\n");
+  try {
+    LoadRunConfig(path, {}, nullptr);
+    FAIL() << "accepted a camera without cx, cy";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("cx"), std::string::npos) << e.what();
+  }
+}
+
+TEST(RunConfig, TypoNamesLine) {
+  const std::string dir = test::MakeTempDir("pcr_cfg");
+  const std::string path =
+      WriteFile(dir, "typo.yaml", "orb:\n  num_features: 1000\n  num_level: 4\n");
+  try {
+    LoadRunConfig(path, {}, nullptr);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 3);
+    EXPECT_EQ(e.file(), path);
+  }
+}
+
+TEST(FrameRange, Parses) {
+  EXPECT_EQ(FrameRange::Parse("", 51).first, 0u);
+  EXPECT_EQ(FrameRange::Parse("", 51).end, 51u);
+  EXPECT_EQ(FrameRange::Parse("10:20", 51).first, 10u);
+  EXPECT_EQ(FrameRange::Parse("10:20", 51).end, 20u);
+  EXPECT_EQ(FrameRange::Parse(":5", 51).end, 5u);
+  EXPECT_EQ(FrameRange::Parse("40:", 51).end, 51u);
+  EXPECT_EQ(FrameRange::Parse("0:500", 51).end, 51u);
+  EXPECT_THROW(FrameRange::Parse("20:10", 51), ConfigError);
+  EXPECT_THROW(FrameRange::Parse("abc", 51), ConfigError);
+  EXPECT_THROW(FrameRange::Parse("a:b", 51), ConfigError);
+}
+
+// A corrupt image in the middle of a run stops it with an error naming the file, and the poses of
+// the frames before it are still written.
+TEST(RunSlam, CorruptImageKeepsEarlierFrames) {
+  namespace fs = std::filesystem;
+  const std::string src = test::SharedPath("data/kitti/sequences/06");
+  const std::string root = test::MakeTempDir("pcr_corrupt");
+  const std::string seq = root + "/sequences/06";
+  fs::create_directories(seq + "/image_0");
+  fs::create_directories(seq + "/image_1");
+  fs::copy_file(src + "/calib.txt", seq + "/calib.txt");
+  std::ifstream times_in(src + "/times.txt");
+  std::ofstream times_out(seq + "/times.txt");
+  std::string line;
+  for (int i = 0; i < 8 && std::getline(times_in, line); ++i) times_out << line << "\n";
+  times_out.close();
+  for (int i = 0; i < 8; ++i) {
+    char name[16];
+    std::snprintf(name, sizeof(name), "%06d.png", i);
+    for (const char* cam : {"/image_0/", "/image_1/"})
+      fs::copy_file(src + cam + name, seq + cam + name);
+  }
+  const std::string bad = seq + "/image_1/000005.png";
+  fs::resize_file(bad, fs::file_size(bad) / 2);
+
+  const Dataset dataset = OpenDataset(seq);
+  RunConfig config;
+  config.slam.orb.num_features = 1000;
+  const RunSummary summary = RunSlam(dataset, config, FrameRange{0, 8});
+  EXPECT_EQ(summary.frames_in, 5u);
+  EXPECT_NE(summary.error.find("000005.png"), std::string::npos) << summary.error;
+  const std::string out = root + "/out";
+  WriteRunOutputs(out, summary, "orb:\n  num_features: 1000\n");
+  std::ifstream traj(out + "/trajectory.txt");
+  int lines = 0;
+  while (std::getline(traj, line)) ++lines;
+  EXPECT_EQ(lines, 5);
+  EXPECT_TRUE(fs::exists(out + "/stats.json"));
+  fs::remove_all(root);
+}
+
+}  // namespace
+}  // namespace pcr::app
