@@ -1,0 +1,103 @@
+#include "eval/plot.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+
+#include "eval_test_util.h"
+#include "io/trajectory_io.h"
+#include "slam/common/error.h"
+#include "support/data_paths.h"
+
+namespace pcr::eval {
+namespace {
+
+size_t CountColor(const cv::Mat& bgr, Rgb c, int tolerance) {
+  size_t count = 0;
+  for (int y = 0; y < bgr.rows; ++y)
+    for (int x = 0; x < bgr.cols; ++x) {
+      const cv::Vec3b v = bgr.at<cv::Vec3b>(y, x);
+      if (std::abs(v[0] - c.b) <= tolerance && std::abs(v[1] - c.g) <= tolerance &&
+          std::abs(v[2] - c.r) <= tolerance)
+        ++count;
+    }
+  return count;
+}
+
+std::vector<PlotSeries> Seq07Series() {
+  const Trajectory gt = ReadKittiTrajectory(pcr::test::SharedPath("data/kitti/poses/07.txt"));
+  Trajectory est = gt;
+  for (size_t i = 0; i < est.size(); ++i)
+    est[i].world_from_cam.translation() += Eigen::Vector3d(0.02 * static_cast<double>(i), 0, 0);
+  return GroundTruthAndEstimate(gt, est, "PCR-ORB");
+}
+
+TEST(PlotTest, PngHasBothTrajectoriesAndAxes) {
+  const std::vector<PlotSeries> series = Seq07Series();
+  PlotOptions options;
+  options.title = "KITTI 07";
+  const test::ScopedTempDir dir("pcr_eval_plot");
+  const std::string path = dir.path + "/traj.png";
+  WriteTrajectoryPlot(path, series, options);
+  ASSERT_TRUE(std::filesystem::exists(path));
+  EXPECT_GT(std::filesystem::file_size(path), 5000u);
+  const cv::Mat img = cv::imread(path, cv::IMREAD_COLOR);
+  ASSERT_EQ(img.cols, 1000);
+  ASSERT_EQ(img.rows, 800);
+  // Both polylines (2 px wide over hundreds of pixels) are drawn in their colours.
+  EXPECT_GT(CountColor(img, series[0].color, 10), 400u);
+  EXPECT_GT(CountColor(img, series[1].color, 10), 400u);
+  // Mostly white background, but a real amount of ink (grid, text, frame).
+  const size_t white = CountColor(img, Rgb{255, 255, 255}, 0);
+  EXPECT_GT(white, img.total() / 2);
+  EXPECT_LT(white, img.total() - 5000);
+  // The title row holds dark text pixels; a blank row above it does not.
+  EXPECT_GT(CountColor(img.rowRange(15, 45), Rgb{30, 30, 30}, 60), 50u);
+  EXPECT_EQ(CountColor(img.rowRange(0, 5), Rgb{30, 30, 30}, 60), 0u);
+}
+
+TEST(PlotTest, SvgHasPolylinesLegendAndTicks) {
+  const std::vector<PlotSeries> series = Seq07Series();
+  PlotOptions options;
+  options.title = "KITTI 07 <top view>";
+  const test::ScopedTempDir dir("pcr_eval_plot");
+  const std::string path = dir.path + "/traj.SVG";
+  WriteTrajectoryPlot(path, series, options);
+  std::ifstream in(path);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const std::string svg = buffer.str();
+  EXPECT_EQ(svg.rfind("<?xml", 0), 0u);
+  EXPECT_NE(svg.find("</svg>"), std::string::npos);
+  size_t polylines = 0;
+  for (size_t at = svg.find("<polyline"); at != std::string::npos;
+       at = svg.find("<polyline", at + 1))
+    ++polylines;
+  EXPECT_EQ(polylines, 2u);
+  EXPECT_NE(svg.find(">ground truth<"), std::string::npos);
+  EXPECT_NE(svg.find(">PCR-ORB<"), std::string::npos);
+  EXPECT_NE(svg.find("KITTI 07 &lt;top view&gt;"), std::string::npos);
+  EXPECT_NE(svg.find(">x [m]<"), std::string::npos);
+  EXPECT_NE(svg.find(">z [m]<"), std::string::npos);
+  // Seq 07's first 160 poses span x from -77 m to 0: a tick label "-40" must be there.
+  EXPECT_NE(svg.find(">-40<"), std::string::npos);
+}
+
+TEST(PlotTest, RejectsUnknownExtensionAndBadOptions) {
+  const std::vector<PlotSeries> series = Seq07Series();
+  EXPECT_THROW(WriteTrajectoryPlot("/tmp/plot.jpg", series, {}), InputError);
+  EXPECT_THROW(WriteTrajectoryPlot("/nonexistent/dir/plot.png", series, {}), InputError);
+  PlotOptions bad;
+  bad.vertical_axis = bad.horizontal_axis;
+  EXPECT_THROW(RenderTrajectoryPlot(series, bad), std::invalid_argument);
+  // An empty or single-point plot still renders.
+  EXPECT_NO_THROW(RenderTrajectoryPlot({}, {}));
+  EXPECT_NO_THROW(
+      RenderTrajectoryPlot({PlotSeries{"one", {test::MakeStamped(SE3::Identity())}, {}, 2}}, {}));
+}
+
+}  // namespace
+}  // namespace pcr::eval
