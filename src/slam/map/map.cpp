@@ -1,0 +1,473 @@
+#include "slam/map/map.h"
+
+#include <algorithm>
+#include <limits>
+#include <stdexcept>
+
+namespace pcr {
+
+std::vector<KeyframeId> Keyframe::BestCovisible(size_t n) const {
+  std::vector<KeyframeId> ids;
+  for (size_t i = 0; i < covisible.size() && i < n; ++i) ids.push_back(covisible[i].first);
+  return ids;
+}
+
+int Keyframe::Weight(KeyframeId other) const {
+  const auto it = connections.find(other);
+  return it == connections.end() ? 0 : it->second;
+}
+
+int Keyframe::NumPoints() const {
+  return static_cast<int>(
+      std::count_if(points.begin(), points.end(), [](MapPointId id) { return id.valid(); }));
+}
+
+bool MapDelta::empty() const {
+  return !new_keyframe && new_points.empty() && merges.empty() && added_observations.empty() &&
+         removed_observations.empty() && keyframe_poses.empty() && point_positions.empty() &&
+         removed_points.empty() && removed_keyframes.empty() && visible_increments.empty() &&
+         found_increments.empty();
+}
+
+void MapDelta::Append(const MapDelta& other) {
+  if (other.new_keyframe) {
+    if (new_keyframe) throw std::invalid_argument("MapDelta::Append: two new keyframes");
+    new_keyframe = other.new_keyframe;
+  }
+  auto add = [](auto& into, const auto& from) {
+    into.insert(into.end(), from.begin(), from.end());
+  };
+  add(new_points, other.new_points);
+  add(merges, other.merges);
+  add(added_observations, other.added_observations);
+  add(removed_observations, other.removed_observations);
+  add(keyframe_poses, other.keyframe_poses);
+  add(point_positions, other.point_positions);
+  add(removed_points, other.removed_points);
+  add(removed_keyframes, other.removed_keyframes);
+  add(visible_increments, other.visible_increments);
+  add(found_increments, other.found_increments);
+}
+
+const Keyframe* Map::keyframe(KeyframeId id) const {
+  const auto it = keyframes_.find(id);
+  return it == keyframes_.end() ? nullptr : &it->second;
+}
+
+const MapPoint* Map::point(MapPointId id) const {
+  const auto it = points_.find(id);
+  return it == points_.end() ? nullptr : &it->second;
+}
+
+MapPointId Map::Resolve(MapPointId id) const {
+  for (int hops = 0; id.valid() && hops < 1000; ++hops) {
+    if (points_.count(id)) return id;
+    const auto it = replaced_by_.find(id);
+    if (it == replaced_by_.end()) return MapPointId();
+    id = it->second;
+  }
+  return MapPointId();
+}
+
+KeyframeId Map::ResolveKeyframe(KeyframeId id) const {
+  for (int hops = 0; id.valid() && hops < 100000; ++hops) {
+    if (keyframes_.count(id)) return id;
+    const auto it = erased_keyframes_.find(id);
+    if (it == erased_keyframes_.end()) return KeyframeId();
+    id = it->second.parent;
+  }
+  return KeyframeId();
+}
+
+std::optional<SE3> Map::CamFromWorld(KeyframeId id) const {
+  SE3 cam_from_live = SE3::Identity();
+  for (int hops = 0; id.valid() && hops < 100000; ++hops) {
+    if (const Keyframe* kf = keyframe(id)) return cam_from_live * kf->cam_from_world;
+    const auto it = erased_keyframes_.find(id);
+    if (it == erased_keyframes_.end()) return std::nullopt;
+    cam_from_live = cam_from_live * it->second.cam_from_parent;
+    id = it->second.parent;
+  }
+  return std::nullopt;
+}
+
+int Map::TrackedPoints(KeyframeId id, int min_observations) const {
+  const Keyframe* kf = keyframe(id);
+  if (!kf) return 0;
+  int count = 0;
+  for (MapPointId p : kf->points) {
+    if (!p.valid()) continue;
+    const MapPoint* mp = point(p);
+    if (mp && static_cast<int>(mp->observations.size()) >= min_observations) ++count;
+  }
+  return count;
+}
+
+void Map::AddObservation(MapPointId point_id, KeyframeId keyframe_id, int keypoint) {
+  auto pit = points_.find(point_id);
+  auto kit = keyframes_.find(keyframe_id);
+  if (pit == points_.end() || kit == keyframes_.end()) return;
+  Keyframe& kf = kit->second;
+  if (keypoint < 0 || keypoint >= static_cast<int>(kf.points.size())) return;
+  if (kf.points[keypoint].valid() || pit->second.observations.count(keyframe_id)) return;
+  kf.points[keypoint] = point_id;
+  pit->second.observations[keyframe_id] = keypoint;
+  touched_points_.insert(point_id);
+  touched_keyframes_.insert(keyframe_id);
+}
+
+bool Map::RemoveObservation(MapPointId point_id, KeyframeId keyframe_id) {
+  auto pit = points_.find(point_id);
+  if (pit == points_.end()) return false;
+  auto oit = pit->second.observations.find(keyframe_id);
+  if (oit == pit->second.observations.end()) return false;
+  auto kit = keyframes_.find(keyframe_id);
+  if (kit != keyframes_.end() && oit->second >= 0 &&
+      oit->second < static_cast<int>(kit->second.points.size()) &&
+      kit->second.points[oit->second] == point_id)
+    kit->second.points[oit->second] = MapPointId();
+  pit->second.observations.erase(oit);
+  touched_points_.insert(point_id);
+  touched_keyframes_.insert(keyframe_id);
+  return true;
+}
+
+int Map::WeightedObservations(const MapPoint& point) const {
+  int count = 0;
+  for (const auto& [kf_id, kp] : point.observations) {
+    const Keyframe* kf = keyframe(kf_id);
+    count += (kf && kf->frame->has_stereo(kp)) ? 2 : 1;
+  }
+  return count;
+}
+
+void Map::ErasePoint(MapPointId id) {
+  auto pit = points_.find(id);
+  if (pit == points_.end()) return;
+  for (const auto& [kf_id, kp] : pit->second.observations) {
+    auto kit = keyframes_.find(kf_id);
+    if (kit == keyframes_.end()) continue;
+    if (kit->second.points[kp] == id) kit->second.points[kp] = MapPointId();
+    touched_keyframes_.insert(kf_id);
+  }
+  points_.erase(pit);
+  touched_points_.erase(id);
+}
+
+void Map::MergePoint(MapPointId from, MapPointId into) {
+  from = Resolve(from);
+  into = Resolve(into);
+  if (!from.valid() || !into.valid() || from == into) return;
+  MapPoint& src = points_.at(from);
+  const std::map<KeyframeId, int> observations = src.observations;
+  const int visible = src.visible_count, found = src.found_count;
+  for (const auto& [kf_id, kp] : observations) {
+    RemoveObservation(from, kf_id);
+    AddObservation(into, kf_id, kp);
+  }
+  MapPoint& dst = points_.at(into);
+  dst.visible_count += visible;
+  dst.found_count += found;
+  touched_points_.insert(into);
+  ErasePoint(from);
+  replaced_by_[from] = into;
+}
+
+void Map::EraseKeyframe(KeyframeId id) {
+  auto kit = keyframes_.find(id);
+  if (kit == keyframes_.end() || id == first_keyframe_) return;
+  // Observations: a point left with too few observations goes with the keyframe.
+  const std::vector<MapPointId> points = kit->second.points;
+  for (MapPointId p : points) {
+    if (!p.valid() || !RemoveObservation(p, id)) continue;
+    const MapPoint* mp = point(p);
+    if (mp && (mp->observations.empty() || WeightedObservations(*mp) <= 2)) ErasePoint(p);
+  }
+  Keyframe& kf = keyframes_.at(id);
+  // Covisibility.
+  for (const auto& [other, weight] : kf.connections) {
+    auto oit = keyframes_.find(other);
+    if (oit == keyframes_.end()) continue;
+    oit->second.connections.erase(id);
+    SortCovisible(oit->second);
+  }
+  // Spanning tree: children pick, greedily by covisibility weight, a parent among the erased
+  // keyframe's parent and the children already re-attached; the rest go to the parent.
+  const KeyframeId parent = kf.parent;
+  std::set<KeyframeId> candidates;
+  if (parent.valid() && keyframes_.count(parent)) candidates.insert(parent);
+  std::set<KeyframeId> remaining;
+  for (KeyframeId c : kf.children)
+    if (keyframes_.count(c)) remaining.insert(c);
+  while (!remaining.empty() && !candidates.empty()) {
+    KeyframeId best_child, best_parent;
+    int best_weight = 0;
+    for (KeyframeId c : remaining) {
+      const Keyframe& child = keyframes_.at(c);
+      for (KeyframeId cand : candidates) {
+        const int w = child.Weight(cand);
+        if (w > best_weight) {
+          best_weight = w;
+          best_child = c;
+          best_parent = cand;
+        }
+      }
+    }
+    if (!best_child.valid()) break;
+    keyframes_.at(best_child).parent = best_parent;
+    keyframes_.at(best_parent).children.insert(best_child);
+    candidates.insert(best_child);
+    remaining.erase(best_child);
+  }
+  for (KeyframeId c : remaining) {
+    keyframes_.at(c).parent = parent;
+    if (parent.valid() && keyframes_.count(parent)) keyframes_.at(parent).children.insert(c);
+  }
+  if (parent.valid() && keyframes_.count(parent)) keyframes_.at(parent).children.erase(id);
+  ErasedKeyframe erased;
+  erased.parent = parent;
+  if (parent.valid() && keyframes_.count(parent))
+    erased.cam_from_parent = kf.cam_from_world * keyframes_.at(parent).cam_from_world.inverse();
+  erased_keyframes_[id] = erased;
+  keyframes_.erase(id);
+  touched_keyframes_.erase(id);
+  if (last_keyframe_ == id) last_keyframe_ = keyframes_.empty() ? KeyframeId() : parent;
+}
+
+void Map::RefreshPoint(MapPoint& point) const {
+  // Representative descriptor: least median Hamming distance to the other observations.
+  std::vector<cv::Mat> descriptors;
+  Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
+  for (const auto& [kf_id, kp] : point.observations) {
+    const Keyframe* kf = keyframe(kf_id);
+    if (!kf) continue;
+    descriptors.push_back(kf->frame->descriptor(kp));
+    const Eigen::Vector3d ray = point.p_in_world - kf->CameraCentre();
+    if (ray.norm() > 0) normal_sum += ray.normalized();
+  }
+  if (descriptors.empty()) return;
+  const size_t n = descriptors.size();
+  if (n <= 2) {
+    point.descriptor = descriptors[0];
+  } else {
+    std::vector<std::vector<int>> dist(n, std::vector<int>(n, 0));
+    for (size_t i = 0; i < n; ++i)
+      for (size_t j = i + 1; j < n; ++j)
+        dist[i][j] = dist[j][i] = DescriptorDistance(descriptors[i], descriptors[j]);
+    // Least median distance to the other observations (lower median), ties broken by the sum.
+    std::pair<int, int> best_key{std::numeric_limits<int>::max(), 0};
+    size_t best = 0;
+    for (size_t i = 0; i < n; ++i) {
+      std::vector<int> row;
+      int sum = 0;
+      for (size_t j = 0; j < n; ++j)
+        if (j != i) {
+          row.push_back(dist[i][j]);
+          sum += dist[i][j];
+        }
+      std::nth_element(row.begin(), row.begin() + (row.size() - 1) / 2, row.end());
+      const std::pair<int, int> key{row[(row.size() - 1) / 2], sum};
+      if (key < best_key) {
+        best_key = key;
+        best = i;
+      }
+    }
+    point.descriptor = descriptors[best];
+  }
+  if (normal_sum.norm() > 0) point.normal = normal_sum.normalized();
+  // Scale-invariance distances from the reference keyframe.
+  if (!point.observations.count(point.reference_keyframe))
+    point.reference_keyframe = point.observations.begin()->first;
+  const Keyframe* ref = keyframe(point.reference_keyframe);
+  if (!ref) return;
+  const int kp = point.observations.at(point.reference_keyframe);
+  const ScalePyramid& scale = ref->frame->scale();
+  const double distance = (point.p_in_world - ref->CameraCentre()).norm();
+  const int level = ref->frame->octave(kp);
+  point.max_distance_m = distance * scale.scale_factors[level];
+  point.min_distance_m = point.max_distance_m / scale.scale_factors.back();
+}
+
+void Map::SortCovisible(Keyframe& keyframe) {
+  keyframe.covisible.clear();
+  std::pair<KeyframeId, int> best{KeyframeId(), 0};
+  for (const auto& [other, weight] : keyframe.connections) {
+    if (weight >= kCovisibilityMinWeight) keyframe.covisible.emplace_back(other, weight);
+    if (weight > best.second) best = {other, weight};
+  }
+  if (keyframe.covisible.empty() && best.first.valid()) keyframe.covisible.push_back(best);
+  std::sort(keyframe.covisible.begin(), keyframe.covisible.end(), [](const auto& a, const auto& b) {
+    return a.second != b.second ? a.second > b.second : a.first < b.first;
+  });
+}
+
+void Map::UpdateConnections(KeyframeId id) {
+  auto kit = keyframes_.find(id);
+  if (kit == keyframes_.end()) return;
+  Keyframe& kf = kit->second;
+  std::map<KeyframeId, int> counts;
+  for (MapPointId p : kf.points) {
+    if (!p.valid()) continue;
+    const MapPoint* mp = point(p);
+    if (!mp) continue;
+    for (const auto& obs : mp->observations)
+      if (obs.first != id) ++counts[obs.first];
+  }
+  for (const auto& [other, weight] : kf.connections) {
+    if (counts.count(other)) continue;
+    auto oit = keyframes_.find(other);
+    if (oit == keyframes_.end()) continue;
+    oit->second.connections.erase(id);
+    SortCovisible(oit->second);
+  }
+  for (const auto& [other, weight] : counts) {
+    Keyframe& o = keyframes_.at(other);
+    auto cit = o.connections.find(id);
+    if (cit != o.connections.end() && cit->second == weight) continue;
+    o.connections[id] = weight;
+    SortCovisible(o);
+  }
+  kf.connections = std::move(counts);
+  SortCovisible(kf);
+}
+
+MapApplyResult Map::Apply(const MapDelta& delta) {
+  MapApplyResult result;
+  touched_points_.clear();
+  touched_keyframes_.clear();
+  KeyframeId new_keyframe_id;
+
+  if (delta.new_keyframe) {
+    const NewKeyframe& nk = *delta.new_keyframe;
+    if (!nk.frame) throw std::invalid_argument("Map::Apply: new keyframe without a frame");
+    const KeyframeId id(nk.frame->id());
+    if (keyframes_.count(id) || erased_keyframes_.count(id))
+      throw std::invalid_argument("Map::Apply: keyframe id already used");
+    Keyframe kf;
+    kf.id = id;
+    kf.index = next_keyframe_index_++;
+    kf.frame = nk.frame;
+    kf.cam_from_world = nk.cam_from_world;
+    kf.points.assign(nk.frame->size(), MapPointId());
+    keyframes_.emplace(id, std::move(kf));
+    if (!first_keyframe_.valid()) first_keyframe_ = id;
+    last_keyframe_ = id;
+    new_keyframe_id = id;
+    touched_keyframes_.insert(id);
+    for (const auto& [kp, p] : nk.associations) AddObservation(Resolve(p), id, kp);
+  }
+
+  for (const NewMapPoint& np : delta.new_points) {
+    MapPoint mp;
+    mp.id = MapPointId(next_point_id_);
+    mp.p_in_world = np.p_in_world;
+    for (const KeyframeObservation& obs : np.observations) {
+      if (!keyframes_.count(obs.keyframe)) continue;
+      mp.reference_keyframe = obs.keyframe;
+      mp.first_keyframe_index = keyframes_.at(obs.keyframe).index;
+      break;
+    }
+    if (!mp.reference_keyframe.valid()) {
+      result.new_point_ids.push_back(MapPointId());
+      continue;
+    }
+    ++next_point_id_;
+    const MapPointId id = mp.id;
+    points_.emplace(id, std::move(mp));
+    for (const KeyframeObservation& obs : np.observations)
+      AddObservation(id, obs.keyframe, obs.keypoint);
+    if (points_.at(id).observations.empty()) {
+      points_.erase(id);
+      result.new_point_ids.push_back(MapPointId());
+      continue;
+    }
+    touched_points_.insert(id);
+    result.new_point_ids.push_back(id);
+  }
+
+  for (const PointMerge& merge : delta.merges) {
+    const MapPointId from = Resolve(merge.from), into = Resolve(merge.into);
+    if (!from.valid() || !into.valid() || from == into) continue;
+    MergePoint(from, into);
+    ++result.num_merged;
+  }
+
+  for (const ObservationEdit& edit : delta.added_observations)
+    AddObservation(Resolve(edit.point), edit.keyframe, edit.keypoint);
+
+  for (const ObservationEdit& edit : delta.removed_observations) {
+    const MapPointId p = Resolve(edit.point);
+    if (!p.valid()) continue;
+    const MapPoint& mp = points_.at(p);
+    const auto oit = mp.observations.find(edit.keyframe);
+    if (oit == mp.observations.end() || (edit.keypoint >= 0 && oit->second != edit.keypoint))
+      continue;
+    RemoveObservation(p, edit.keyframe);
+    const MapPoint& after = points_.at(p);
+    if (after.observations.empty() || WeightedObservations(after) <= 2) {
+      ErasePoint(p);
+      ++result.num_points_removed;
+    }
+  }
+
+  for (const auto& [id, pose] : delta.keyframe_poses) {
+    auto kit = keyframes_.find(id);
+    if (kit != keyframes_.end()) kit->second.cam_from_world = pose;
+  }
+  for (const auto& [id, position] : delta.point_positions) {
+    const MapPointId p = Resolve(id);
+    if (!p.valid()) continue;
+    points_.at(p).p_in_world = position;
+    touched_points_.insert(p);
+  }
+  for (MapPointId id : delta.removed_points) {
+    const MapPointId p = Resolve(id);
+    if (!p.valid()) continue;
+    ErasePoint(p);
+    ++result.num_points_removed;
+  }
+  for (KeyframeId id : delta.removed_keyframes) {
+    if (!keyframes_.count(id) || id == first_keyframe_) continue;
+    EraseKeyframe(id);
+    ++result.num_keyframes_removed;
+  }
+  for (MapPointId id : delta.visible_increments) {
+    const MapPointId p = Resolve(id);
+    if (p.valid()) ++points_.at(p).visible_count;
+  }
+  for (MapPointId id : delta.found_increments) {
+    const MapPointId p = Resolve(id);
+    if (p.valid()) ++points_.at(p).found_count;
+  }
+
+  for (MapPointId id : touched_points_) {
+    auto pit = points_.find(id);
+    if (pit != points_.end()) RefreshPoint(pit->second);
+  }
+  for (KeyframeId id : touched_keyframes_) UpdateConnections(id);
+  // Spanning tree: a new keyframe hangs from its strongest connection.
+  if (new_keyframe_id.valid() && keyframes_.count(new_keyframe_id) &&
+      new_keyframe_id != first_keyframe_) {
+    Keyframe& kf = keyframes_.at(new_keyframe_id);
+    KeyframeId parent = kf.covisible.empty() ? KeyframeId() : kf.covisible.front().first;
+    if (!parent.valid()) parent = ResolveKeyframe(delta.new_keyframe->parent_hint);
+    if (!parent.valid() || parent == new_keyframe_id) {
+      // Fall back to the most recently inserted other keyframe.
+      int64_t best_index = -1;
+      for (const auto& [id, other] : keyframes_)
+        if (id != new_keyframe_id && other.index > best_index) {
+          best_index = other.index;
+          parent = id;
+        }
+    }
+    if (parent.valid() && parent != new_keyframe_id) {
+      kf.parent = parent;
+      keyframes_.at(parent).children.insert(new_keyframe_id);
+    }
+  }
+  touched_points_.clear();
+  touched_keyframes_.clear();
+  return result;
+}
+
+}  // namespace pcr

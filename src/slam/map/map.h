@@ -1,0 +1,180 @@
+#pragma once
+// The map store: keyframes, map points, the covisibility graph and the spanning tree.
+//
+// Ownership and threading: one serial owner holds the Map and is the only caller of Apply();
+// tracking and local mapping read it through `const Map&` and return their edits as a MapDelta.
+// Thread-compatible, not thread-safe (a flow graph serialises access around it).
+//
+// Frames: keyframe poses are cam_from_world; point positions are in the world frame, metres.
+#include <Eigen/Core>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <set>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "slam/common/pose.h"
+#include "slam/map/frame.h"
+#include "slam/map/ids.h"
+
+namespace pcr {
+
+struct Keyframe {
+  KeyframeId id;
+  int64_t index = -1;  // insertion order in this map: 0 for the first keyframe
+  FramePtr frame;
+  SE3 cam_from_world = SE3::Identity();
+  std::vector<MapPointId> points;  // per keypoint of frame; invalid id: not associated
+  // Covisibility: number of shared map points with every keyframe sharing at least one
+  // (symmetric), and the covisible neighbours: weight >= Map::kCovisibilityMinWeight (or the
+  // best one when none reaches it), by decreasing weight then increasing id.
+  std::map<KeyframeId, int> connections;
+  std::vector<std::pair<KeyframeId, int>> covisible;
+  // Spanning tree: parent is invalid only for the root (the first keyframe).
+  KeyframeId parent;
+  std::set<KeyframeId> children;
+
+  Eigen::Vector3d CameraCentre() const { return cam_from_world.inverse().translation(); }
+  // Up to n covisible neighbours, best first.
+  std::vector<KeyframeId> BestCovisible(size_t n) const;
+  int Weight(KeyframeId other) const;
+  int NumPoints() const;
+};
+
+struct MapPoint {
+  MapPointId id;
+  Eigen::Vector3d p_in_world = Eigen::Vector3d::Zero();
+  cv::Mat descriptor;  // 1 x 32 CV_8U: the observation descriptor with the least median distance
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // mean unit ray camera -> point, world
+  double min_distance_m = 0, max_distance_m = 0;      // scale-invariance range of distances
+  std::map<KeyframeId, int> observations;             // keyframe -> keypoint index
+  KeyframeId reference_keyframe;
+  int64_t first_keyframe_index = -1;  // Keyframe::index of the keyframe that created it
+  int visible_count = 1;              // frames in whose frustum it was predicted
+  int found_count = 1;                // frames in which it was matched as an inlier
+
+  double FoundRatio() const { return static_cast<double>(found_count) / visible_count; }
+  // Predicted pyramid level at distance_m from a camera.
+  int PredictLevel(double distance_m, const ScalePyramid& scale) const {
+    return scale.PredictLevel(distance_m, max_distance_m);
+  }
+};
+
+struct KeyframeObservation {
+  KeyframeId keyframe;
+  int keypoint = -1;
+};
+
+// Edits to apply. Ids that no longer exist when the delta is applied are skipped; point ids are
+// first resolved through earlier merges (Map::Resolve).
+struct NewKeyframe {
+  FramePtr frame;  // its id becomes the keyframe id
+  SE3 cam_from_world = SE3::Identity();
+  std::vector<std::pair<int, MapPointId>> associations;  // keypoint index -> existing point
+  KeyframeId parent_hint;  // spanning-tree parent when the keyframe shares no point
+};
+
+struct NewMapPoint {
+  Eigen::Vector3d p_in_world = Eigen::Vector3d::Zero();
+  std::vector<KeyframeObservation> observations;  // the first one is the reference keyframe
+};
+
+struct ObservationEdit {
+  MapPointId point;
+  KeyframeId keyframe;
+  int keypoint = -1;
+};
+
+struct PointMerge {
+  MapPointId from;  // erased; its observations move to `into` where the keyframe has none
+  MapPointId into;
+};
+
+struct MapDelta {
+  std::optional<NewKeyframe> new_keyframe;
+  std::vector<NewMapPoint> new_points;
+  std::vector<PointMerge> merges;
+  std::vector<ObservationEdit> added_observations;
+  std::vector<ObservationEdit> removed_observations;
+  std::vector<std::pair<KeyframeId, SE3>> keyframe_poses;  // new cam_from_world
+  std::vector<std::pair<MapPointId, Eigen::Vector3d>> point_positions;
+  std::vector<MapPointId> removed_points;
+  std::vector<KeyframeId> removed_keyframes;  // the first keyframe is never removed
+  std::vector<MapPointId> visible_increments;
+  std::vector<MapPointId> found_increments;
+
+  bool empty() const;
+  // Appends other's edits after this delta's (applied in Apply's fixed order, not interleaved).
+  void Append(const MapDelta& other);
+};
+
+struct MapApplyResult {
+  std::vector<MapPointId> new_point_ids;  // per delta.new_points; invalid when it was dropped
+  int num_merged = 0;
+  int num_points_removed = 0;  // explicit removals and points left with too few observations
+  int num_keyframes_removed = 0;
+};
+
+class Map {
+ public:
+  static constexpr int kCovisibilityMinWeight = 15;
+
+  // Applies the edits in this order: new keyframe (with its associations), new points, merges,
+  // added observations, removed observations (a point whose stereo-weighted observation count
+  // drops to <= 2 by a removal is erased), keyframe poses, point positions, removed points,
+  // removed keyframes, counters; then refreshes the descriptors, normals and distance ranges of
+  // touched points and the covisibility of touched keyframes. Throws std::invalid_argument when
+  // the new keyframe's id already exists or its frame is null.
+  MapApplyResult Apply(const MapDelta& delta);
+
+  const Keyframe* keyframe(KeyframeId id) const;
+  const MapPoint* point(MapPointId id) const;
+  const std::map<KeyframeId, Keyframe>& keyframes() const { return keyframes_; }
+  const std::map<MapPointId, MapPoint>& points() const { return points_; }
+  bool empty() const { return keyframes_.empty(); }
+  size_t num_keyframes() const { return keyframes_.size(); }
+  size_t num_points() const { return points_.size(); }
+  KeyframeId first_keyframe() const { return first_keyframe_; }
+  KeyframeId last_keyframe() const { return last_keyframe_; }
+
+  // The live point that id was merged into (id itself when live); invalid when erased.
+  MapPointId Resolve(MapPointId id) const;
+  // The live keyframe nearest to id along the spanning tree (id itself when live), or invalid.
+  KeyframeId ResolveKeyframe(KeyframeId id) const;
+  // Pose of a live or erased keyframe (erased ones keep their pose relative to their parent).
+  std::optional<SE3> CamFromWorld(KeyframeId id) const;
+  // Points of the keyframe observed by at least min_observations keyframes.
+  int TrackedPoints(KeyframeId id, int min_observations) const;
+
+ private:
+  struct ErasedKeyframe {
+    KeyframeId parent;
+    SE3 cam_from_parent = SE3::Identity();
+  };
+
+  void AddObservation(MapPointId point, KeyframeId keyframe, int keypoint);
+  // Returns true when the observation existed and was removed.
+  bool RemoveObservation(MapPointId point, KeyframeId keyframe);
+  int WeightedObservations(const MapPoint& point) const;
+  void ErasePoint(MapPointId id);
+  void MergePoint(MapPointId from, MapPointId into);
+  void EraseKeyframe(KeyframeId id);
+  void RefreshPoint(MapPoint& point) const;
+  void UpdateConnections(KeyframeId id);
+  static void SortCovisible(Keyframe& keyframe);
+
+  std::map<KeyframeId, Keyframe> keyframes_;
+  std::map<MapPointId, MapPoint> points_;
+  std::unordered_map<MapPointId, MapPointId> replaced_by_;
+  std::map<KeyframeId, ErasedKeyframe> erased_keyframes_;
+  int64_t next_point_id_ = 0;
+  int64_t next_keyframe_index_ = 0;
+  KeyframeId first_keyframe_, last_keyframe_;
+  // Scratch sets filled during Apply.
+  std::set<MapPointId> touched_points_;
+  std::set<KeyframeId> touched_keyframes_;
+};
+
+}  // namespace pcr

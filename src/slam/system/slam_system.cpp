@@ -1,0 +1,208 @@
+#include "slam/system/slam_system.h"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "slam/common/error.h"
+#include "slam/common/timing.h"
+
+namespace pcr {
+namespace {
+
+StereoRig CheckedRig(const StereoRig& rig) {
+  std::string why;
+  if (!rig.IsValid(&why)) throw ConfigError("SlamSystem rig: " + why);
+  if (!rig.IsStereo()) throw ConfigError("SlamSystem needs a stereo rig (baseline_m > 0)");
+  if (rig.left.width_px <= 0 || rig.left.height_px <= 0)
+    throw ConfigError("SlamSystem rig: image size must be set");
+  return rig;
+}
+
+const OrbOptions& CheckedOptions(const SlamOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw ConfigError("SlamOptions: " + why);
+  return options.orb;
+}
+
+}  // namespace
+
+bool SlamOptions::IsValid(std::string* why) const {
+  std::string inner;
+  auto sub = [&](bool ok, const char* name) {
+    if (!ok && why) *why = std::string(name) + ": " + inner;
+    return ok;
+  };
+  return sub(orb.IsValid(&inner), "orb") && sub(stereo.IsValid(&inner), "stereo") &&
+         sub(tracker.IsValid(&inner), "tracker") && sub(mapping.IsValid(&inner), "mapping") &&
+         sub(keyframe.IsValid(&inner), "keyframe");
+}
+
+SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options)
+    : rig_(CheckedRig(rig)),
+      options_(options),
+      extractor_(CheckedOptions(options)),
+      tracker_(options.tracker),
+      mapper_(options.mapping) {
+  scale_.scale_factors = extractor_.scale_factors();
+  scale_.level_sigma2 = extractor_.level_sigma2();
+  scale_.inv_level_sigma2 = extractor_.inv_level_sigma2();
+}
+
+StereoMatches SlamSystem::MatchStereoFeatures(const OrbFeatures& left,
+                                              const OrbFeatures& right) const {
+  return MatchStereo(rig_, left, right, extractor_.scale_factors(), options_.stereo);
+}
+
+KeypointFilter SlamSystem::SampleFilter(const FrameFilterInput& filter,
+                                        const std::vector<cv::KeyPoint>& keypoints) {
+  KeypointFilter out;
+  auto pixel = [](const cv::Mat& image, const cv::KeyPoint& kp) {
+    const int x = std::clamp(static_cast<int>(std::lround(kp.pt.x)), 0, image.cols - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(kp.pt.y)), 0, image.rows - 1);
+    return cv::Point(x, y);
+  };
+  if (!filter.excluded_mask.empty()) {
+    if (filter.excluded_mask.type() != CV_8UC1)
+      throw std::invalid_argument("FrameFilterInput: excluded_mask must be CV_8UC1");
+    out.excluded.reserve(keypoints.size());
+    for (const cv::KeyPoint& kp : keypoints)
+      out.excluded.push_back(filter.excluded_mask.at<uint8_t>(pixel(filter.excluded_mask, kp)) ? 1
+                                                                                               : 0);
+  }
+  if (!filter.weight_map.empty()) {
+    if (filter.weight_map.type() != CV_32FC1)
+      throw std::invalid_argument("FrameFilterInput: weight_map must be CV_32FC1");
+    out.weight.reserve(keypoints.size());
+    for (const cv::KeyPoint& kp : keypoints) {
+      const float w = filter.weight_map.at<float>(pixel(filter.weight_map, kp));
+      out.weight.push_back(std::isfinite(w) ? std::clamp(w, 1e-3f, 1.0f) : 1.0f);
+    }
+  }
+  return out;
+}
+
+FramePtr SlamSystem::BuildFrame(int64_t t_ns, const OrbFeatures& left, const StereoMatches& stereo,
+                                const KeypointFilter& filter) {
+  return Frame::Create(next_frame_id_++, t_ns, rig_, scale_, left, stereo, filter);
+}
+
+TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
+  TrackingResult result = tracker_.Track(frame, map_);
+  const bool initialised = result.method == TrackingMethod::kInitialisation;
+  map_.Apply(result.map_delta);
+  if (initialised) {
+    const KeyframeId id(frame->id());
+    mapper_.ProcessKeyframe(id, &map_);
+    tracker_.OnKeyframeInserted(id, map_);
+  }
+  if (result.status == TrackingStatus::kOk) {
+    FrameRecord record;
+    record.frame_index = frame_index;
+    record.t_ns = frame->t_ns();
+    record.reference = result.reference_keyframe;
+    if (const auto ref_pose = map_.CamFromWorld(record.reference))
+      record.cam_from_reference = result.cam_from_world * ref_pose->inverse();
+    records_.push_back(record);
+  }
+  return result;
+}
+
+KeyframeDecision SlamSystem::DecideKeyframe(const TrackingResult& tracking) const {
+  if (tracking.status != TrackingStatus::kOk ||
+      tracking.method == TrackingMethod::kInitialisation) {
+    KeyframeDecision d;
+    d.reason =
+        tracking.method == TrackingMethod::kInitialisation ? "initial keyframe" : "not tracking";
+    return d;
+  }
+  return ShouldInsertKeyframe(tracking.keyframe_input, options_.keyframe);
+}
+
+MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking) {
+  MapDelta delta;
+  NewKeyframe kf;
+  kf.frame = frame;
+  kf.cam_from_world = tracking.cam_from_world;
+  kf.parent_hint = tracking.reference_keyframe;
+  for (int i = 0; i < static_cast<int>(tracking.points.size()); ++i)
+    if (tracking.points[i].valid()) kf.associations.emplace_back(i, tracking.points[i]);
+  delta.new_keyframe = std::move(kf);
+  map_.Apply(delta);
+  const KeyframeId id(frame->id());
+  MappingResult result = mapper_.ProcessKeyframe(id, &map_);
+  tracker_.OnKeyframeInserted(id, map_);
+  // The frame is now its own reference.
+  if (!records_.empty() && records_.back().t_ns == frame->t_ns()) {
+    records_.back().reference = id;
+    records_.back().cam_from_reference = SE3::Identity();
+  }
+  return result;
+}
+
+FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
+                                     const cv::Mat& right, const FrameFilterInput* filter) {
+  const auto start = std::chrono::steady_clock::now();
+  FrameOutput out;
+  out.frame_index = frame_index;
+  out.t_ns = t_ns;
+
+  auto t = std::chrono::steady_clock::now();
+  const OrbFeatures left_features = ExtractLeft(left);
+  out.times_ms.orb_left = MsSince(t);
+  t = std::chrono::steady_clock::now();
+  const OrbFeatures right_features = ExtractRight(right);
+  out.times_ms.orb_right = MsSince(t);
+  t = std::chrono::steady_clock::now();
+  const StereoMatches stereo = MatchStereoFeatures(left_features, right_features);
+  out.times_ms.stereo = MsSince(t);
+
+  const KeypointFilter keypoint_filter =
+      filter ? SampleFilter(*filter, left_features.keypoints) : KeypointFilter{};
+  const FramePtr frame = BuildFrame(t_ns, left_features, stereo, keypoint_filter);
+  out.num_keypoints = frame->size();
+  out.num_stereo = frame->num_stereo();
+
+  t = std::chrono::steady_clock::now();
+  const TrackingResult tracking = Track(frame, frame_index);
+  out.times_ms.tracking = MsSince(t);
+  out.status = tracking.status;
+  out.method = tracking.method;
+  out.num_tracked = tracking.num_tracked;
+  out.num_matches_initial = tracking.num_matches_initial;
+  out.num_inliers_initial = tracking.num_inliers_initial;
+  out.num_local_projected = tracking.num_local_projected;
+  out.num_local_matches = tracking.num_local_matches;
+  out.world_from_cam = tracking.cam_from_world.inverse();
+
+  t = std::chrono::steady_clock::now();
+  const KeyframeDecision decision = DecideKeyframe(tracking);
+  out.keyframe_reason = decision.reason;
+  if (decision.insert) {
+    out.mapping = InsertKeyframe(frame, tracking);
+    out.keyframe_inserted = true;
+  }
+  out.keyframe_inserted =
+      out.keyframe_inserted || tracking.method == TrackingMethod::kInitialisation;
+  out.times_ms.local_mapping = MsSince(t);
+  out.num_keyframes = map_.num_keyframes();
+  out.num_map_points = map_.num_points();
+  out.times_ms.total = MsSince(start);
+  return out;
+}
+
+Trajectory SlamSystem::RefinedTrajectory() const {
+  Trajectory trajectory;
+  for (const FrameRecord& r : records_) {
+    const auto ref_pose = map_.CamFromWorld(r.reference);
+    if (!ref_pose) continue;
+    StampedPose p;
+    p.t_ns = r.t_ns;
+    p.frame_index = r.frame_index;
+    p.world_from_cam = (r.cam_from_reference * *ref_pose).inverse();
+    trajectory.push_back(p);
+  }
+  return trajectory;
+}
+
+}  // namespace pcr

@@ -1,0 +1,124 @@
+#pragma once
+// The stereo SLAM engine as sequential stages: ORB left, ORB right, stereo matching, frame
+// building (with the dynamic filter's per-keypoint inputs), tracking, keyframe decision, and
+// keyframe insertion with local mapping. ProcessFrame() runs them in that order; each stage is
+// also callable on its own so a flow graph can run them as nodes (extraction and stereo matching
+// are const and may run concurrently for different frames; Track and InsertKeyframe mutate the
+// map and must be called serially, in frame order).
+//
+// Deterministic: the same inputs give bit-identical trajectories.
+#include <cstdint>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "slam/common/camera.h"
+#include "slam/common/pose.h"
+#include "slam/features/orb_extractor.h"
+#include "slam/features/stereo_matcher.h"
+#include "slam/map/frame.h"
+#include "slam/map/map.h"
+#include "slam/mapping/local_mapper.h"
+#include "slam/tracking/keyframe_decision.h"
+#include "slam/tracking/tracker.h"
+
+namespace pcr {
+
+struct SlamOptions {
+  OrbOptions orb;
+  StereoMatchOptions stereo;
+  TrackerOptions tracker;
+  LocalMapperOptions mapping;
+  KeyframeDecisionOptions keyframe;
+  bool IsValid(std::string* why) const;
+};
+
+// Dynamic-filter input for one frame, sampled at the left keypoints (nearest pixel). Either
+// image may be empty. Sizes must equal the left image's.
+struct FrameFilterInput {
+  cv::Mat excluded_mask;  // CV_8UC1: non-zero = keypoint excluded from tracking and mapping
+  cv::Mat weight_map;     // CV_32FC1: static-confidence weight in (0, 1]
+};
+
+struct StageTimesMs {
+  double orb_left = 0, orb_right = 0, stereo = 0, tracking = 0, local_mapping = 0;
+  double total = 0;
+};
+
+struct FrameOutput {
+  int64_t frame_index = -1;
+  int64_t t_ns = 0;
+  SE3 world_from_cam = SE3::Identity();  // online estimate (not refined by later mapping)
+  TrackingStatus status = TrackingStatus::kNotInitialized;
+  TrackingMethod method = TrackingMethod::kNone;
+  int num_keypoints = 0;
+  int num_stereo = 0;
+  int num_tracked = 0;  // inlier map points
+  // Tracking diagnostics (see TrackingResult).
+  int num_matches_initial = 0, num_inliers_initial = 0;
+  int num_local_projected = 0, num_local_matches = 0;
+  bool keyframe_inserted = false;
+  std::string keyframe_reason;
+  size_t num_keyframes = 0;
+  size_t num_map_points = 0;
+  MappingResult mapping;  // valid when keyframe_inserted
+  StageTimesMs times_ms;
+};
+
+class SlamSystem {
+ public:
+  // Throws ConfigError when the rig or options are invalid; the rig must be stereo
+  // (baseline_m > 0) and carry the image size.
+  SlamSystem(const StereoRig& rig, const SlamOptions& options);
+
+  // All stages for one rectified grey pair (CV_8UC1). filter may be null.
+  FrameOutput ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
+                           const cv::Mat& right, const FrameFilterInput* filter = nullptr);
+
+  // --- Stages ---
+  OrbFeatures ExtractLeft(const cv::Mat& left) const { return extractor_.Extract(left); }
+  OrbFeatures ExtractRight(const cv::Mat& right) const { return extractor_.Extract(right); }
+  StereoMatches MatchStereoFeatures(const OrbFeatures& left, const OrbFeatures& right) const;
+  // Samples the filter at the keypoints (throws std::invalid_argument on a size mismatch).
+  static KeypointFilter SampleFilter(const FrameFilterInput& filter,
+                                     const std::vector<cv::KeyPoint>& keypoints);
+  // A new frame with the next internal frame id.
+  FramePtr BuildFrame(int64_t t_ns, const OrbFeatures& left, const StereoMatches& stereo,
+                      const KeypointFilter& filter);
+  // Tracks the frame and applies its map edits (counters; the first keyframe at
+  // initialisation, followed by its local mapping). Records the frame for RefinedTrajectory().
+  TrackingResult Track(const FramePtr& frame, int64_t frame_index);
+  KeyframeDecision DecideKeyframe(const TrackingResult& tracking) const;
+  // Inserts the tracked frame as a keyframe and runs local mapping on it.
+  MappingResult InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking);
+
+  const Map& map() const { return map_; }
+  const StereoRig& rig() const { return rig_; }
+  const SlamOptions& options() const { return options_; }
+  const ScalePyramid& scale() const { return scale_; }
+  // world_from_cam of every tracked frame so far, each expressed relative to its reference
+  // keyframe as that keyframe stands now (so keyframe refinements carry over); frames that were
+  // not tracked are left out.
+  Trajectory RefinedTrajectory() const;
+
+ private:
+  struct FrameRecord {
+    int64_t frame_index = -1;
+    int64_t t_ns = 0;
+    KeyframeId reference;
+    SE3 cam_from_reference = SE3::Identity();
+  };
+
+  StereoRig rig_;
+  SlamOptions options_;
+  OrbExtractor extractor_;
+  ScalePyramid scale_;
+  Map map_;
+  Tracker tracker_;
+  LocalMapper mapper_;
+  int64_t next_frame_id_ = 0;
+  std::vector<FrameRecord> records_;
+};
+
+}  // namespace pcr

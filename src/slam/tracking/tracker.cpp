@@ -1,0 +1,556 @@
+#include "slam/tracking/tracker.h"
+
+#include <algorithm>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+#include <set>
+
+#include "slam/common/error.h"
+#include "slam/map/matcher.h"
+#include "slam/map/stereo_points.h"
+
+namespace pcr {
+namespace {
+
+constexpr int kTaken = -3;
+constexpr int kExcluded = -2;
+
+// Frustum check of a map point for local-map search: positive depth, inside the image, distance
+// within the scale-invariance range, viewing angle within 60 degrees of the mean.
+bool ProjectMapPoint(const MapPoint& mp, const Frame& frame, const SE3& cam_from_world,
+                     const Eigen::Vector3d& centre, ProjectedPoint* out) {
+  const Eigen::Vector3d p_in_cam = cam_from_world * mp.p_in_world;
+  if (p_in_cam.z() <= 0) return false;
+  const StereoRig& rig = frame.rig();
+  const Eigen::Vector2d uv = rig.left.Project(p_in_cam);
+  if (!rig.left.InImage(uv)) return false;
+  const Eigen::Vector3d ray = mp.p_in_world - centre;
+  const double distance = ray.norm();
+  if (distance < 0.8 * mp.min_distance_m || distance > 1.2 * mp.max_distance_m) return false;
+  const double view_cos = ray.dot(mp.normal) / distance;
+  if (view_cos < 0.5) return false;
+  out->uv_px = uv;
+  out->u_right_px = rig.IsStereo() ? rig.ProjectRightX(p_in_cam) : -1;
+  out->predicted_level = mp.PredictLevel(distance, frame.scale());
+  out->view_cos = view_cos;
+  out->descriptor = mp.descriptor;
+  return true;
+}
+
+}  // namespace
+
+const char* ToString(TrackingStatus status) {
+  switch (status) {
+    case TrackingStatus::kNotInitialized:
+      return "not_initialized";
+    case TrackingStatus::kOk:
+      return "ok";
+    case TrackingStatus::kLost:
+      return "lost";
+  }
+  return "?";
+}
+
+const char* ToString(TrackingMethod method) {
+  switch (method) {
+    case TrackingMethod::kNone:
+      return "none";
+    case TrackingMethod::kInitialisation:
+      return "initialisation";
+    case TrackingMethod::kMotionModel:
+      return "motion_model";
+    case TrackingMethod::kReferenceKeyframe:
+      return "reference_keyframe";
+    case TrackingMethod::kRelocalisation:
+      return "relocalisation";
+  }
+  return "?";
+}
+
+bool TrackerOptions::IsValid(std::string* why) const {
+  auto fail = [&](const char* m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (!(close_depth_baselines > 0)) return fail("close_depth_baselines must be > 0");
+  if (min_init_stereo_points < 1) return fail("min_init_stereo_points must be >= 1");
+  if (!(motion_search_radius_px > 0) || !(local_search_radius_factor > 0) ||
+      !(local_search_radius_factor_relocalised > 0))
+    return fail("search radii must be > 0");
+  if (min_motion_matches < 0 || min_pose_inliers < 0 || min_reference_matches < 0 ||
+      min_local_map_inliers < 0 || min_local_map_inliers_relocalised < 0 ||
+      min_relocalisation_matches < 4 || min_relocalisation_inliers < 0)
+    return fail("tracking thresholds must be >= 0 (relocalisation matches >= 4)");
+  if (!(reference_match_ratio > 0 && reference_match_ratio <= 1) ||
+      !(relocalisation_match_ratio > 0 && relocalisation_match_ratio <= 1))
+    return fail("match ratios must lie in (0, 1]");
+  if (reference_max_distance < 0 || reference_max_distance > 256 ||
+      relocalisation_max_distance < 0 || relocalisation_max_distance > 256)
+    return fail("descriptor distances must lie in [0, 256]");
+  if (local_search_levels_below < 0 || local_search_levels_above < 0)
+    return fail("local search level windows must be >= 0");
+  if (max_local_keyframes < 1 || local_neighbours_per_keyframe < 0 ||
+      relocalisation_keyframes < 1 || relocalised_frames < 0 || min_temporary_points < 0)
+    return fail("local-map and relocalisation sizes must be positive");
+  if (!(pnp_reprojection_px > 0) || pnp_iterations < 1)
+    return fail("PnP RANSAC needs a positive threshold and iterations");
+  return pose.IsValid(why);
+}
+
+int Tracker::Matches::Count() const {
+  return static_cast<int>(std::count_if(kind.begin(), kind.end(), [](uint8_t k) { return k; }));
+}
+
+int Tracker::Matches::CountMapPoints() const {
+  return static_cast<int>(std::count(kind.begin(), kind.end(), uint8_t{1}));
+}
+
+void Tracker::Matches::Clear(int i) {
+  point[i] = MapPointId();
+  kind[i] = 0;
+}
+
+void Tracker::Matches::Reset(int n) {
+  point.assign(n, MapPointId());
+  p_in_world.assign(n, Eigen::Vector3d::Zero());
+  kind.assign(n, 0);
+}
+
+Tracker::Tracker(const TrackerOptions& options) : options_(options) {
+  std::string why;
+  if (!options_.IsValid(&why)) throw ConfigError("TrackerOptions: " + why);
+}
+
+void Tracker::Reset() {
+  status_ = TrackingStatus::kNotInitialized;
+  last_ = LastFrame();
+  has_velocity_ = false;
+  velocity_ = SE3::Identity();
+  reference_ = KeyframeId();
+  last_keyframe_t_ns_ = 0;
+  frames_since_relocalisation_ = 1 << 30;
+}
+
+std::vector<int> Tracker::FreeMask(const Frame& frame, const Matches& m) const {
+  std::vector<int> mask(frame.size(), -1);
+  for (int i = 0; i < frame.size(); ++i) {
+    if (frame.excluded(i))
+      mask[i] = kExcluded;
+    else if (m.kind[i])
+      mask[i] = kTaken;
+  }
+  return mask;
+}
+
+int Tracker::OptimizeAndPrune(const Frame& frame, SE3* pose, Matches* m,
+                              double* inlier_ratio) const {
+  std::vector<PoseObservation> observations;
+  std::vector<int> keypoint_of;
+  for (int i = 0; i < frame.size(); ++i) {
+    if (!m->kind[i]) continue;
+    PoseObservation obs;
+    obs.p_in_world = m->p_in_world[i];
+    obs.uv_px = frame.uv(i);
+    obs.u_right_px = frame.has_stereo(i) ? frame.u_right_px(i) : -1.0;
+    obs.information = frame.scale().inv_level_sigma2[frame.octave(i)];
+    obs.weight = frame.weight(i);
+    obs.excluded = frame.excluded(i);
+    observations.push_back(obs);
+    keypoint_of.push_back(i);
+  }
+  if (inlier_ratio) *inlier_ratio = 0;
+  if (observations.size() < 3) return 0;
+  const PoseOptimizationResult r = OptimizePose(frame.rig(), *pose, observations, options_.pose);
+  *pose = r.cam_from_world;
+  int usable = 0, inliers = 0;
+  for (size_t k = 0; k < observations.size(); ++k) {
+    if (!observations[k].excluded) ++usable;
+    if (!r.inlier[k]) {
+      m->Clear(keypoint_of[k]);
+      continue;
+    }
+    if (m->kind[keypoint_of[k]] == 1) ++inliers;
+  }
+  if (inlier_ratio && usable > 0) *inlier_ratio = static_cast<double>(r.num_inliers) / usable;
+  return inliers;
+}
+
+bool Tracker::TrackMotionModel(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
+                               int* n1) {
+  const Frame& last = *last_.frame;
+  std::vector<FramePointCandidate> candidates;
+  std::vector<MapPointId> candidate_point;  // invalid: temporary point
+  std::vector<MapPointId> last_points(last.size());
+  for (int i = 0; i < last.size(); ++i) {
+    const MapPointId p =
+        i < static_cast<int>(last_.points.size()) ? map.Resolve(last_.points[i]) : MapPointId();
+    const MapPoint* mp = p.valid() ? map.point(p) : nullptr;
+    if (!mp) continue;
+    last_points[i] = p;
+    candidates.push_back({mp->p_in_world, mp->descriptor, last.octave(i), last.keypoint(i).angle});
+    candidate_point.push_back(p);
+  }
+  if (frame.rig().IsStereo() && !last_.is_keyframe) {
+    const double close_depth = options_.close_depth_baselines * frame.rig().baseline_m;
+    const SE3 world_from_last = last_.cam_from_world.inverse();
+    for (int i : SelectStereoPointsToCreate(last, last_points, close_depth,
+                                            options_.min_temporary_points)) {
+      candidates.push_back({world_from_last * last.UnprojectStereo(i), last.descriptor(i),
+                            last.octave(i), last.keypoint(i).angle});
+      candidate_point.push_back(MapPointId());
+    }
+  }
+  *pose = velocity_ * last_.cam_from_world;
+  std::vector<int> assigned;
+  int count = 0;
+  for (double factor : {1.0, 2.0}) {
+    m->Reset(frame.size());
+    assigned = FreeMask(frame, *m);
+    count = SearchByProjection(frame, *pose, last_.cam_from_world, candidates,
+                               factor * options_.motion_search_radius_px, true, &assigned);
+    if (count >= options_.min_motion_matches) break;
+  }
+  if (count < options_.min_motion_matches) return false;
+  for (int i = 0; i < frame.size(); ++i) {
+    if (assigned[i] < 0) continue;
+    m->p_in_world[i] = candidates[assigned[i]].p_in_world;
+    m->point[i] = candidate_point[assigned[i]];
+    m->kind[i] = candidate_point[assigned[i]].valid() ? 1 : 2;
+  }
+  *n0 = count;
+  *n1 = OptimizeAndPrune(frame, pose, m, nullptr);
+  return *n1 >= options_.min_pose_inliers;
+}
+
+bool Tracker::TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* pose, Matches* m,
+                                     int* n0, int* n1) {
+  KeyframeId ref_id = map.ResolveKeyframe(reference_);
+  if (!ref_id.valid()) ref_id = map.last_keyframe();
+  const Keyframe* kf = map.keyframe(ref_id);
+  if (!kf) return false;
+  std::vector<int> a, b;
+  for (int i = 0; i < frame.size(); ++i)
+    if (!frame.excluded(i)) a.push_back(i);
+  for (int j = 0; j < kf->frame->size(); ++j)
+    if (kf->points[j].valid() && map.point(kf->points[j])) b.push_back(j);
+  const auto pairs = MatchDescriptors(frame, a, *kf->frame, b, options_.reference_max_distance,
+                                      options_.reference_match_ratio, true);
+  if (static_cast<int>(pairs.size()) < options_.min_reference_matches) return false;
+  m->Reset(frame.size());
+  for (const auto& [i, j] : pairs) {
+    const MapPoint* mp = map.point(kf->points[j]);
+    m->point[i] = mp->id;
+    m->p_in_world[i] = mp->p_in_world;
+    m->kind[i] = 1;
+  }
+  *n0 = static_cast<int>(pairs.size());
+  *pose = last_.frame ? last_.cam_from_world : kf->cam_from_world;
+  *n1 = OptimizeAndPrune(frame, pose, m, nullptr);
+  return *n1 >= options_.min_pose_inliers;
+}
+
+bool Tracker::Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0) {
+  // Candidates: the most recent keyframes, then the reference keyframe's covisible ones.
+  std::vector<const Keyframe*> by_index;
+  for (const auto& [id, kf] : map.keyframes()) by_index.push_back(&kf);
+  std::sort(by_index.begin(), by_index.end(),
+            [](const Keyframe* x, const Keyframe* y) { return x->index > y->index; });
+  std::vector<KeyframeId> candidates;
+  std::set<KeyframeId> seen;
+  for (size_t k = 0; k < by_index.size() && static_cast<int>(k) < options_.relocalisation_keyframes;
+       ++k)
+    if (seen.insert(by_index[k]->id).second) candidates.push_back(by_index[k]->id);
+  if (const Keyframe* ref = map.keyframe(map.ResolveKeyframe(reference_)))
+    for (KeyframeId id : ref->BestCovisible(options_.relocalisation_keyframes))
+      if (seen.insert(id).second) candidates.push_back(id);
+
+  std::vector<int> a;
+  for (int i = 0; i < frame.size(); ++i)
+    if (!frame.excluded(i)) a.push_back(i);
+  const PinholeCamera& cam = frame.rig().left;
+  const cv::Mat K = (cv::Mat_<double>(3, 3) << cam.fx, 0, cam.cx, 0, cam.fy, cam.cy, 0, 0, 1);
+  for (KeyframeId id : candidates) {
+    const Keyframe* kf = map.keyframe(id);
+    std::vector<int> b;
+    for (int j = 0; j < kf->frame->size(); ++j)
+      if (kf->points[j].valid() && map.point(kf->points[j])) b.push_back(j);
+    const auto pairs =
+        MatchDescriptors(frame, a, *kf->frame, b, options_.relocalisation_max_distance,
+                         options_.relocalisation_match_ratio, true);
+    if (static_cast<int>(pairs.size()) < options_.min_relocalisation_matches) continue;
+    std::vector<cv::Point3d> object;
+    std::vector<cv::Point2d> image;
+    for (const auto& [i, j] : pairs) {
+      const Eigen::Vector3d& x = map.point(kf->points[j])->p_in_world;
+      object.emplace_back(x.x(), x.y(), x.z());
+      image.emplace_back(frame.keypoint(i).pt.x, frame.keypoint(i).pt.y);
+    }
+    cv::Mat rvec, tvec;
+    std::vector<int> inliers;
+    const bool solved = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false,
+                                           options_.pnp_iterations, options_.pnp_reprojection_px,
+                                           0.99, inliers, cv::SOLVEPNP_EPNP);
+    if (!solved || static_cast<int>(inliers.size()) < options_.min_relocalisation_matches / 2 + 1)
+      continue;
+    cv::Mat R;
+    cv::Rodrigues(rvec, R);
+    Eigen::Matrix3d R_e;
+    Eigen::Vector3d t_e;
+    cv::cv2eigen(R, R_e);
+    cv::cv2eigen(tvec, t_e);
+    SE3 candidate_pose = SE3::Identity();
+    candidate_pose.linear() = R_e;
+    candidate_pose.translation() = t_e;
+    m->Reset(frame.size());
+    for (int k : inliers) {
+      const auto& [i, j] = pairs[k];
+      const MapPoint* mp = map.point(kf->points[j]);
+      m->point[i] = mp->id;
+      m->p_in_world[i] = mp->p_in_world;
+      m->kind[i] = 1;
+    }
+    int good = OptimizeAndPrune(frame, &candidate_pose, m, nullptr);
+    if (good < options_.min_relocalisation_inliers && good >= options_.min_pose_inliers) {
+      // More matches by projecting the candidate keyframe's points with a wide window.
+      std::vector<FramePointCandidate> more;
+      std::vector<MapPointId> more_point;
+      for (int j : b) {
+        const MapPoint* mp = map.point(kf->points[j]);
+        more.push_back(
+            {mp->p_in_world, mp->descriptor, kf->frame->octave(j), kf->frame->keypoint(j).angle});
+        more_point.push_back(mp->id);
+      }
+      std::vector<int> assigned = FreeMask(frame, *m);
+      SearchByProjection(frame, candidate_pose, candidate_pose, more, 10.0, true, &assigned);
+      for (int i = 0; i < frame.size(); ++i) {
+        if (assigned[i] < 0) continue;
+        m->point[i] = more_point[assigned[i]];
+        m->p_in_world[i] = more[assigned[i]].p_in_world;
+        m->kind[i] = 1;
+      }
+      good = OptimizeAndPrune(frame, &candidate_pose, m, nullptr);
+    }
+    if (good >= options_.min_relocalisation_inliers) {
+      *pose = candidate_pose;
+      *n0 = static_cast<int>(pairs.size());
+      reference_ = id;
+      return true;
+    }
+  }
+  return false;
+}
+
+LocalMap CollectLocalKeyframes(const Map& map, const std::vector<MapPointId>& matched_points,
+                               int max_keyframes, int neighbours_per_keyframe) {
+  LocalMap local;
+  std::map<KeyframeId, int> counts;
+  for (MapPointId p : matched_points) {
+    const MapPoint* mp = map.point(p);
+    if (!mp) continue;
+    for (const auto& obs : mp->observations) ++counts[obs.first];
+  }
+  if (counts.empty()) return local;
+  std::vector<std::pair<KeyframeId, int>> ordered(counts.begin(), counts.end());
+  std::sort(ordered.begin(), ordered.end(), [](const auto& x, const auto& y) {
+    return x.second != y.second ? x.second > y.second : x.first < y.first;
+  });
+  local.reference = ordered.front().first;
+  std::set<KeyframeId> in_local;
+  auto add = [&](KeyframeId id) {
+    if (static_cast<int>(local.keyframes.size()) >= max_keyframes) return false;
+    if (!map.keyframe(id) || !in_local.insert(id).second) return false;
+    local.keyframes.push_back(id);
+    return true;
+  };
+  for (const auto& [id, count] : ordered) add(id);
+  const std::vector<KeyframeId> first_ring = local.keyframes;
+  for (KeyframeId id : first_ring) {
+    if (static_cast<int>(local.keyframes.size()) >= max_keyframes) break;
+    const Keyframe* kf = map.keyframe(id);
+    for (KeyframeId n : kf->BestCovisible(neighbours_per_keyframe)) add(n);
+    for (KeyframeId c : kf->children)
+      if (add(c)) break;
+    if (kf->parent.valid()) add(kf->parent);
+  }
+  return local;
+}
+
+bool Tracker::TrackLocalMap(const Frame& frame, const Map& map, SE3* pose, Matches* m,
+                            TrackingResult* result) {
+  std::vector<MapPointId> matched;
+  for (int i = 0; i < frame.size(); ++i)
+    if (m->kind[i] == 1) matched.push_back(m->point[i]);
+  const LocalMap local = CollectLocalKeyframes(map, matched, options_.max_local_keyframes,
+                                               options_.local_neighbours_per_keyframe);
+  if (local.reference.valid()) reference_ = local.reference;
+  std::set<MapPointId> seen(matched.begin(), matched.end());
+  for (MapPointId p : matched) result->map_delta.visible_increments.push_back(p);
+  std::vector<ProjectedPoint> projected;
+  std::vector<const MapPoint*> projected_point;
+  const Eigen::Vector3d centre = pose->inverse().translation();
+  for (KeyframeId id : local.keyframes) {
+    const Keyframe* kf = map.keyframe(id);
+    for (MapPointId p : kf->points) {
+      if (!p.valid() || !seen.insert(p).second) continue;
+      const MapPoint* mp = map.point(p);
+      if (!mp) continue;
+      ProjectedPoint pp;
+      if (!ProjectMapPoint(*mp, frame, *pose, centre, &pp)) continue;
+      projected.push_back(pp);
+      projected_point.push_back(mp);
+      result->map_delta.visible_increments.push_back(p);
+    }
+  }
+  const bool recently_relocalised = frames_since_relocalisation_ < options_.relocalised_frames;
+  result->num_local_projected = static_cast<int>(projected.size());
+  std::vector<int> assigned = FreeMask(frame, *m);
+  result->num_local_matches = SearchLocalPoints(
+      frame, projected,
+      recently_relocalised ? options_.local_search_radius_factor_relocalised
+                           : options_.local_search_radius_factor,
+      &assigned, options_.local_search_levels_below, options_.local_search_levels_above);
+  for (int i = 0; i < frame.size(); ++i) {
+    if (assigned[i] < 0) continue;
+    const MapPoint* mp = projected_point[assigned[i]];
+    m->point[i] = mp->id;
+    m->p_in_world[i] = mp->p_in_world;
+    m->kind[i] = 1;
+  }
+  double inlier_ratio = 0;
+  const int inliers = OptimizeAndPrune(frame, pose, m, &inlier_ratio);
+  result->keyframe_input.motion_quality = inlier_ratio;
+  for (int i = 0; i < frame.size(); ++i)
+    if (m->kind[i] == 1) result->map_delta.found_increments.push_back(m->point[i]);
+  const int needed = recently_relocalised ? options_.min_local_map_inliers_relocalised
+                                          : options_.min_local_map_inliers;
+  return inliers >= needed;
+}
+
+TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
+  if (!frame_ptr) throw std::invalid_argument("Tracker::Track: null frame");
+  const Frame& frame = *frame_ptr;
+  TrackingResult result;
+  result.frame_id = frame.id();
+  result.points.assign(frame.size(), MapPointId());
+  const bool stereo = frame.rig().IsStereo();
+  const double close_depth = options_.close_depth_baselines * frame.rig().baseline_m;
+
+  if (map.empty()) {
+    Reset();
+    if (stereo) {
+      std::optional<MapDelta> init =
+          StereoInitialisation(frame_ptr, SE3::Identity(), options_.min_init_stereo_points);
+      if (init) {
+        result.status = TrackingStatus::kOk;
+        result.method = TrackingMethod::kInitialisation;
+        result.map_delta = std::move(*init);
+        result.reference_keyframe = KeyframeId(frame.id());
+        result.num_tracked = static_cast<int>(result.map_delta.new_points.size());
+        status_ = TrackingStatus::kOk;
+        last_.frame = frame_ptr;
+        last_.cam_from_world = SE3::Identity();
+        last_.reference = KeyframeId(frame.id());
+        last_.cam_from_reference = SE3::Identity();
+        last_.points.assign(frame.size(), MapPointId());
+        last_.is_keyframe = false;
+        reference_ = last_.reference;
+        last_keyframe_t_ns_ = frame.t_ns();
+        return result;
+      }
+    }
+    result.status = TrackingStatus::kNotInitialized;
+    return result;
+  }
+
+  Matches m;
+  m.Reset(frame.size());
+  SE3 pose = SE3::Identity();
+  bool ok = false;
+  const bool previous_ok = status_ == TrackingStatus::kOk && last_.frame != nullptr;
+  if (previous_ok) {
+    if (const auto ref_pose = map.CamFromWorld(last_.reference))
+      last_.cam_from_world = last_.cam_from_reference * *ref_pose;
+    if (has_velocity_) {
+      ok = TrackMotionModel(frame, map, &pose, &m, &result.num_matches_initial,
+                            &result.num_inliers_initial);
+      if (ok) result.method = TrackingMethod::kMotionModel;
+    }
+    if (!ok) {
+      ok = TrackReferenceKeyframe(frame, map, &pose, &m, &result.num_matches_initial,
+                                  &result.num_inliers_initial);
+      if (ok) result.method = TrackingMethod::kReferenceKeyframe;
+    }
+  }
+  ++frames_since_relocalisation_;
+  if (!ok) {
+    ok = Relocalise(frame, map, &pose, &m, &result.num_matches_initial);
+    if (ok) {
+      result.method = TrackingMethod::kRelocalisation;
+      frames_since_relocalisation_ = 0;
+    }
+  }
+  if (ok) ok = TrackLocalMap(frame, map, &pose, &m, &result);
+
+  if (!ok) {
+    status_ = TrackingStatus::kLost;
+    has_velocity_ = false;
+    result.status = TrackingStatus::kLost;
+    result.method = TrackingMethod::kNone;
+    // Best guess for a lost frame: the last tracked pose, moved on by the last velocity once.
+    result.cam_from_world = previous_ok ? velocity_ * last_.cam_from_world : last_.cam_from_world;
+    result.map_delta.found_increments.clear();
+    last_.frame = frame_ptr;
+    last_.points.assign(frame.size(), MapPointId());
+    return result;
+  }
+
+  for (int i = 0; i < frame.size(); ++i)
+    if (m.kind[i] == 1) result.points[i] = m.point[i];
+  result.num_tracked = m.CountMapPoints();
+  result.status = TrackingStatus::kOk;
+  result.cam_from_world = pose;
+  result.reference_keyframe = reference_;
+  // The motion model needs two consecutive tracked frames.
+  has_velocity_ = previous_ok;
+  if (previous_ok) velocity_ = pose * last_.cam_from_world.inverse();
+  status_ = TrackingStatus::kOk;
+  last_.frame = frame_ptr;
+  last_.cam_from_world = pose;
+  last_.reference = reference_;
+  const auto ref_pose = map.CamFromWorld(reference_);
+  last_.cam_from_reference = ref_pose ? SE3(pose * ref_pose->inverse()) : SE3::Identity();
+  last_.points = result.points;
+  last_.is_keyframe = false;
+
+  KeyframeDecisionInput& in = result.keyframe_input;
+  in.tracked_points = result.num_tracked;
+  in.reference_tracked_points = map.TrackedPoints(reference_, map.num_keyframes() <= 2 ? 2 : 3);
+  if (stereo) {
+    const ClosePointCounts close = CountClosePoints(frame, result.points, close_depth);
+    in.tracked_close = close.tracked;
+    in.untracked_close = close.untracked;
+  }
+  in.filtered_points = frame.num_excluded();
+  in.total_points = frame.size();
+  in.seconds_since_last_keyframe = NsToSeconds(frame.t_ns() - last_keyframe_t_ns_);
+  in.keyframes_in_map = static_cast<int>(map.num_keyframes());
+  in.recently_relocalised = frames_since_relocalisation_ < options_.relocalised_frames;
+  in.stereo = stereo;
+  return result;
+}
+
+void Tracker::OnKeyframeInserted(KeyframeId id, const Map& map) {
+  const Keyframe* kf = map.keyframe(id);
+  if (!kf) return;
+  reference_ = id;
+  last_keyframe_t_ns_ = kf->frame->t_ns();
+  if (last_.frame && last_.frame->id() == kf->frame->id()) {
+    last_.points = kf->points;
+    last_.cam_from_world = kf->cam_from_world;
+    last_.reference = id;
+    last_.cam_from_reference = SE3::Identity();
+    last_.is_keyframe = true;
+  }
+}
+
+}  // namespace pcr

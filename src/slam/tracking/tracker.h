@@ -1,0 +1,156 @@
+#pragma once
+// Frame tracking against the map: constant-velocity motion model with search by projection,
+// reference-keyframe tracking by descriptor matching, relocalisation (descriptor matching +
+// PnP RANSAC), then local-map tracking, each followed by motion-only optimisation (Eq. 6:
+// excluded keypoints never enter it, weights scale their information).
+//
+// Stereo-specific parts (initialisation from stereo depth, temporary points from the last
+// frame's stereo depth, close-point counts) live in slam/map/stereo_points.h and are only used
+// when the rig is stereo; search, optimisation and local-map tracking are shared with a
+// monocular front end (which provides its own initialisation).
+//
+// Thread-compatible: Track() is called serially; it reads the map and returns its edits.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "slam/common/pose.h"
+#include "slam/map/frame.h"
+#include "slam/map/map.h"
+#include "slam/optim/pose_optimizer.h"
+#include "slam/tracking/keyframe_decision.h"
+
+namespace pcr {
+
+enum class TrackingStatus { kNotInitialized, kOk, kLost };
+const char* ToString(TrackingStatus status);
+
+enum class TrackingMethod {
+  kNone,
+  kInitialisation,
+  kMotionModel,
+  kReferenceKeyframe,
+  kRelocalisation,
+};
+const char* ToString(TrackingMethod method);
+
+struct TrackerOptions {
+  double close_depth_baselines = 40;   // close stereo depth: < this * baseline
+  int min_init_stereo_points = 500;    // stereo initialisation
+  double motion_search_radius_px = 7;  // motion-model window (times the octave scale)
+  int min_motion_matches = 20;         // else the window is doubled, then reference tracking
+  int min_pose_inliers = 10;           // map-point inliers to accept a motion/reference pose
+  int reference_max_distance = 50;     // descriptor distance, reference-keyframe matching
+  double reference_match_ratio = 0.7;  // best / second best
+  int min_reference_matches = 15;
+  double local_search_radius_factor = 1.0;  // local-map window factor
+  double local_search_radius_factor_relocalised = 5.0;
+  int local_search_levels_below = 2;  // search levels around the predicted one
+  int local_search_levels_above = 1;
+  int min_local_map_inliers = 30;
+  int min_local_map_inliers_relocalised = 50;
+  int relocalised_frames = 10;  // frames after a relocalisation that count as "recent"
+  int max_local_keyframes = 80;
+  int local_neighbours_per_keyframe = 10;
+  int relocalisation_keyframes = 10;     // most recent keyframes tried (plus covisible ones)
+  int relocalisation_max_distance = 64;  // descriptor distance
+  double relocalisation_match_ratio = 0.75;
+  int min_relocalisation_matches = 15;
+  int min_relocalisation_inliers = 50;
+  double pnp_reprojection_px = 4.0;
+  int pnp_iterations = 300;
+  int min_temporary_points = 100;  // stereo: temporary points made from the last frame's depth
+  PoseOptimizerOptions pose;
+  bool IsValid(std::string* why) const;
+};
+
+struct TrackingResult {
+  int64_t frame_id = -1;
+  TrackingStatus status = TrackingStatus::kNotInitialized;
+  TrackingMethod method = TrackingMethod::kNone;
+  SE3 cam_from_world = SE3::Identity();
+  std::vector<MapPointId> points;  // per keypoint: inlier map point, invalid otherwise
+  int num_tracked = 0;             // inlier map points
+  // Diagnostics: matches before the first optimisation, map-point inliers after it, local-map
+  // points projected into the frame, new matches found among them.
+  int num_matches_initial = 0;
+  int num_inliers_initial = 0;
+  int num_local_projected = 0;
+  int num_local_matches = 0;
+  KeyframeId reference_keyframe;  // local keyframe sharing most points
+  // Map edits: visible/found counters of the local map points and, at initialisation, the first
+  // keyframe with its points.
+  MapDelta map_delta;
+  KeyframeDecisionInput keyframe_input;  // for ShouldInsertKeyframe
+};
+
+class Tracker {
+ public:
+  // Throws ConfigError when options are invalid.
+  explicit Tracker(const TrackerOptions& options);
+
+  // Tracks frame against map. A map without keyframes triggers stereo initialisation (for a
+  // stereo rig) whose delta the caller applies and then reports with OnKeyframeInserted.
+  TrackingResult Track(const FramePtr& frame, const Map& map);
+  // Tells the tracker that the frame of the last Track() call became keyframe id (after the
+  // map applied the keyframe and its local mapping): its associations and pose then seed the
+  // next frame's search.
+  void OnKeyframeInserted(KeyframeId id, const Map& map);
+  // Forgets the motion model and the last frame (status back to kNotInitialized).
+  void Reset();
+
+  TrackingStatus status() const { return status_; }
+  const TrackerOptions& options() const { return options_; }
+
+ private:
+  // Matches of the frame under construction: per keypoint, a map point or a temporary point.
+  struct Matches {
+    std::vector<MapPointId> point;
+    std::vector<Eigen::Vector3d> p_in_world;
+    std::vector<uint8_t> kind;  // 0 none, 1 map point, 2 temporary (not in the map)
+    int Count() const;
+    int CountMapPoints() const;
+    void Clear(int i);
+    void Reset(int n);
+  };
+  struct LastFrame {
+    FramePtr frame;
+    SE3 cam_from_world = SE3::Identity();
+    KeyframeId reference;
+    SE3 cam_from_reference = SE3::Identity();
+    std::vector<MapPointId> points;
+    bool is_keyframe = false;
+  };
+
+  bool TrackMotionModel(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
+                        int* n1);
+  bool TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
+                              int* n1);
+  bool Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0);
+  bool TrackLocalMap(const Frame& frame, const Map& map, SE3* pose, Matches* m,
+                     TrackingResult* result);
+  // Optimises *pose on the matches and drops outliers; returns the map-point inliers.
+  int OptimizeAndPrune(const Frame& frame, SE3* pose, Matches* m, double* inlier_ratio) const;
+  std::vector<int> FreeMask(const Frame& frame, const Matches& m) const;
+
+  TrackerOptions options_;
+  TrackingStatus status_ = TrackingStatus::kNotInitialized;
+  LastFrame last_;
+  bool has_velocity_ = false;
+  SE3 velocity_ = SE3::Identity();  // current_from_last camera motion
+  KeyframeId reference_;
+  int64_t last_keyframe_t_ns_ = 0;
+  int64_t frames_since_relocalisation_ = 1 << 30;
+};
+
+// Local map of a frame: the keyframes observing its matched points (by decreasing count), their
+// best covisible neighbours, children and parents, at most max_keyframes; and the reference
+// keyframe (the one sharing most points). Shared with monocular tracking.
+struct LocalMap {
+  std::vector<KeyframeId> keyframes;
+  KeyframeId reference;
+};
+LocalMap CollectLocalKeyframes(const Map& map, const std::vector<MapPointId>& matched_points,
+                               int max_keyframes, int neighbours_per_keyframe);
+
+}  // namespace pcr

@@ -1,0 +1,229 @@
+#include "slam/tracking/tracker.h"
+
+#include <gtest/gtest.h>
+
+#include "slam/common/error.h"
+#include "slam/map/stereo_points.h"
+#include "slam/map/synthetic_scene.h"
+
+namespace pcr {
+namespace {
+
+double TranslationError(const SE3& a, const SE3& b) {
+  return (a.inverse().translation() - b.inverse().translation()).norm();
+}
+
+double RotationErrorDeg(const SE3& a, const SE3& b) {
+  return Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle() * 180.0 / M_PI;
+}
+
+SE3 TruePose(int i) { return test::CamFromWorld({0.05 * i, 0.0, 1.0 * i}, 0.01 * i); }
+
+// Inserts the tracked frame as a keyframe with its associations and new stereo points (what
+// the system and the local mapper do, without triangulation or bundle adjustment).
+void InsertKeyframe(const FramePtr& frame, const TrackingResult& r, Map* map, Tracker* tracker) {
+  MapDelta d;
+  NewKeyframe kf;
+  kf.frame = frame;
+  kf.cam_from_world = r.cam_from_world;
+  kf.parent_hint = r.reference_keyframe;
+  for (int i = 0; i < frame->size(); ++i)
+    if (r.points[i].valid()) kf.associations.emplace_back(i, r.points[i]);
+  d.new_keyframe = kf;
+  const SE3 world_from_cam = r.cam_from_world.inverse();
+  for (int i : SelectStereoPointsToCreate(*frame, r.points, 40 * frame->rig().baseline_m, 100)) {
+    NewMapPoint p;
+    p.p_in_world = world_from_cam * frame->UnprojectStereo(i);
+    p.observations.push_back({KeyframeId(frame->id()), i});
+    d.new_points.push_back(p);
+  }
+  map->Apply(d);
+  tracker->OnKeyframeInserted(KeyframeId(frame->id()), *map);
+}
+
+// Map, tracker and the results of the frames tracked so far.
+struct TrackerRun {
+  Map map;
+  Tracker tracker{TrackerOptions{}};
+  std::vector<TrackingResult> results;
+  std::map<int64_t, std::vector<int>> point_of_frame;  // scene point per keypoint, per frame id
+};
+
+void TrackFrames(test::SyntheticScene& scene, int first, int last, TrackerRun* run,
+                 std::vector<FramePtr>* frames = nullptr) {
+  for (int i = first; i < last; ++i) {
+    std::vector<int> point_of;
+    const FramePtr frame = scene.MakeFrame(i, TruePose(i), &point_of);
+    run->point_of_frame[i] = point_of;
+    if (frames) frames->push_back(frame);
+    TrackingResult r = run->tracker.Track(frame, run->map);
+    run->map.Apply(r.map_delta);
+    if (r.method == TrackingMethod::kInitialisation)
+      run->tracker.OnKeyframeInserted(KeyframeId(frame->id()), run->map);
+    else if (r.status == TrackingStatus::kOk && ShouldInsertKeyframe(r.keyframe_input).insert)
+      InsertKeyframe(frame, r, &run->map, &run->tracker);
+    run->results.push_back(std::move(r));
+  }
+}
+
+TEST(Tracker, TracksASyntheticStereoTrajectory) {
+  test::SyntheticScene scene(21);
+  TrackerRun run;
+  TrackFrames(scene, 0, 25, &run);
+  ASSERT_EQ(run.results.size(), 25u);
+  EXPECT_EQ(run.results[0].method, TrackingMethod::kInitialisation);
+  EXPECT_EQ(run.results[1].method, TrackingMethod::kReferenceKeyframe);  // no velocity yet
+  for (int i = 0; i < 25; ++i) {
+    const TrackingResult& r = run.results[i];
+    ASSERT_EQ(r.status, TrackingStatus::kOk) << "frame " << i;
+    if (i >= 2) {
+      EXPECT_EQ(r.method, TrackingMethod::kMotionModel) << "frame " << i;
+    }
+    // World = first camera, which is the identity of the true trajectory too. Without bundle
+    // adjustment the stereo depth noise makes the position drift slowly (1 m per frame).
+    EXPECT_LT(TranslationError(r.cam_from_world, TruePose(i)), 0.03 + 0.01 * i) << "frame " << i;
+    EXPECT_LT(RotationErrorDeg(r.cam_from_world, TruePose(i)), 0.1) << "frame " << i;
+    if (i > 0) {
+      EXPECT_GT(r.num_tracked, 150) << "frame " << i;
+      EXPECT_EQ(static_cast<int>(std::count_if(r.points.begin(), r.points.end(),
+                                               [](MapPointId p) { return p.valid(); })),
+                r.num_tracked);
+      // Counters: every tracked point was found and visible.
+      EXPECT_EQ(static_cast<int>(r.map_delta.found_increments.size()), r.num_tracked);
+      EXPECT_GE(r.map_delta.visible_increments.size(), r.map_delta.found_increments.size());
+      EXPECT_TRUE(r.reference_keyframe.valid());
+    }
+  }
+  EXPECT_GE(run.map.num_keyframes(), 3u);
+  EXPECT_EQ(run.tracker.status(), TrackingStatus::kOk);
+}
+
+TEST(Tracker, TrackedPointsAreTheRightOnes) {
+  test::SyntheticScene scene(22);
+  TrackerRun run;
+  TrackFrames(scene, 0, 6, &run);
+  std::vector<int> point_of;
+  const FramePtr frame = scene.MakeFrame(6, TruePose(6), &point_of);
+  const TrackingResult r = run.tracker.Track(frame, run.map);
+  ASSERT_EQ(r.status, TrackingStatus::kOk);
+  int checked = 0, wrong = 0;
+  for (int i = 0; i < frame->size(); ++i) {
+    if (!r.points[i].valid()) continue;
+    const MapPoint* mp = run.map.point(r.points[i]);
+    ASSERT_NE(mp, nullptr);
+    ++checked;
+    // The map point was made from a keyframe keypoint of the same scene point.
+    const int kp = mp->observations.at(mp->reference_keyframe);
+    if (point_of[i] < 0 || run.point_of_frame.at(mp->reference_keyframe.value)[kp] != point_of[i])
+      ++wrong;
+  }
+  EXPECT_GT(checked, 200);
+  EXPECT_LE(wrong, checked / 100);
+}
+
+TEST(Tracker, LosesTrackOnGarbageAndRelocalises) {
+  test::SyntheticScene scene(23);
+  TrackerRun run;
+  TrackFrames(scene, 0, 8, &run);
+  ASSERT_EQ(run.tracker.status(), TrackingStatus::kOk);
+  // A frame of unrelated keypoints: tracking is lost.
+  test::SyntheticScene::Options junk_options;
+  junk_options.num_points = 0;
+  junk_options.num_clutter = 1500;
+  test::SyntheticScene junk(99, junk_options);
+  const FramePtr garbage = junk.MakeFrame(8, SE3::Identity(), nullptr);
+  const TrackingResult lost = run.tracker.Track(garbage, run.map);
+  EXPECT_EQ(lost.status, TrackingStatus::kLost);
+  EXPECT_EQ(run.tracker.status(), TrackingStatus::kLost);
+  EXPECT_TRUE(lost.map_delta.found_increments.empty());
+  // Back near the map (at frame 5's place): relocalised by descriptor matching and PnP.
+  const FramePtr back = scene.MakeFrame(9, TruePose(5), nullptr);
+  const TrackingResult r = run.tracker.Track(back, run.map);
+  ASSERT_EQ(r.status, TrackingStatus::kOk);
+  EXPECT_EQ(r.method, TrackingMethod::kRelocalisation);
+  EXPECT_LT(TranslationError(r.cam_from_world, TruePose(5)), 0.05);
+  EXPECT_LT(RotationErrorDeg(r.cam_from_world, TruePose(5)), 0.1);
+  EXPECT_TRUE(r.keyframe_input.recently_relocalised);
+}
+
+TEST(Tracker, ExcludedKeypointsNeverEnterTracking) {
+  test::SyntheticScene scene(24);
+  Map map;
+  Tracker tracker{TrackerOptions{}};
+  // Exclude every other keypoint from the first frame on.
+  KeypointFilter filter;
+  filter.excluded.assign(3000, 0);
+  for (size_t i = 0; i < filter.excluded.size(); i += 2) filter.excluded[i] = 1;
+  for (int i = 0; i < 5; ++i) {
+    const FramePtr frame = scene.MakeFrame(i, TruePose(i), nullptr, filter);
+    ASSERT_GT(frame->num_excluded(), 500);
+    TrackingResult r = tracker.Track(frame, map);
+    ASSERT_EQ(r.status, TrackingStatus::kOk) << "frame " << i;
+    if (i == 0) {
+      for (const NewMapPoint& p : r.map_delta.new_points) {
+        EXPECT_FALSE(frame->excluded(p.observations[0].keypoint));
+      }
+    }
+    for (int k = 0; k < frame->size(); ++k) {
+      if (frame->excluded(k)) {
+        EXPECT_FALSE(r.points[k].valid()) << "frame " << i;
+      }
+    }
+    if (i > 0) {
+      EXPECT_EQ(r.keyframe_input.filtered_points, frame->num_excluded());
+    }
+    EXPECT_LT(TranslationError(r.cam_from_world, TruePose(i)), 0.05);
+    map.Apply(r.map_delta);
+    if (i == 0) tracker.OnKeyframeInserted(KeyframeId(frame->id()), map);
+  }
+}
+
+TEST(Tracker, NeedsEnoughStereoPointsToInitialise) {
+  test::SyntheticScene::Options sparse;
+  sparse.num_points = 300;
+  test::SyntheticScene scene(25, sparse);
+  Map map;
+  Tracker tracker{TrackerOptions{}};
+  const TrackingResult r = tracker.Track(scene.MakeFrame(0, SE3::Identity(), nullptr), map);
+  EXPECT_EQ(r.status, TrackingStatus::kNotInitialized);
+  EXPECT_TRUE(r.map_delta.empty());
+  EXPECT_THROW(tracker.Track(nullptr, map), std::invalid_argument);
+}
+
+TEST(Tracker, OptionsValidation) {
+  TrackerOptions bad;
+  bad.min_relocalisation_matches = 3;
+  std::string why;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_THROW(Tracker{bad}, ConfigError);
+  bad = {};
+  bad.pose.rounds = 0;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_TRUE(TrackerOptions{}.IsValid(&why)) << why;
+}
+
+TEST(LocalMap, CollectsObserversNeighboursAndReference) {
+  test::SyntheticScene scene(26);
+  TrackerRun run;
+  TrackFrames(scene, 0, 20, &run);
+  ASSERT_GE(run.map.num_keyframes(), 3u);
+  const TrackingResult& last = run.results.back();
+  std::vector<MapPointId> matched;
+  for (MapPointId p : last.points)
+    if (p.valid()) matched.push_back(p);
+  const LocalMap local = CollectLocalKeyframes(run.map, matched, 80, 10);
+  ASSERT_FALSE(local.keyframes.empty());
+  EXPECT_EQ(local.keyframes.front(), local.reference);
+  // The reference shares the most points with the frame.
+  std::map<KeyframeId, int> counts;
+  for (MapPointId p : matched)
+    for (const auto& obs : run.map.point(p)->observations) ++counts[obs.first];
+  for (const auto& [id, c] : counts) EXPECT_LE(c, counts[local.reference]);
+  EXPECT_GE(local.keyframes.size(), 2u);
+  const LocalMap capped = CollectLocalKeyframes(run.map, matched, 1, 10);
+  EXPECT_EQ(capped.keyframes.size(), 1u);
+  EXPECT_TRUE(CollectLocalKeyframes(run.map, {}, 80, 10).keyframes.empty());
+}
+
+}  // namespace
+}  // namespace pcr
