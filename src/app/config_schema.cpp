@@ -137,6 +137,7 @@ void ConfigSchema::Set(const std::string& assignment, const std::string& source_
 
 std::string ConfigSchema::Dump() const {
   YAML::Emitter out;
+  out.SetDoublePrecision(12);
   out << YAML::BeginMap;
   std::vector<std::string> order;
   for (const Field& f : fields_)
@@ -145,9 +146,9 @@ std::string ConfigSchema::Dump() const {
     out << YAML::Key << section << YAML::Value << YAML::BeginMap;
     for (const Field& f : fields_) {
       if (f.section != section) continue;
-      if (!f.doc.empty()) out << YAML::Comment(f.doc);
       out << YAML::Key << f.key << YAML::Value;
       std::visit([&](auto* field) { out << *field; }, f.ptr);
+      if (!f.doc.empty()) out << YAML::Comment(f.doc);
     }
     out << YAML::EndMap;
   }

@@ -79,6 +79,12 @@ RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, FrameRange r
       spdlog::error("frame {}: {} (keeping the {} frames done)", i, e.what(), indices.size());
       break;
     }
+    spdlog::debug(
+        "frame {}: status {} method {} keypoints {} stereo {} tracked {} (initial {}/{}, local "
+        "{}/{}) keyframe {} {}",
+        i, static_cast<int>(out.status), static_cast<int>(out.method), out.num_keypoints,
+        out.num_stereo, out.num_tracked, out.num_inliers_initial, out.num_matches_initial,
+        out.num_local_matches, out.num_local_projected, out.keyframe_inserted, out.keyframe_reason);
     indices.push_back(static_cast<int64_t>(i));
     ++summary.frames_in;
     switch (out.status) {

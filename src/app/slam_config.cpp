@@ -33,6 +33,9 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("stereo", "sad_window_half_px", &st.sad_window_half_px);
   s.Add("stereo", "sad_search_half_px", &st.sad_search_half_px);
   s.Add("stereo", "outlier_sad_factor", &st.outlier_sad_factor);
+  s.Add("stereo", "subpixel_fit", &c.subpixel_fit, "parabola or equiangular");
+  s.Add("orb", "quadtree_oversplit", &orb.quadtree_oversplit,
+        "1: one corner per quadtree node (ORB-SLAM); 2: strongest of twice as many nodes");
 
   TrackerOptions& t = c.slam.tracker;
   s.Add("tracking", "close_depth_baselines", &t.close_depth_baselines,
@@ -84,6 +87,15 @@ RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>&
   BindRunConfig(config, schema);
   if (!path.empty()) schema.LoadFile(path);
   for (const std::string& o : overrides) schema.Set(o, "--set");
+  if (config.subpixel_fit == "parabola") {
+    config.slam.stereo.subpixel_fit = SubpixelFit::kParabola;
+  } else if (config.subpixel_fit == "equiangular") {
+    config.slam.stereo.subpixel_fit = SubpixelFit::kEquiangular;
+  } else {
+    throw ConfigError((path.empty() ? std::string("--set") : path) +
+                      ": stereo.subpixel_fit must be parabola or equiangular, not '" +
+                      config.subpixel_fit + "'");
+  }
   std::string why;
   const std::string source = path.empty() ? std::string("defaults") : path;
   if (!config.slam.IsValid(&why)) throw ConfigError(source + ": invalid configuration: " + why);

@@ -19,6 +19,7 @@ struct CameraOverride {
 struct RunConfig {
   SlamOptions slam;
   CameraOverride camera;
+  std::string subpixel_fit = "equiangular";  // stereo.subpixel_fit: parabola | equiangular
 };
 
 // Registers every configurable field of `config` in `schema`.
