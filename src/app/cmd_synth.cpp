@@ -45,7 +45,7 @@ void AddSynthCommand(CLI::App& app) {
     Progress progress("synth", options.frames);
     const sim::WriteSummary summary =
         sim::WriteSequence(options, args->out_dir, [&progress](int done, int total) {
-          progress.Update(done, std::to_string(done) + "/" + std::to_string(total) + " frames");
+          if (done < total) progress.Update(done);
         });
     progress.Finish();
     std::printf(

@@ -1,0 +1,189 @@
+#include "sim/sequence_writer.h"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <thread>
+
+#include "sim/synthetic_world.h"
+#include "slam/common/error.h"
+
+namespace pcr::sim {
+namespace fs = std::filesystem;
+
+namespace {
+
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw InputError(path, 0, "cannot open for writing");
+  out << text;
+  out.flush();
+  if (!out) throw InputError(path, 0, "write failed");
+}
+
+void MakeDir(const fs::path& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) throw InputError(dir.string(), 0, "cannot create directory");
+}
+
+void WritePng(const std::string& path, const cv::Mat& image) {
+  bool ok = false;
+  try {
+    ok = cv::imwrite(
+        path, image,
+        {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_RLE});
+  } catch (const cv::Exception& e) {
+    throw InputError(path, 0, std::string("cannot write image: ") + e.what());
+  }
+  if (!ok) throw InputError(path, 0, "cannot write image");
+}
+
+void AppendPose(std::string* out, const SE3& pose) {
+  char line[512];
+  const Eigen::Matrix<double, 3, 4> m = pose.matrix().topRows<3>();
+  std::snprintf(line, sizeof(line), "%.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e %.9e",
+                m(0, 0), m(0, 1), m(0, 2), m(0, 3), m(1, 0), m(1, 1), m(1, 2), m(1, 3), m(2, 0),
+                m(2, 1), m(2, 2), m(2, 3));
+  *out += line;
+}
+
+std::string OptionsText(const SynthOptions& o) {
+  std::ostringstream s;
+  s.precision(10);
+  s << "frames: " << o.frames << "\nseed: " << o.seed << "\nnum_movers: " << o.num_movers
+    << "\nnum_parked: " << o.num_parked << "\nspeed_mps: " << o.speed_mps
+    << "\nroute: " << RouteName(o.route) << "\nwidth_px: " << o.width_px
+    << "\nheight_px: " << o.height_px << "\nfx: " << o.fx << "\nfy: " << o.fy << "\ncx: " << o.cx
+    << "\ncy: " << o.cy << "\nbaseline_m: " << o.baseline_m << "\nrate_hz: " << o.rate_hz
+    << "\ncamera_height_m: " << o.camera_height_m << "\nbounce_scale: " << o.bounce_scale
+    << "\nnoise_sigma: " << o.noise_sigma << "\nsequence: " << o.sequence << "\n";
+  return s.str();
+}
+
+}  // namespace
+
+std::string KittiCalibText(const SynthOptions& o) {
+  std::string text;
+  for (int cam = 0; cam < 4; ++cam) {
+    const double tx = (cam % 2 == 1) ? -o.fx * o.baseline_m : 0.0;
+    char line[512];
+    std::snprintf(line, sizeof(line),
+                  "P%d: %.12e %.12e %.12e %.12e %.12e %.12e %.12e %.12e %.12e %.12e %.12e %.12e\n",
+                  cam, o.fx, 0.0, o.cx, tx, 0.0, o.fy, o.cy, 0.0, 0.0, 0.0, 1.0, 0.0);
+    text += line;
+  }
+  return text;
+}
+
+WriteSummary WriteSequence(const SynthOptions& options, const std::string& out_dir,
+                           const ProgressCallback& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  const SyntheticWorld world(options);
+  const fs::path seq = fs::path(out_dir) / "sequences" / options.sequence;
+  const fs::path poses_dir = fs::path(out_dir) / "poses";
+  const char* image_dirs[] = {"image_0", "image_1", "instance_0", "instance_1"};
+  const int num_dirs = options.write_right_instances ? 4 : 3;
+  for (int i = 0; i < num_dirs; ++i) MakeDir(seq / image_dirs[i]);
+  MakeDir(poses_dir);
+
+  WriteText((seq / "calib.txt").string(), KittiCalibText(options));
+  WriteText((seq / "synth_options.txt").string(), OptionsText(options));
+  {
+    std::ostringstream s;
+    world.Instances().Write(s);
+    WriteText((seq / "instances.txt").string(), s.str());
+  }
+  // Text lines per frame, written at the end (or, after a failure, for the frames whose images
+  // were all written, so that a partial sequence stays consistent).
+  const int n = options.frames;
+  std::vector<std::string> times(n), poses(n), objects(n);
+  const std::string poses_path = (poses_dir / (options.sequence + ".txt")).string();
+  auto write_text = [&](int frames_done) {
+    std::string t, p,
+        o = "# frame id visible_px_left r00 r01 r02 tx r10 r11 r12 ty r20 r21 r22 tz "
+            "(world_from_object)\n";
+    for (int i = 0; i < frames_done; ++i) {
+      t += times[i];
+      p += poses[i];
+      o += objects[i];
+    }
+    WriteText((seq / "times.txt").string(), t);
+    WriteText((seq / "objects.txt").string(), o);
+    WriteText(poses_path, p);
+  };
+  const InstanceTable& table = world.Instances();
+  // Frame k+1 renders while frame k's PNGs are encoded on a helper thread.
+  std::thread writer;
+  std::exception_ptr writer_error;
+  int images_done = 0;
+  auto join_writer = [&] {
+    if (writer.joinable()) writer.join();
+    if (writer_error) std::rethrow_exception(writer_error);
+  };
+  try {
+    std::vector<int> visible(65536);
+    for (int i = 0; i < n; ++i) {
+      RenderedFrame frame = world.RenderFrame(i);
+      char line[64];
+      std::snprintf(line, sizeof(line), "%e\n", static_cast<double>(frame.t_ns) * 1e-9);
+      times[i] = line;
+      AppendPose(&poses[i], frame.world_from_cam);
+      poses[i] += "\n";
+      std::fill(visible.begin(), visible.end(), 0);
+      for (int y = 0; y < frame.instance_left.rows; ++y) {
+        const uint16_t* row = frame.instance_left.ptr<uint16_t>(y);
+        for (int x = 0; x < frame.instance_left.cols; ++x) ++visible[row[x]];
+      }
+      for (const InstanceInfo& info : table.all()) {
+        std::snprintf(line, sizeof(line), "%d %u %d ", i, static_cast<unsigned>(info.id),
+                      visible[info.id]);
+        objects[i] += line;
+        AppendPose(&objects[i], world.WorldFromObject(info.id, i));
+        objects[i] += "\n";
+      }
+      join_writer();
+      images_done = i;
+      if (progress && i > 0) progress(i, n);
+      char name[32];
+      std::snprintf(name, sizeof(name), "%06d.png", i);
+      writer = std::thread([&, frame = std::move(frame), file = std::string(name)] {
+        try {
+          WritePng((seq / "image_0" / file).string(), frame.left);
+          WritePng((seq / "image_1" / file).string(), frame.right);
+          WritePng((seq / "instance_0" / file).string(), frame.instance_left);
+          if (num_dirs == 4) WritePng((seq / "instance_1" / file).string(), frame.instance_right);
+        } catch (...) {
+          writer_error = std::current_exception();
+        }
+      });
+    }
+    join_writer();
+    images_done = n;
+  } catch (...) {
+    if (writer.joinable()) writer.join();
+    try {
+      write_text(images_done);
+    } catch (...) {
+      // The first error is the one to report.
+    }
+    throw;
+  }
+  write_text(n);
+  if (progress) progress(n, n);
+
+  WriteSummary summary;
+  summary.sequence_dir = seq.string();
+  summary.poses_path = poses_path;
+  summary.frames = n;
+  summary.instances = static_cast<int>(table.size());
+  for (const InstanceInfo& info : table.all()) summary.moving_instances += info.moving ? 1 : 0;
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+}  // namespace pcr::sim

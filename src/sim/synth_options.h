@@ -1,0 +1,46 @@
+#pragma once
+// Options of the synthetic KITTI-format stereo world (src/sim). Defaults give KITTI odometry
+// geometry: 1241x376 grey images, fx = fy = 718.856 px, baseline 0.537 m, 10 Hz, camera 1.65 m
+// above a straight street.
+#include <cstdint>
+#include <string>
+
+#include "slam/common/camera.h"
+
+namespace pcr::sim {
+
+enum class RouteKind {
+  kStraight,  // one straight street, driven forward
+  kLoop,      // a rounded rectangle of streets (left turns), driven past its start
+};
+
+// "straight" / "loop"; ParseRoute throws pcr::ConfigError for another name.
+const char* RouteName(RouteKind route);
+RouteKind ParseRoute(const std::string& name);
+
+struct SynthOptions {
+  int frames = 300;
+  uint64_t seed = 1;
+  int num_movers = 6;      // moving objects (a cyclist is two instances: bicycle + person)
+  int num_parked = 8;      // parked cars (instances with moving = 0)
+  double speed_mps = 8.0;  // ego speed along its lane
+  RouteKind route = RouteKind::kStraight;
+
+  int width_px = 1241;
+  int height_px = 376;
+  double fx = 718.856, fy = 718.856, cx = 607.1928, cy = 185.2157;  // pixels
+  double baseline_m = 0.537;
+  double rate_hz = 10.0;              // frames per second
+  double camera_height_m = 1.65;      // optical centre above the road
+  double bounce_scale = 1.0;          // 0: perfectly planar motion; 1: ~1 cm / 0.2 deg oscillations
+  double noise_sigma = 1.5;           // sensor noise, grey levels (8-bit)
+  std::string sequence = "00";        // two digits: OUT/sequences/NN, OUT/poses/NN.txt
+  bool write_right_instances = true;  // instance_1/ beside instance_0/
+
+  bool IsValid(std::string* why) const;
+  StereoRig Rig() const;
+  // Scales the image size and intrinsics (for small, fast test renders).
+  SynthOptions Scaled(double factor) const;
+};
+
+}  // namespace pcr::sim

@@ -1,0 +1,157 @@
+#include "sim/sequence_writer.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+
+#include "io/kitti_odometry.h"
+#include "io/trajectory_io.h"
+#include "sim/instances.h"
+#include "sim/synthetic_world.h"
+#include "slam/common/error.h"
+#include "support/data_paths.h"
+
+namespace pcr::sim {
+namespace {
+namespace fs = std::filesystem;
+
+std::vector<std::string> Lines(const fs::path& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+std::vector<double> Numbers(const std::string& text) {
+  std::istringstream in(text);
+  std::vector<double> out;
+  for (double x; in >> x;) out.push_back(x);
+  return out;
+}
+
+std::string FileBytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+size_t CountFiles(const fs::path& dir) {
+  return static_cast<size_t>(std::distance(fs::directory_iterator(dir), fs::directory_iterator{}));
+}
+
+TEST(SequenceWriterTest, WritesALoadableKittiSequence) {
+  const std::string out = test::MakeTempDir("sim_writer");
+  SynthOptions options;
+  options.frames = 4;
+  options.sequence = "07";
+  std::vector<std::pair<int, int>> calls;
+  const WriteSummary summary =
+      WriteSequence(options, out, [&](int done, int total) { calls.emplace_back(done, total); });
+  const fs::path seq = fs::path(out) / "sequences" / "07";
+  EXPECT_EQ(summary.sequence_dir, seq.string());
+  EXPECT_EQ(summary.frames, 4);
+  ASSERT_FALSE(calls.empty());
+  EXPECT_EQ(calls.back(), std::make_pair(4, 4));
+  for (size_t i = 1; i < calls.size(); ++i) EXPECT_GT(calls[i].first, calls[i - 1].first);
+
+  for (const char* dir : {"image_0", "image_1", "instance_0", "instance_1"})
+    EXPECT_EQ(CountFiles(seq / dir), 4u) << dir;
+  EXPECT_TRUE(fs::exists(seq / "image_0" / "000003.png"));
+
+  const std::vector<std::string> calib = Lines(seq / "calib.txt");
+  ASSERT_EQ(calib.size(), 4u);
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_EQ(calib[i].rfind("P" + std::to_string(i) + ": ", 0), 0u);
+    const std::vector<double> p = Numbers(calib[i].substr(4));
+    ASSERT_EQ(p.size(), 12u);
+    EXPECT_DOUBLE_EQ(p[0], 718.856);
+    EXPECT_NEAR(p[3], i % 2 == 1 ? -718.856 * 0.537 : 0.0, 1e-9);
+  }
+  const std::vector<std::string> times = Lines(seq / "times.txt");
+  ASSERT_EQ(times.size(), 4u);
+  EXPECT_EQ(times[0], "0.000000e+00");
+  for (size_t i = 1; i < times.size(); ++i) EXPECT_GT(std::stod(times[i]), std::stod(times[i - 1]));
+  const std::vector<std::string> poses = Lines(fs::path(out) / "poses" / "07.txt");
+  ASSERT_EQ(poses.size(), 4u);
+  for (const std::string& line : poses) EXPECT_EQ(Numbers(line).size(), 12u);
+
+  const InstanceTable table = InstanceTable::Read((seq / "instances.txt").string());
+  EXPECT_EQ(static_cast<int>(table.size()), summary.instances);
+  EXPECT_EQ(table.size(), 15u);
+  size_t object_lines = 0;
+  for (const std::string& line : Lines(seq / "objects.txt")) {
+    if (line.empty() || line[0] == '#') continue;
+    EXPECT_EQ(Numbers(line).size(), 15u);
+    ++object_lines;
+  }
+  EXPECT_EQ(object_lines, 4 * table.size());
+
+  // The written images are the rendered ones; instance images are 16-bit.
+  const SyntheticWorld world(options);
+  const RenderedFrame frame = world.RenderFrame(2);
+  const cv::Mat left = cv::imread((seq / "image_0" / "000002.png").string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat ids =
+      cv::imread((seq / "instance_0" / "000002.png").string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat ids_right =
+      cv::imread((seq / "instance_1" / "000002.png").string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(left.type(), CV_8UC1);
+  ASSERT_EQ(ids.type(), CV_16UC1);
+  EXPECT_EQ(cv::norm(left, frame.left, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(ids, frame.instance_left, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(ids_right, frame.instance_right, cv::NORM_INF), 0.0);
+
+  // The project's own readers load it.
+  const Trajectory gt = ReadKittiTrajectory((fs::path(out) / "poses" / "07.txt").string());
+  ASSERT_EQ(gt.size(), 4u);
+  EXPECT_TRUE(gt[3].world_from_cam.isApprox(world.WorldFromCam(3), 1e-7));
+  const Dataset dataset = OpenKittiOdometry(seq.string());
+  EXPECT_EQ(dataset.size(), 4u);
+  EXPECT_TRUE(dataset.has_right());
+  EXPECT_NEAR(dataset.rig.left.fx, 718.856, 1e-6);
+  EXPECT_NEAR(dataset.rig.left.cx, 607.1928, 1e-6);
+  EXPECT_NEAR(dataset.rig.baseline_m, 0.537, 1e-9);
+  EXPECT_EQ(dataset.rig.left.width_px, 1241);
+  EXPECT_EQ(dataset.rig.left.height_px, 376);
+  ASSERT_TRUE(dataset.ground_truth.has_value());
+  EXPECT_EQ(dataset.ground_truth->size(), 4u);
+  EXPECT_EQ(dataset.t_ns.size(), 4u);
+  EXPECT_EQ(cv::norm(dataset.LoadRight(2), frame.right, cv::NORM_INF), 0.0);
+  fs::remove_all(out);
+}
+
+TEST(SequenceWriterTest, SameSeedWritesIdenticalFiles) {
+  SynthOptions options = SynthOptions{}.Scaled(0.25);
+  options.frames = 3;
+  const std::string a = test::MakeTempDir("sim_writer_a"), b = test::MakeTempDir("sim_writer_b");
+  const std::string c = test::MakeTempDir("sim_writer_c");
+  WriteSequence(options, a);
+  WriteSequence(options, b);
+  options.seed = 5;
+  WriteSequence(options, c);
+  for (const std::string rel :
+       {"sequences/00/image_0/000002.png", "sequences/00/image_1/000001.png",
+        "sequences/00/instance_0/000002.png", "sequences/00/objects.txt",
+        "sequences/00/instances.txt", "poses/00.txt"}) {
+    EXPECT_EQ(FileBytes(fs::path(a) / rel), FileBytes(fs::path(b) / rel)) << rel;
+  }
+  EXPECT_NE(FileBytes(fs::path(a) / "sequences/00/image_0/000002.png"),
+            FileBytes(fs::path(c) / "sequences/00/image_0/000002.png"));
+  for (const auto& dir : {a, b, c}) fs::remove_all(dir);
+}
+
+TEST(SequenceWriterTest, UnwritableOutputThrowsInputError) {
+  const std::string dir = test::MakeTempDir("sim_writer_bad");
+  const std::string file = dir + "/not_a_dir";
+  std::ofstream(file) << "x";
+  SynthOptions options = SynthOptions{}.Scaled(0.25);
+  options.frames = 1;
+  EXPECT_THROW(WriteSequence(options, file), InputError);
+  options.frames = 0;
+  EXPECT_THROW(WriteSequence(options, dir), ConfigError);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pcr::sim
