@@ -1,0 +1,106 @@
+// End-to-end SLAM accuracy and speed on the target inputs, one table:
+//   kitti06   real stereo, KITTI odometry 06 frames 0-50 (target ATE RMSE <= 0.08 m)
+//   raw0005   real stereo, raw drive 0005 (91 frames, OXTS ground truth)
+//   synth     synthetic static street, 300 stereo frames (target ATE RMSE <= 0.05 m)
+// Each input runs twice to check that trajectories repeat exactly. Usage:
+//   bench_slam [case ...] [--synth-frames N] [--shared DIR]
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "app/run_slam.h"
+#include "io/dataset.h"
+#include "sim/sequence_writer.h"
+
+namespace {
+
+struct Case {
+  std::string name, path;
+};
+
+bool SameTrajectory(const pcr::Trajectory& a, const pcr::Trajectory& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (!a[i].world_from_cam.matrix().isApprox(b[i].world_from_cam.matrix(), 0.0) &&
+        a[i].world_from_cam.matrix() != b[i].world_from_cam.matrix())
+      return false;
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string shared = PCR_SHARED_DIR;
+  int synth_frames = 300;
+  std::vector<std::string> wanted;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--shared") && i + 1 < argc) {
+      shared = argv[++i];
+    } else if (!std::strcmp(argv[i], "--synth-frames") && i + 1 < argc) {
+      synth_frames = std::atoi(argv[++i]);
+    } else {
+      wanted.push_back(argv[i]);
+    }
+  }
+  if (wanted.empty()) wanted = {"kitti06", "raw0005", "synth"};
+  spdlog::set_level(spdlog::level::warn);
+
+  std::vector<Case> cases;
+  for (const std::string& w : wanted) {
+    if (w == "kitti06") {
+      cases.push_back({w, shared + "/data/kitti/sequences/06"});
+    } else if (w == "raw0005") {
+      cases.push_back({w, shared + "/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"});
+    } else if (w == "synth") {
+      pcr::sim::SynthOptions o;
+      o.frames = synth_frames;
+      o.num_movers = 0;
+      o.seed = 1;
+      const std::string out = std::filesystem::temp_directory_path() / "pcr_bench_synth_static";
+      std::printf("writing %d synthetic static frames to %s ...\n", o.frames, out.c_str());
+      const auto summary = pcr::sim::WriteSequence(o, out);
+      std::printf("  %.1f s\n", summary.seconds);
+      cases.push_back({w, summary.sequence_dir});
+    } else {
+      std::fprintf(stderr, "unknown case %s\n", w.c_str());
+      return 2;
+    }
+  }
+
+  std::printf("\n%-9s %6s %7s %5s %4s %9s %9s %9s %8s %8s %7s %6s\n", "input", "frames", "tracked",
+              "lost", "kf", "ATE rmse", "ATE max", "RPE rmse", "path m", "ATE %", "fps", "repeat");
+  std::vector<std::pair<std::string, pcr::app::RunSummary>> runs;
+  for (const Case& c : cases) {
+    const pcr::Dataset dataset = pcr::OpenDataset(c.path);
+    pcr::app::RunConfig config;
+    const pcr::app::FrameRange all{0, dataset.size()};
+    const pcr::app::RunSummary a = pcr::app::RunSlam(dataset, config, all);
+    const pcr::app::RunSummary b = pcr::app::RunSlam(dataset, config, all);
+    const bool repeat = SameTrajectory(a.per_frame, b.per_frame);
+    double rmse = -1, mx = -1, rpe = -1, path = 0;
+    if (a.evaluation) {
+      rmse = a.evaluation->ape.trans_m.rmse;
+      mx = a.evaluation->ape.trans_m.max;
+      rpe = a.evaluation->rpe.trans_m.rmse;
+      path = a.evaluation->reference_path_m;
+    }
+    std::printf("%-9s %6zu %7zu %5zu %4zu %9.4f %9.4f %9.4f %8.1f %8.3f %7.2f %6s\n",
+                c.name.c_str(), a.frames_in, a.frames_tracked, a.frames_lost, a.keyframes, rmse, mx,
+                rpe, path, path > 0 ? 100.0 * rmse / path : -1.0,
+                a.wall_s > 0 ? a.frames_in / a.wall_s : 0.0, repeat ? "yes" : "NO");
+    std::fflush(stdout);
+    runs.emplace_back(c.name, a);
+  }
+  for (const auto& [name, s] : runs) {
+    std::printf("\n== %s: per-stage times on this machine\n", name.c_str());
+    const std::string text = pcr::app::FormatRunSummary(s);
+    // Only the frames line and the stage table (the evaluation table is summarised above).
+    const auto cut = text.find("matched ");
+    std::printf("%s", text.substr(0, cut).c_str());
+  }
+  return 0;
+}
