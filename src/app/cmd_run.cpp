@@ -31,17 +31,16 @@ void AddRunCommand(CLI::App& app) {
     const Dataset dataset = OpenDataset(args->sequence);
     std::string config_yaml;
     const RunConfig config = LoadRunConfig(args->config, args->overrides, &config_yaml);
-    if (args->mode == "mono")
-      throw ConfigError("--mode mono: the monocular front end is not built yet (issue 3)");
+    const SlamMode mode = args->mode == "mono" ? SlamMode::kMonocular : SlamMode::kStereo;
     const FrameRange range = FrameRange::Parse(args->frames, dataset.size());
-    spdlog::info("run: {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m, out {}",
-                 dataset.name, range.end - range.first, range.first, range.end - 1,
+    spdlog::info("run: {} {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m, out {}",
+                 ToString(mode), dataset.name, range.end - range.first, range.first, range.end - 1,
                  dataset.rig.left.width_px, dataset.rig.left.height_px, dataset.rig.left.fx,
                  dataset.rig.baseline_m, args->out);
     spdlog::debug("effective configuration:\n{}", config_yaml);
     Progress progress("run " + dataset.name, static_cast<int64_t>(range.end - range.first));
     const RunSummary summary =
-        RunSlam(dataset, config, range, [&](size_t done, size_t, const FrameOutput& out) {
+        RunSlam(dataset, config, mode, range, [&](size_t done, size_t, const FrameOutput& out) {
           progress.Update(static_cast<int64_t>(done),
                           fmt::format("tracked {} kf {} pts {}", out.num_tracked, out.num_keyframes,
                                       out.num_map_points));

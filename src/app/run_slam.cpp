@@ -58,21 +58,28 @@ FrameRange FrameRange::Parse(const std::string& text, size_t size) {
 
 RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, FrameRange range,
                    const FrameCallback& on_frame) {
+  return RunSlam(dataset, config, SlamMode::kStereo, range, on_frame);
+}
+
+RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, SlamMode mode, FrameRange range,
+                   const FrameCallback& on_frame) {
   if (range.end == 0 || range.end > dataset.size()) range.end = dataset.size();
-  if (!dataset.has_right())
+  const bool stereo = mode == SlamMode::kStereo;
+  if (stereo && !dataset.has_right())
     throw ConfigError(dataset.root + ": stereo mode needs a right image stream (image_1)");
   RunSummary summary;
   summary.dataset_name = dataset.name;
+  summary.mode = mode;
   summary.range = range;
   const auto start = std::chrono::steady_clock::now();
 
-  SlamSystem slam(EffectiveRig(dataset, config.camera), config.slam);
+  SlamSystem slam(EffectiveRig(dataset, config.camera), config.slam, mode);
   std::vector<int64_t> indices;
   for (size_t i = range.first; i < range.end; ++i) {
     FrameOutput out;
     try {
       const cv::Mat left = dataset.LoadLeft(i);
-      const cv::Mat right = dataset.LoadRight(i);
+      const cv::Mat right = stereo ? dataset.LoadRight(i) : cv::Mat();
       out = slam.ProcessFrame(static_cast<int64_t>(i), dataset.t_ns[i], left, right);
     } catch (const std::exception& e) {
       summary.error = e.what();
@@ -99,8 +106,10 @@ RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, FrameRange r
         break;
     }
     summary.stages["orb_left"].Add(out.times_ms.orb_left);
-    summary.stages["orb_right"].Add(out.times_ms.orb_right);
-    summary.stages["stereo"].Add(out.times_ms.stereo);
+    if (stereo) {
+      summary.stages["orb_right"].Add(out.times_ms.orb_right);
+      summary.stages["stereo"].Add(out.times_ms.stereo);
+    }
     summary.stages["tracking"].Add(out.times_ms.tracking);
     if (out.keyframe_inserted) summary.stages["local_mapping"].Add(out.times_ms.local_mapping);
     summary.stages["total"].Add(out.times_ms.total);
@@ -129,7 +138,7 @@ RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, FrameRange r
   if (dataset.ground_truth && summary.tracked.size() >= 3) {
     Trajectory gt;
     for (int64_t i : indices) gt.push_back((*dataset.ground_truth)[static_cast<size_t>(i)]);
-    summary.eval_options.alignment.mode = eval::AlignMode::kSe3;
+    summary.eval_options.alignment.mode = stereo ? eval::AlignMode::kSe3 : eval::AlignMode::kSim3;
     summary.eval_options.kitti.lengths_m = {5, 10, 20, 40, 80, 100, 200, 400, 800};
     try {
       summary.evaluation =
@@ -156,6 +165,7 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   }
   nlohmann::json j;
   j["dataset"] = s.dataset_name;
+  j["mode"] = ToString(s.mode);
   j["frames"] = {{"first", s.range.first}, {"end", s.range.end},
                  {"in", s.frames_in},      {"tracked", s.frames_tracked},
                  {"lost", s.frames_lost},  {"not_initialized", s.frames_not_initialized}};
@@ -176,7 +186,9 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
     std::ofstream ev(out_dir + "/evaluation.json");
     ev << eval::ToJson(e, s.eval_options).dump(2) << "\n";
     eval::PlotOptions plot;
-    plot.title = "PCR-ORB " + s.dataset_name + " (top view, SE(3)-aligned)";
+    plot.title = "PCR-ORB " + s.dataset_name + " (top view, " +
+                 (s.eval_options.alignment.mode == eval::AlignMode::kSim3 ? "Sim(3)" : "SE(3)") +
+                 "-aligned)";
     eval::WriteTrajectoryPlot(out_dir + "/trajectory.png",
                               eval::GroundTruthAndEstimate(e.reference, e.aligned_estimate), plot);
   }

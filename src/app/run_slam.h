@@ -9,6 +9,7 @@
 #include "eval/evaluation.h"
 #include "io/dataset.h"
 #include "slam/common/timing.h"
+#include "slam/system/slam_system.h"
 
 namespace pcr::app {
 
@@ -21,6 +22,7 @@ struct FrameRange {
 
 struct RunSummary {
   std::string dataset_name;
+  SlamMode mode = SlamMode::kStereo;
   FrameRange range;
   size_t frames_in = 0, frames_tracked = 0, frames_lost = 0, frames_not_initialized = 0;
   size_t keyframes = 0, map_points = 0;
@@ -38,9 +40,14 @@ struct RunSummary {
 
 using FrameCallback = std::function<void(size_t done, size_t total, const FrameOutput&)>;
 
-// Runs frames [range.first, range.end). A failure in frame k (e.g. an unreadable image) stops the
-// run: the summary then covers frames before k and `error` says why. Evaluates against ground
-// truth when the dataset has it (SE(3) alignment for stereo).
+// Runs frames [range.first, range.end) in the given mode (monocular: left images only, the
+// dataset needs no right stream; stereo: throws ConfigError without one). A failure in frame k
+// (e.g. an unreadable image) stops the run: the summary then covers frames before k and `error`
+// says why. Evaluates against ground truth when the dataset has it: SE(3) alignment for stereo,
+// Sim(3) for monocular runs (their scale is arbitrary).
+RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, SlamMode mode, FrameRange range,
+                   const FrameCallback& on_frame = {});
+// Stereo.
 RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, FrameRange range,
                    const FrameCallback& on_frame = {});
 

@@ -10,13 +10,18 @@
 namespace pcr {
 namespace {
 
-StereoRig CheckedRig(const StereoRig& rig) {
+constexpr size_t kMaxPendingFrames = 256;
+
+StereoRig CheckedRig(const StereoRig& rig, SlamMode mode) {
   std::string why;
   if (!rig.IsValid(&why)) throw ConfigError("SlamSystem rig: " + why);
-  if (!rig.IsStereo()) throw ConfigError("SlamSystem needs a stereo rig (baseline_m > 0)");
+  if (mode == SlamMode::kStereo && !rig.IsStereo())
+    throw ConfigError("SlamSystem in stereo mode needs a stereo rig (baseline_m > 0)");
   if (rig.left.width_px <= 0 || rig.left.height_px <= 0)
     throw ConfigError("SlamSystem rig: image size must be set");
-  return rig;
+  StereoRig checked = rig;
+  if (mode == SlamMode::kMonocular) checked.baseline_m = 0;
+  return checked;
 }
 
 const OrbOptions& CheckedOptions(const SlamOptions& options) {
@@ -26,6 +31,16 @@ const OrbOptions& CheckedOptions(const SlamOptions& options) {
 }
 
 }  // namespace
+
+const char* ToString(SlamMode mode) {
+  switch (mode) {
+    case SlamMode::kStereo:
+      return "stereo";
+    case SlamMode::kMonocular:
+      return "mono";
+  }
+  return "?";
+}
 
 bool SlamOptions::IsValid(std::string* why) const {
   std::string inner;
@@ -38,8 +53,9 @@ bool SlamOptions::IsValid(std::string* why) const {
          sub(keyframe.IsValid(&inner), "keyframe");
 }
 
-SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options)
-    : rig_(CheckedRig(rig)),
+SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMode mode)
+    : mode_(mode),
+      rig_(CheckedRig(rig, mode)),
       options_(options),
       extractor_(CheckedOptions(options)),
       tracker_(options.tracker),
@@ -49,8 +65,14 @@ SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options)
   scale_.inv_level_sigma2 = extractor_.inv_level_sigma2();
 }
 
+OrbFeatures SlamSystem::ExtractRight(const cv::Mat& right) const {
+  if (mode_ == SlamMode::kMonocular) return {};
+  return extractor_.Extract(right);
+}
+
 StereoMatches SlamSystem::MatchStereoFeatures(const OrbFeatures& left,
                                               const OrbFeatures& right) const {
+  if (mode_ == SlamMode::kMonocular) return {};
   return MatchStereo(rig_, left, right, extractor_.scale_factors(), options_.stereo);
 }
 
@@ -84,17 +106,36 @@ KeypointFilter SlamSystem::SampleFilter(const FrameFilterInput& filter,
 
 FramePtr SlamSystem::BuildFrame(int64_t t_ns, const OrbFeatures& left, const StereoMatches& stereo,
                                 const KeypointFilter& filter) {
+  if (mode_ == SlamMode::kMonocular)
+    return Frame::Create(next_frame_id_++, t_ns, rig_, scale_, left, StereoMatches{}, filter);
   return Frame::Create(next_frame_id_++, t_ns, rig_, scale_, left, stereo, filter);
 }
 
 TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
   TrackingResult result = tracker_.Track(frame, map_);
   const bool initialised = result.method == TrackingMethod::kInitialisation;
+  if (result.first_keyframe_delta) {
+    // Monocular: the reference frame becomes the first keyframe and a tracked frame.
+    const NewKeyframe& first = *result.first_keyframe_delta->new_keyframe;
+    map_.Apply(*result.first_keyframe_delta);
+    for (const PendingFrame& p : pending_) {
+      if (p.frame_id != first.frame->id()) continue;
+      FrameRecord record;
+      record.frame_index = p.frame_index;
+      record.t_ns = p.t_ns;
+      record.reference = KeyframeId(p.frame_id);
+      records_.push_back(record);
+    }
+  }
   map_.Apply(result.map_delta);
   if (initialised) {
+    pending_.clear();
     const KeyframeId id(frame->id());
     mapper_.ProcessKeyframe(id, &map_);
     tracker_.OnKeyframeInserted(id, map_);
+  } else if (map_.empty()) {
+    if (pending_.size() >= kMaxPendingFrames) pending_.erase(pending_.begin());
+    pending_.push_back({frame->id(), frame_index, frame->t_ns()});
   }
   if (result.status == TrackingStatus::kOk) {
     FrameRecord record;
@@ -150,12 +191,15 @@ FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv
   auto t = std::chrono::steady_clock::now();
   const OrbFeatures left_features = ExtractLeft(left);
   out.times_ms.orb_left = MsSince(t);
-  t = std::chrono::steady_clock::now();
-  const OrbFeatures right_features = ExtractRight(right);
-  out.times_ms.orb_right = MsSince(t);
-  t = std::chrono::steady_clock::now();
-  const StereoMatches stereo = MatchStereoFeatures(left_features, right_features);
-  out.times_ms.stereo = MsSince(t);
+  StereoMatches stereo;
+  if (mode_ == SlamMode::kStereo) {
+    t = std::chrono::steady_clock::now();
+    const OrbFeatures right_features = ExtractRight(right);
+    out.times_ms.orb_right = MsSince(t);
+    t = std::chrono::steady_clock::now();
+    stereo = MatchStereoFeatures(left_features, right_features);
+    out.times_ms.stereo = MsSince(t);
+  }
 
   const KeypointFilter keypoint_filter =
       filter ? SampleFilter(*filter, left_features.keypoints) : KeypointFilter{};

@@ -1,10 +1,16 @@
 #pragma once
-// The stereo SLAM engine as sequential stages: ORB left, ORB right, stereo matching, frame
-// building (with the dynamic filter's per-keypoint inputs), tracking, keyframe decision, and
-// keyframe insertion with local mapping. ProcessFrame() runs them in that order; each stage is
-// also callable on its own so a flow graph can run them as nodes (extraction and stereo matching
-// are const and may run concurrently for different frames; Track and InsertKeyframe mutate the
-// map and must be called serially, in frame order).
+// The SLAM engine as sequential stages: ORB left, ORB right, stereo matching, frame building
+// (with the dynamic filter's per-keypoint inputs), tracking, keyframe decision, and keyframe
+// insertion with local mapping. ProcessFrame() runs them in that order; each stage is also
+// callable on its own so a flow graph can run them as nodes (extraction and stereo matching are
+// const and may run concurrently for different frames; Track and InsertKeyframe mutate the map
+// and must be called serially, in frame order).
+//
+// Modes: stereo, or monocular (SlamMode::kMonocular): only the left images are used, ORB right
+// and stereo matching are skipped (they return empty results), the map is initialised from two
+// frames (slam/tracking/mono_initializer.h) and new points come from triangulation between
+// keyframes only. The monocular scale is arbitrary (median scene depth 1 at initialisation):
+// compare monocular trajectories after a Sim(3) alignment.
 //
 // Deterministic: the same inputs give bit-identical trajectories.
 #include <cstdint>
@@ -24,6 +30,9 @@
 #include "slam/tracking/tracker.h"
 
 namespace pcr {
+
+enum class SlamMode { kStereo, kMonocular };
+const char* ToString(SlamMode mode);  // "stereo", "mono"
 
 struct SlamOptions {
   OrbOptions orb;
@@ -68,33 +77,39 @@ struct FrameOutput {
 
 class SlamSystem {
  public:
-  // Throws ConfigError when the rig or options are invalid; the rig must be stereo
-  // (baseline_m > 0) and carry the image size.
-  SlamSystem(const StereoRig& rig, const SlamOptions& options);
+  // Throws ConfigError when the rig or options are invalid; the rig must carry the image size
+  // and, in stereo mode, be stereo (baseline_m > 0). Monocular mode ignores the baseline.
+  SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMode mode = SlamMode::kStereo);
 
-  // All stages for one rectified grey pair (CV_8UC1). filter may be null.
+  // All stages for one rectified grey pair (CV_8UC1); in monocular mode right is ignored (may be
+  // empty). filter may be null.
   FrameOutput ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
                            const cv::Mat& right, const FrameFilterInput* filter = nullptr);
 
   // --- Stages ---
   OrbFeatures ExtractLeft(const cv::Mat& left) const { return extractor_.Extract(left); }
-  OrbFeatures ExtractRight(const cv::Mat& right) const { return extractor_.Extract(right); }
+  // Monocular mode: empty features (nothing is extracted).
+  OrbFeatures ExtractRight(const cv::Mat& right) const;
+  // Monocular mode: empty matches.
   StereoMatches MatchStereoFeatures(const OrbFeatures& left, const OrbFeatures& right) const;
   // Samples the filter at the keypoints (throws std::invalid_argument on a size mismatch).
   static KeypointFilter SampleFilter(const FrameFilterInput& filter,
                                      const std::vector<cv::KeyPoint>& keypoints);
-  // A new frame with the next internal frame id.
+  // A new frame with the next internal frame id (monocular mode: stereo is ignored).
   FramePtr BuildFrame(int64_t t_ns, const OrbFeatures& left, const StereoMatches& stereo,
                       const KeypointFilter& filter);
   // Tracks the frame and applies its map edits (counters; the first keyframe at
-  // initialisation, followed by its local mapping). Records the frame for RefinedTrajectory().
+  // initialisation, followed by its local mapping; monocular: both initial keyframes). Records
+  // the frame (and, at a monocular initialisation, its reference frame) for
+  // RefinedTrajectory().
   TrackingResult Track(const FramePtr& frame, int64_t frame_index);
   KeyframeDecision DecideKeyframe(const TrackingResult& tracking) const;
   // Inserts the tracked frame as a keyframe and runs local mapping on it.
   MappingResult InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking);
 
   const Map& map() const { return map_; }
-  const StereoRig& rig() const { return rig_; }
+  const StereoRig& rig() const { return rig_; }  // baseline_m = 0 in monocular mode
+  SlamMode mode() const { return mode_; }
   const SlamOptions& options() const { return options_; }
   const ScalePyramid& scale() const { return scale_; }
   // world_from_cam of every tracked frame so far, each expressed relative to its reference
@@ -110,6 +125,11 @@ class SlamSystem {
     SE3 cam_from_reference = SE3::Identity();
   };
 
+  struct PendingFrame {  // seen before initialisation
+    int64_t frame_id = -1, frame_index = -1, t_ns = 0;
+  };
+
+  SlamMode mode_;
   StereoRig rig_;
   SlamOptions options_;
   OrbExtractor extractor_;
@@ -119,6 +139,7 @@ class SlamSystem {
   LocalMapper mapper_;
   int64_t next_frame_id_ = 0;
   std::vector<FrameRecord> records_;
+  std::vector<PendingFrame> pending_;  // bounded; cleared at initialisation
 };
 
 }  // namespace pcr

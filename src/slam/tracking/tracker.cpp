@@ -94,7 +94,8 @@ bool TrackerOptions::IsValid(std::string* why) const {
     return fail("local-map and relocalisation sizes must be positive");
   if (!(pnp_reprojection_px > 0) || pnp_iterations < 1)
     return fail("PnP RANSAC needs a positive threshold and iterations");
-  return pose.IsValid(why);
+  if (!(motion_search_radius_px_monocular > 0)) return fail("search radii must be > 0");
+  return pose.IsValid(why) && mono_init.IsValid(why);
 }
 
 int Tracker::Matches::Count() const {
@@ -116,10 +117,18 @@ void Tracker::Matches::Reset(int n) {
   kind.assign(n, 0);
 }
 
-Tracker::Tracker(const TrackerOptions& options) : options_(options) {
+namespace {
+
+const TrackerOptions& CheckedTrackerOptions(const TrackerOptions& options) {
   std::string why;
-  if (!options_.IsValid(&why)) throw ConfigError("TrackerOptions: " + why);
+  if (!options.IsValid(&why)) throw ConfigError("TrackerOptions: " + why);
+  return options;
 }
+
+}  // namespace
+
+Tracker::Tracker(const TrackerOptions& options)
+    : options_(CheckedTrackerOptions(options)), mono_initializer_(options.mono_init) {}
 
 void Tracker::Reset() {
   status_ = TrackingStatus::kNotInitialized;
@@ -201,13 +210,15 @@ bool Tracker::TrackMotionModel(const Frame& frame, const Map& map, SE3* pose, Ma
     }
   }
   *pose = velocity_ * last_.cam_from_world;
+  const double radius_px = frame.rig().IsStereo() ? options_.motion_search_radius_px
+                                                  : options_.motion_search_radius_px_monocular;
   std::vector<int> assigned;
   int count = 0;
   for (double factor : {1.0, 2.0}) {
     m->Reset(frame.size());
     assigned = FreeMask(frame, *m);
-    count = SearchByProjection(frame, *pose, last_.cam_from_world, candidates,
-                               factor * options_.motion_search_radius_px, true, &assigned);
+    count = SearchByProjection(frame, *pose, last_.cam_from_world, candidates, factor * radius_px,
+                               true, &assigned);
     if (count >= options_.min_motion_matches) break;
   }
   if (count < options_.min_motion_matches) return false;
@@ -220,6 +231,38 @@ bool Tracker::TrackMotionModel(const Frame& frame, const Map& map, SE3* pose, Ma
   *n0 = count;
   *n1 = OptimizeAndPrune(frame, pose, m, nullptr);
   return *n1 >= options_.min_pose_inliers;
+}
+
+bool Tracker::PnpRansac(const Frame& frame, const Map& map, const Keyframe& kf,
+                        const std::vector<std::pair<int, int>>& pairs, SE3* cam_from_world,
+                        std::vector<int>* inliers) const {
+  if (pairs.size() < 6) return false;
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  for (const auto& [i, j] : pairs) {
+    const Eigen::Vector3d& x = map.point(kf.points[j])->p_in_world;
+    object.emplace_back(x.x(), x.y(), x.z());
+    image.emplace_back(frame.keypoint(i).pt.x, frame.keypoint(i).pt.y);
+  }
+  const PinholeCamera& cam = frame.rig().left;
+  const cv::Mat K = (cv::Mat_<double>(3, 3) << cam.fx, 0, cam.cx, 0, cam.fy, cam.cy, 0, 0, 1);
+  cv::Mat rvec, tvec;
+  inliers->clear();
+  // OpenCV's RANSAC seeds its own generator with a constant: runs repeat exactly.
+  if (!cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false,
+                          options_.pnp_iterations, options_.pnp_reprojection_px, 0.99, *inliers,
+                          cv::SOLVEPNP_EPNP))
+    return false;
+  cv::Mat R;
+  cv::Rodrigues(rvec, R);
+  Eigen::Matrix3d R_e;
+  Eigen::Vector3d t_e;
+  cv::cv2eigen(R, R_e);
+  cv::cv2eigen(tvec, t_e);
+  *cam_from_world = SE3::Identity();
+  cam_from_world->linear() = R_e;
+  cam_from_world->translation() = t_e;
+  return true;
 }
 
 bool Tracker::TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* pose, Matches* m,
@@ -245,6 +288,14 @@ bool Tracker::TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* po
   }
   *n0 = static_cast<int>(pairs.size());
   *pose = last_.frame ? last_.cam_from_world : kf->cam_from_world;
+  // Brute-force descriptor matches carry many outliers and the last pose can be far off (the
+  // first frame after initialisation has no velocity): start from a PnP RANSAC pose when it
+  // is well supported, so the robust optimisation does not settle on a wrong minimum.
+  SE3 pnp_pose;
+  std::vector<int> pnp_inliers;
+  if (PnpRansac(frame, map, *kf, pairs, &pnp_pose, &pnp_inliers) &&
+      static_cast<int>(pnp_inliers.size()) >= options_.min_reference_matches)
+    *pose = pnp_pose;
   *n1 = OptimizeAndPrune(frame, pose, m, nullptr);
   return *n1 >= options_.min_pose_inliers;
 }
@@ -267,8 +318,6 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches*
   std::vector<int> a;
   for (int i = 0; i < frame.size(); ++i)
     if (!frame.excluded(i)) a.push_back(i);
-  const PinholeCamera& cam = frame.rig().left;
-  const cv::Mat K = (cv::Mat_<double>(3, 3) << cam.fx, 0, cam.cx, 0, cam.fy, cam.cy, 0, 0, 1);
   for (KeyframeId id : candidates) {
     const Keyframe* kf = map.keyframe(id);
     std::vector<int> b;
@@ -278,29 +327,11 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches*
         MatchDescriptors(frame, a, *kf->frame, b, options_.relocalisation_max_distance,
                          options_.relocalisation_match_ratio, true);
     if (static_cast<int>(pairs.size()) < options_.min_relocalisation_matches) continue;
-    std::vector<cv::Point3d> object;
-    std::vector<cv::Point2d> image;
-    for (const auto& [i, j] : pairs) {
-      const Eigen::Vector3d& x = map.point(kf->points[j])->p_in_world;
-      object.emplace_back(x.x(), x.y(), x.z());
-      image.emplace_back(frame.keypoint(i).pt.x, frame.keypoint(i).pt.y);
-    }
-    cv::Mat rvec, tvec;
     std::vector<int> inliers;
-    const bool solved = cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false,
-                                           options_.pnp_iterations, options_.pnp_reprojection_px,
-                                           0.99, inliers, cv::SOLVEPNP_EPNP);
-    if (!solved || static_cast<int>(inliers.size()) < options_.min_relocalisation_matches / 2 + 1)
+    SE3 candidate_pose;
+    if (!PnpRansac(frame, map, *kf, pairs, &candidate_pose, &inliers) ||
+        static_cast<int>(inliers.size()) < options_.min_relocalisation_matches / 2 + 1)
       continue;
-    cv::Mat R;
-    cv::Rodrigues(rvec, R);
-    Eigen::Matrix3d R_e;
-    Eigen::Vector3d t_e;
-    cv::cv2eigen(R, R_e);
-    cv::cv2eigen(tvec, t_e);
-    SE3 candidate_pose = SE3::Identity();
-    candidate_pose.linear() = R_e;
-    candidate_pose.translation() = t_e;
     m->Reset(frame.size());
     for (int k : inliers) {
       const auto& [i, j] = pairs[k];
@@ -449,6 +480,28 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
         status_ = TrackingStatus::kOk;
         last_.frame = frame_ptr;
         last_.cam_from_world = SE3::Identity();
+        last_.reference = KeyframeId(frame.id());
+        last_.cam_from_reference = SE3::Identity();
+        last_.points.assign(frame.size(), MapPointId());
+        last_.is_keyframe = false;
+        reference_ = last_.reference;
+        last_keyframe_t_ns_ = frame.t_ns();
+        return result;
+      }
+    } else {
+      std::optional<MonoInitialisation> init = mono_initializer_.Add(frame_ptr);
+      result.num_matches_initial = mono_initializer_.last_step().num_matches;
+      if (init) {
+        result.status = TrackingStatus::kOk;
+        result.method = TrackingMethod::kInitialisation;
+        result.cam_from_world = init->cam_from_world;
+        result.first_keyframe_delta = std::move(init->first_keyframe);
+        result.map_delta = std::move(init->second_keyframe);
+        result.reference_keyframe = KeyframeId(frame.id());
+        result.num_tracked = init->num_points;
+        status_ = TrackingStatus::kOk;
+        last_.frame = frame_ptr;
+        last_.cam_from_world = init->cam_from_world;
         last_.reference = KeyframeId(frame.id());
         last_.cam_from_reference = SE3::Identity();
         last_.points.assign(frame.size(), MapPointId());

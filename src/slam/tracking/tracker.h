@@ -6,11 +6,13 @@
 //
 // Stereo-specific parts (initialisation from stereo depth, temporary points from the last
 // frame's stereo depth, close-point counts) live in slam/map/stereo_points.h and are only used
-// when the rig is stereo; search, optimisation and local-map tracking are shared with a
-// monocular front end (which provides its own initialisation).
+// when the rig is stereo. With a monocular rig (baseline 0) the map is initialised from two
+// frames (slam/tracking/mono_initializer.h); search, optimisation and local-map tracking are
+// shared.
 //
 // Thread-compatible: Track() is called serially; it reads the map and returns its edits.
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,6 +21,7 @@
 #include "slam/map/map.h"
 #include "slam/optim/pose_optimizer.h"
 #include "slam/tracking/keyframe_decision.h"
+#include "slam/tracking/mono_initializer.h"
 
 namespace pcr {
 
@@ -37,7 +40,8 @@ const char* ToString(TrackingMethod method);
 struct TrackerOptions {
   double close_depth_baselines = 40;   // close stereo depth: < this * baseline
   int min_init_stereo_points = 500;    // stereo initialisation
-  double motion_search_radius_px = 7;  // motion-model window (times the octave scale)
+  double motion_search_radius_px = 7;  // motion-model window (times the octave scale), stereo
+  double motion_search_radius_px_monocular = 15;  // the same for a monocular rig
   int min_motion_matches = 20;         // else the window is doubled, then reference tracking
   int min_pose_inliers = 10;           // map-point inliers to accept a motion/reference pose
   int reference_max_distance = 50;     // descriptor distance, reference-keyframe matching
@@ -61,6 +65,7 @@ struct TrackerOptions {
   int pnp_iterations = 300;
   int min_temporary_points = 100;  // stereo: temporary points made from the last frame's depth
   PoseOptimizerOptions pose;
+  MonoInitializerOptions mono_init;  // monocular rig only
   bool IsValid(std::string* why) const;
 };
 
@@ -79,8 +84,11 @@ struct TrackingResult {
   int num_local_matches = 0;
   KeyframeId reference_keyframe;  // local keyframe sharing most points
   // Map edits: visible/found counters of the local map points and, at initialisation, the first
-  // keyframe with its points.
+  // keyframe with its points (monocular: the second keyframe and the points).
   MapDelta map_delta;
+  // Monocular initialisation only: the first keyframe (the initialisation's reference frame, at
+  // the identity, without points), to apply before map_delta.
+  std::optional<MapDelta> first_keyframe_delta;
   KeyframeDecisionInput keyframe_input;  // for ShouldInsertKeyframe
 };
 
@@ -89,18 +97,23 @@ class Tracker {
   // Throws ConfigError when options are invalid.
   explicit Tracker(const TrackerOptions& options);
 
-  // Tracks frame against map. A map without keyframes triggers stereo initialisation (for a
-  // stereo rig) whose delta the caller applies and then reports with OnKeyframeInserted.
+  // Tracks frame against map. A map without keyframes triggers the initialisation: stereo from
+  // the frame's depth, monocular from this frame and an earlier reference frame (see
+  // TrackingResult::first_keyframe_delta); the caller applies the deltas and then reports the
+  // frame's keyframe with OnKeyframeInserted. num_matches_initial then counts the monocular
+  // initialiser's matches.
   TrackingResult Track(const FramePtr& frame, const Map& map);
   // Tells the tracker that the frame of the last Track() call became keyframe id (after the
   // map applied the keyframe and its local mapping): its associations and pose then seed the
   // next frame's search.
   void OnKeyframeInserted(KeyframeId id, const Map& map);
-  // Forgets the motion model and the last frame (status back to kNotInitialized).
+  // Forgets the motion model and the last frame (status back to kNotInitialized); the
+  // monocular initialiser keeps its reference frame.
   void Reset();
 
   TrackingStatus status() const { return status_; }
   const TrackerOptions& options() const { return options_; }
+  const MonoInitializer& mono_initializer() const { return mono_initializer_; }
 
  private:
   // Matches of the frame under construction: per keypoint, a map point or a temporary point.
@@ -124,6 +137,10 @@ class Tracker {
 
   bool TrackMotionModel(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
                         int* n1);
+  // PnP RANSAC (EPnP) on descriptor matches (frame keypoint, keyframe keypoint).
+  bool PnpRansac(const Frame& frame, const Map& map, const Keyframe& kf,
+                 const std::vector<std::pair<int, int>>& pairs, SE3* cam_from_world,
+                 std::vector<int>* inliers) const;
   bool TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
                               int* n1);
   bool Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0);
@@ -134,6 +151,7 @@ class Tracker {
   std::vector<int> FreeMask(const Frame& frame, const Matches& m) const;
 
   TrackerOptions options_;
+  MonoInitializer mono_initializer_;
   TrackingStatus status_ = TrackingStatus::kNotInitialized;
   LastFrame last_;
   bool has_velocity_ = false;

@@ -123,12 +123,10 @@ TEST(KittiEndToEnd, Sequence06StereoTracksAccuratelyAndDeterministically) {
       ate_online, ate_refined, ate_refined_sim3, first.keyframes_inserted, first.final_keyframes,
       first.final_points, PathLength(*data.ground_truth));
   PrintTimings("seq06", first);
-  // The project's target is 0.08 m (SE(3)); a naive frame-to-frame ORB + PnP gets 0.29 m. With
-  // the current stereo front end the estimate is ~0.6% longer than the ground truth (an
-  // independent OpenCV PnP over the same stereo depths shows the same), which alone makes
-  // ~0.1 m over this 60 m clip; the shape is checked separately with a scale-aligned ATE.
-  EXPECT_LE(ate_online, 0.15);
-  EXPECT_LE(ate_refined, 0.15);
+  // The project's target is 0.08 m (SE(3)); a naive frame-to-frame ORB + PnP gets 0.29 m. The
+  // shape alone is checked with a scale-aligned ATE.
+  EXPECT_LE(ate_refined, 0.08);
+  EXPECT_LE(ate_online, 0.10);
   EXPECT_LE(ate_refined_sim3, 0.04);
 
   // Determinism: processing is causal, so a second run over the first 20 frames must reproduce

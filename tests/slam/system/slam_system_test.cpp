@@ -36,13 +36,35 @@ TEST(SlamOptions, DefaultsAreValidAndErrorsNameTheSection) {
   EXPECT_THROW(SlamSystem(Rig(), bad), ConfigError);
 }
 
-TEST(SlamSystem, RejectsMonocularOrSizelessRigs) {
+TEST(SlamSystem, RejectsMonocularRigsInStereoModeAndSizelessRigs) {
   StereoRig mono = Rig();
   mono.baseline_m = 0;
   EXPECT_THROW(SlamSystem(mono, SlamOptions{}), ConfigError);
+  EXPECT_THROW(SlamSystem(mono, SlamOptions{}, SlamMode::kStereo), ConfigError);
+  EXPECT_NO_THROW(SlamSystem(mono, SlamOptions{}, SlamMode::kMonocular));
   StereoRig sizeless = Rig();
   sizeless.left.width_px = 0;
   EXPECT_THROW(SlamSystem(sizeless, SlamOptions{}), ConfigError);
+  EXPECT_THROW(SlamSystem(sizeless, SlamOptions{}, SlamMode::kMonocular), ConfigError);
+}
+
+TEST(SlamSystem, MonocularModeSkipsTheRightImageAndStereo) {
+  const SlamSystem slam(Rig(), SlamOptions{}, SlamMode::kMonocular);
+  EXPECT_EQ(slam.mode(), SlamMode::kMonocular);
+  EXPECT_STREQ(ToString(slam.mode()), "mono");
+  EXPECT_FALSE(slam.rig().IsStereo());  // the baseline is dropped
+  cv::Mat image(376, 1241, CV_8UC1);
+  cv::randu(image, 0, 255);
+  const OrbFeatures left = slam.ExtractLeft(image);
+  EXPECT_GT(left.keypoints.size(), 100u);
+  const OrbFeatures right = slam.ExtractRight(image);
+  EXPECT_TRUE(right.keypoints.empty());
+  const StereoMatches stereo = slam.MatchStereoFeatures(left, left);
+  EXPECT_TRUE(stereo.u_right_px.empty());
+  EXPECT_EQ(stereo.num_matched, 0);
+  const SlamSystem stereo_slam(Rig(), SlamOptions{});
+  EXPECT_EQ(stereo_slam.mode(), SlamMode::kStereo);
+  EXPECT_FALSE(stereo_slam.ExtractRight(image).keypoints.empty());
 }
 
 TEST(SlamSystem, SamplesTheFilterAtKeypoints) {
