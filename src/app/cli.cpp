@@ -20,6 +20,7 @@ int Main(int argc, char** argv) {
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
 
   AddRunCommand(app);
+  AddPipelineCommand(app);
   AddInfoCommand(app);
   AddEvalCommand(app);
   AddSynthCommand(app);

@@ -6,10 +6,11 @@
 
 namespace pcr::app {
 
-void AddInfoCommand(CLI::App& app);   // cmd_info.cpp: describe a KITTI sequence / raw drive
-void AddEvalCommand(CLI::App& app);   // cmd_eval.cpp: ATE / RPE / KITTI metrics
-void AddSynthCommand(CLI::App& app);  // cmd_synth.cpp: write a synthetic KITTI-format sequence
-void AddRunCommand(CLI::App& app);    // cmd_run.cpp: SLAM on a dataset
+void AddInfoCommand(CLI::App& app);      // cmd_info.cpp: describe a KITTI sequence / raw drive
+void AddEvalCommand(CLI::App& app);      // cmd_eval.cpp: ATE / RPE / KITTI metrics
+void AddSynthCommand(CLI::App& app);     // cmd_synth.cpp: write a synthetic KITTI-format sequence
+void AddRunCommand(CLI::App& app);       // cmd_run.cpp: SLAM on a dataset
+void AddPipelineCommand(CLI::App& app);  // cmd_pipeline.cpp: the TBB flow-graph pipeline
 
 // Runs the command line; returns the process exit code.
 int Main(int argc, char** argv);

@@ -1,0 +1,271 @@
+// `pcr_orb pipeline`: SLAM on a dataset through the TBB flow graph (src/graph), with a
+// scheduling policy, optional YOLOv8-seg branch and adaptive quality. Writes the outputs of
+// `pcr_orb run` (trajectory.txt, trajectory_tum.txt, stats.json, config.yaml, evaluation) plus
+// trace.json (Chrome trace) and timing.png, and adds a "pipeline" section to stats.json.
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "app/commands.h"
+#include "app/progress.h"
+#include "app/run_slam.h"
+#include "eval/association.h"
+#include "graph/pipeline.h"
+#include "graph/pipeline_report.h"
+#include "io/dataset.h"
+#include "slam/common/error.h"
+#include "slam/dynamic/yolo_segmenter.h"
+
+namespace pcr::app {
+namespace {
+
+struct PipelineArgs {
+  std::string sequence, out = "out/pipeline", config, frames;
+  std::vector<std::string> overrides;
+  std::string policy = "pipelined", adaptive = "off", segmenter = "none", model, model_high;
+  double rate = 1.0, mask_deadline_ms = 10, delay_ms = 0;
+  int threads = 2, max_in_flight = 4, waiting = 1;
+};
+
+StereoRig RigWithOverride(const Dataset& dataset, const CameraOverride& camera) {
+  StereoRig rig = dataset.rig;
+  if (!camera.Active()) return rig;
+  rig.left.fx = camera.fx;
+  rig.left.fy = camera.fy;
+  rig.left.cx = camera.cx;
+  rig.left.cy = camera.cy;
+  if (camera.baseline_m > 0) rig.baseline_m = camera.baseline_m;
+  return rig;
+}
+
+nodes::FrameSource SourceFromDataset(const Dataset& dataset, const RunConfig& config,
+                                     FrameRange range) {
+  nodes::FrameSource source;
+  source.name = dataset.name;
+  source.rig = RigWithOverride(dataset, config.camera);
+  for (size_t i = range.first; i < range.end; ++i) {
+    source.frame_indices.push_back(static_cast<int64_t>(i));
+    source.t_ns.push_back(dataset.t_ns[i]);
+  }
+  source.load_left = [&dataset](int64_t i) { return dataset.LoadLeft(static_cast<size_t>(i)); };
+  source.load_right = [&dataset](int64_t i) { return dataset.LoadRight(static_cast<size_t>(i)); };
+  return source;
+}
+
+// The run's summary in `pcr_orb run`'s terms: one pose per input frame up to the failure (frames
+// that were dropped or not tracked hold the last known pose), refined poses of tracked frames,
+// stage timings and the evaluation against ground truth.
+RunSummary ToRunSummary(const Dataset& dataset, FrameRange range,
+                        const graph::PipelineResult& result) {
+  RunSummary s;
+  s.dataset_name = dataset.name;
+  s.range = range;
+  s.error = result.error;
+  s.wall_s = result.stats.wall_s;
+  s.keyframes = result.keyframes;
+  s.map_points = result.map_points;
+  s.tracked = result.tracked;
+  for (const graph::FrameRecord& f : result.frames) {
+    ++s.frames_in;
+    switch (f.output.status) {
+      case TrackingStatus::kOk:
+        ++s.frames_tracked;
+        break;
+      case TrackingStatus::kLost:
+        ++s.frames_lost;
+        break;
+      case TrackingStatus::kNotInitialized:
+        ++s.frames_not_initialized;
+        break;
+    }
+    const StageTimesMs& t = f.output.times_ms;
+    s.stages["orb_left"].Add(t.orb_left);
+    s.stages["orb_right"].Add(t.orb_right);
+    s.stages["stereo"].Add(t.stereo);
+    s.stages["tracking"].Add(t.tracking);
+    if (f.output.keyframe_inserted) s.stages["local_mapping"].Add(t.local_mapping);
+    s.stages["total"].Add(t.total);
+  }
+  int64_t end = static_cast<int64_t>(range.end);
+  if (!result.error.empty() && result.error_frame_index >= 0) end = result.error_frame_index;
+  std::map<int64_t, SE3> refined;
+  for (const StampedPose& p : s.tracked) refined[p.frame_index] = p.world_from_cam;
+  SE3 last = SE3::Identity();
+  std::vector<int64_t> indices;
+  for (int64_t i = static_cast<int64_t>(range.first); i < end; ++i) {
+    StampedPose p;
+    p.frame_index = i;
+    p.t_ns = dataset.t_ns[static_cast<size_t>(i)];
+    const auto it = refined.find(i);
+    s.frame_tracked.push_back(it != refined.end());
+    if (it != refined.end()) last = it->second;
+    p.world_from_cam = last;
+    s.per_frame.push_back(p);
+    indices.push_back(i);
+  }
+  if (dataset.ground_truth && s.tracked.size() >= 3) {
+    Trajectory gt;
+    for (int64_t i : indices) gt.push_back((*dataset.ground_truth)[static_cast<size_t>(i)]);
+    s.eval_options.alignment.mode = eval::AlignMode::kSe3;
+    s.eval_options.kitti.lengths_m = {5, 10, 20, 40, 80, 100, 200, 400, 800};
+    try {
+      s.evaluation = eval::Evaluate(eval::AssociateByFrameIndex(gt, s.tracked), s.eval_options);
+    } catch (const std::exception& e) {
+      spdlog::warn("evaluation skipped: {}", e.what());
+    }
+  }
+  return s;
+}
+
+graph::PipelineOptions ToPipelineOptions(const PipelineArgs& a) {
+  graph::PipelineOptions o;
+  if (!graph::ParsePolicy(a.policy, &o.policy)) throw ConfigError("--policy " + a.policy);
+  o.threads = a.threads;
+  o.max_in_flight = a.max_in_flight;
+  o.rate = a.rate;
+  o.waiting_capacity = a.waiting;
+  o.mask_deadline_ms = a.mask_deadline_ms;
+  o.adaptive = a.adaptive == "on";
+  o.tracking_delay_ms = a.delay_ms;
+  std::string why;
+  if (!o.IsValid(&why)) throw ConfigError("pipeline options: " + why);
+  return o;
+}
+
+nlohmann::json OptionsJson(const PipelineArgs& a) {
+  return {{"policy", a.policy},
+          {"threads", a.threads},
+          {"max_in_flight", a.max_in_flight},
+          {"rate", a.rate},
+          {"waiting_capacity", a.waiting},
+          {"mask_deadline_ms", a.mask_deadline_ms},
+          {"adaptive", a.adaptive},
+          {"segmenter", a.segmenter},
+          {"model", a.model},
+          {"model_high", a.model_high},
+          {"delay_ms", a.delay_ms}};
+}
+
+void RunPipelineCommand(const PipelineArgs& args) {
+  const Dataset dataset = OpenDataset(args.sequence);
+  std::string config_yaml;
+  const RunConfig config = LoadRunConfig(args.config, args.overrides, &config_yaml);
+  if (!dataset.has_right())
+    throw ConfigError(dataset.root + ": the pipeline needs a right image stream (image_1)");
+  const FrameRange range = FrameRange::Parse(args.frames, dataset.size());
+  const graph::PipelineOptions options = ToPipelineOptions(args);
+
+  std::vector<std::unique_ptr<YoloSegmenter>> networks;
+  nodes::SegmenterSet segmenters;
+  if (args.segmenter == "yolo") {
+    if (args.model.empty()) throw ConfigError("--segmenter yolo needs --model FILE.onnx");
+    YoloOptions yolo;
+    yolo.model_path = args.model;
+    networks.push_back(std::make_unique<YoloSegmenter>(yolo));
+    segmenters.fast = networks.back().get();
+    if (!args.model_high.empty()) {
+      yolo.model_path = args.model_high;
+      networks.push_back(std::make_unique<YoloSegmenter>(yolo));
+      segmenters.accurate = networks.back().get();
+    }
+    const cv::Mat first = dataset.LoadLeft(range.first);
+    for (const auto& n : networks) {
+      spdlog::info("segmenter: {} ({}x{}, {})", n->Name(), n->input_size().width,
+                   n->input_size().height, n->backend());
+      n->Segment(first);  // the first forward pass initialises the network: keep it out of the run
+    }
+  }
+
+  const nodes::FrameSource source = SourceFromDataset(dataset, config, range);
+  spdlog::info("pipeline {}: {} ({} frames {}..{}), {} threads, {} in flight, segmenter {}{}",
+               args.policy, dataset.name, source.size(), range.first, range.end - 1, args.threads,
+               args.max_in_flight, args.segmenter, options.adaptive ? ", adaptive quality" : "");
+  Progress progress("pipeline " + dataset.name, static_cast<int64_t>(source.size()));
+  graph::PipelineOptions run_options = options;
+  run_options.on_frame = [&](size_t done, size_t, const FrameOutput& out) {
+    progress.Update(static_cast<int64_t>(done),
+                    fmt::format("tracked {} kf {} pts {}", out.num_tracked, out.num_keyframes,
+                                out.num_map_points));
+  };
+  const graph::PipelineResult result =
+      graph::RunPipeline(source, config.slam, run_options, segmenters);
+  progress.Finish();
+
+  const RunSummary summary = ToRunSummary(dataset, range, result);
+  WriteRunOutputs(args.out, summary, config_yaml);
+  graph::WriteChromeTrace(args.out + "/trace.json", result);
+  graph::WriteTimingChart(args.out + "/timing.png", result);
+  {
+    nlohmann::json stats;
+    std::ifstream in(args.out + "/stats.json");
+    in >> stats;
+    stats["pipeline"] = graph::StatsToJson(result.stats);
+    stats["pipeline"]["options"] = OptionsJson(args);
+    std::ofstream out(args.out + "/stats.json");
+    out << stats.dump(2) << "\n";
+    if (!out) throw InputError(args.out + "/stats.json", 0, "cannot write");
+  }
+  std::printf("%s", FormatRunSummary(summary).c_str());
+  std::printf("%s", graph::FormatPipelineStats(result.stats).c_str());
+  std::printf(
+      "outputs: %s/{trajectory.txt,trajectory_tum.txt,stats.json,config.yaml,trace.json,"
+      "timing.png%s}\n",
+      args.out.c_str(), summary.evaluation ? ",evaluation.json,trajectory.png" : "");
+  if (!result.error.empty()) throw std::runtime_error(result.error);
+}
+
+}  // namespace
+
+void AddPipelineCommand(CLI::App& app) {
+  auto args = std::make_shared<PipelineArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "pipeline",
+      "Run SLAM through the TBB flow-graph pipeline (policies, YOLOv8-seg branch, adaptive "
+      "quality); write trajectories, stats, trace.json and timing.png");
+  cmd->add_option("--sequence", args->sequence, "sequences/NN directory or raw *_sync drive")
+      ->required();
+  cmd->add_option("--out", args->out, "output directory")->capture_default_str();
+  cmd->add_option("--policy", args->policy, "sequential, pipelined or realtime")
+      ->check(CLI::IsMember({"sequential", "pipelined", "realtime"}))
+      ->capture_default_str();
+  cmd->add_option("--rate", args->rate,
+                  "realtime: frame i is released at (t_i - t_0) * rate (1 = real time, 0.5 = "
+                  "twice as fast)")
+      ->capture_default_str();
+  cmd->add_option("--threads", args->threads, "threads for TBB, OpenCV and Ceres")
+      ->capture_default_str();
+  cmd->add_option("--max-in-flight", args->max_in_flight, "frames in the graph at once")
+      ->capture_default_str();
+  cmd->add_option("--waiting", args->waiting,
+                  "realtime: released frames waiting for a slot before the oldest is dropped")
+      ->capture_default_str();
+  cmd->add_option("--mask-deadline-ms", args->mask_deadline_ms,
+                  "realtime: how long tracking waits for a late mask before using the last one")
+      ->capture_default_str();
+  cmd->add_option("--adaptive", args->adaptive, "adaptive quality control (Eq. 9): on or off")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  cmd->add_option("--segmenter", args->segmenter, "yolo or none")
+      ->check(CLI::IsMember({"yolo", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--model", args->model,
+                  "YOLOv8-seg ONNX model (e.g. ../shared/models/yolov8n-seg_coco_224x640.onnx); "
+                  "the fast model of the adaptive levels");
+  cmd->add_option("--model-high", args->model_high,
+                  "adaptive high-quality model (e.g. yolov8n-seg_coco_384x1280.onnx)");
+  cmd->add_option("--frames", args->frames, "frame range A:B (B exclusive)");
+  cmd->add_option("--config", args->config, "YAML configuration (see config/*.yaml)");
+  cmd->add_option("--set", args->overrides, "override one key: section.key=value (repeatable)");
+  cmd->add_option("--delay-ms", args->delay_ms,
+                  "testing: artificial delay added to every tracking call")
+      ->capture_default_str();
+  cmd->callback([args] { RunPipelineCommand(*args); });
+}
+
+}  // namespace pcr::app

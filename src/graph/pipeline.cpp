@@ -1,0 +1,681 @@
+#include "graph/pipeline.h"
+
+#include <oneapi/tbb/flow_graph.h>
+#include <oneapi/tbb/global_control.h>
+#include <oneapi/tbb/task_arena.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <opencv2/core/utility.hpp>
+#include <optional>
+#include <string_view>
+#include <thread>
+#include <tuple>
+#include <utility>
+
+#include "graph/mask_board.h"
+#include "nodes/feature_nodes.h"
+#include "nodes/filter_node.h"
+#include "nodes/slam_nodes.h"
+#include "nodes/source_node.h"
+#include "slam/common/error.h"
+
+namespace pcr::graph {
+namespace {
+
+namespace tf = oneapi::tbb::flow;
+using nodes::FeaturesPtr;
+using nodes::FilteredPtr;
+using nodes::FrameResultPtr;
+using nodes::FrameTicket;
+using nodes::ImagesPtr;
+using nodes::QualityLevel;
+using nodes::SegmentationOutcome;
+using nodes::SegmentationPtr;
+using nodes::StereoPtr;
+using nodes::TrackedPtr;
+
+using Token = int;
+using StereoAndMask = std::tuple<StereoPtr, SegmentationPtr>;
+using TrackingInput = std::tuple<FilteredPtr, Token>;
+template <typename In, typename... Out>
+using StageNode = tf::multifunction_node<In, std::tuple<Out...>>;
+
+// cv::setNumThreads for the scope of a run.
+class CvThreadsScope {
+ public:
+  explicit CvThreadsScope(int threads) : previous_(cv::getNumThreads()) {
+    cv::setNumThreads(threads);
+  }
+  ~CvThreadsScope() { cv::setNumThreads(previous_); }
+  CvThreadsScope(const CvThreadsScope&) = delete;
+  CvThreadsScope& operator=(const CvThreadsScope&) = delete;
+
+ private:
+  int previous_;
+};
+
+template <typename Msg>
+const FrameTicket& TicketOf(const std::shared_ptr<const Msg>& m) {
+  return m->ticket;
+}
+template <typename A, typename B>
+const FrameTicket& TicketOf(const std::tuple<A, B>& t) {
+  return TicketOf(std::get<0>(t));
+}
+
+double NsToMs(int64_t ns) { return static_cast<double>(ns) * 1e-6; }
+
+// One run of the graph: shared state of the node bodies and the clock.
+class GraphRun {
+ public:
+  GraphRun(const nodes::FrameSource& source, SlamSystem* slam, const PipelineOptions& options,
+           int max_in_flight, const nodes::SegmenterSet& segmenters, nodes::FrameScorer* scorer,
+           std::vector<const OrbExtractor*> extra_extractors)
+      : source_(source),
+        slam_(slam),
+        options_(options),
+        max_in_flight_(max_in_flight),
+        realtime_(options.policy == Policy::kRealtime),
+        source_node_(source, SourceOptionsFor(options)),
+        controller_(options.controller),
+        preprocess_(source),
+        orb_left_(*slam, nodes::Side::kLeft, extra_extractors),
+        orb_right_(*slam, nodes::Side::kRight, extra_extractors),
+        stereo_(*slam),
+        segment_(segmenters),
+        filter_(scorer, options.carry),
+        tracking_(slam),
+        mapping_(slam),
+        clocks_(std::make_unique<FrameClock[]>(source.size())),
+        fixed_settings_(FixedSettings(options, slam->options())) {
+    level_ = options.adaptive ? options.controller.initial : QualityLevel::kHigh;
+    period_ms_ = source.NominalPeriodMs() * (realtime_ ? options.rate : 1.0);
+  }
+
+  // Builds and runs the graph; call inside the task arena that should run it.
+  PipelineResult Run();
+
+ private:
+  struct FrameClock {
+    std::atomic<int64_t> stereo_end_ns{-1};
+    std::atomic<int64_t> mask_ready_ns{-1};
+    std::atomic<int64_t> slam_ns{0};       // summed stage calls of the SLAM path
+    std::atomic<int64_t> inference_ns{0};  // the frame's segmentation call
+  };
+  struct Admission {
+    int64_t release_ns = 0, admit_ns = 0;
+  };
+  struct FrameError {
+    int64_t seq = -1;
+    int64_t frame_index = -1;
+    std::string stage, what;
+  };
+
+  static nodes::SourceOptions SourceOptionsFor(const PipelineOptions& o) {
+    nodes::SourceOptions s;
+    s.paced = o.policy == Policy::kRealtime;
+    s.rate = o.rate;
+    s.waiting_capacity =
+        o.policy == Policy::kRealtime ? static_cast<size_t>(o.waiting_capacity) : 0;
+    return s;
+  }
+  static nodes::QualitySettings FixedSettings(const PipelineOptions& o, const SlamOptions& slam) {
+    nodes::QualitySettings s = o.levels.medium;
+    s.orb_features = slam.orb.num_features;
+    s.segmenter = nodes::SegmenterSlot::kFast;
+    s.inference_every = 1;
+    s.ba_max_iterations = slam.mapping.bundle_adjustment.max_iterations;
+    return s;
+  }
+
+  int64_t NowNs() const {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() -
+                                                                start_)
+        .count();
+  }
+
+  // Runs f (returning the stage's output) with the hook, profiling (unless !profile) and error
+  // capture; returns nullopt when it threw.
+  template <typename F>
+  auto Guarded(const char* stage, const FrameTicket& ticket, F&& f, bool profile = true)
+      -> std::optional<decltype(f())> {
+    const int64_t start = NowNs();
+    try {
+      if (options_.stage_hook) options_.stage_hook(stage, ticket.frame_index);
+      auto out = f();
+      const int64_t end = NowNs();
+      if (profile) profiler_.Record(stage, ticket.seq, ticket.frame_index, start, end);
+      FrameClock& clock = clocks_[ticket.seq];
+      (std::string_view(stage) == kStageSegment ? clock.inference_ns : clock.slam_ns)
+          .fetch_add(end - start);
+      return out;
+    } catch (const std::exception& e) {
+      RecordError(stage, ticket, e.what());
+    } catch (...) {
+      RecordError(stage, ticket, "unknown exception");
+    }
+    return std::nullopt;
+  }
+
+  void RecordError(const char* stage, const FrameTicket& ticket, const std::string& what) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!error_ || ticket.seq < error_->seq)
+        error_ = FrameError{ticket.seq, ticket.frame_index, stage, what};
+    }
+    spdlog::error("pipeline: frame {} stage {}: {}", ticket.frame_index, stage, what);
+    Wake();
+  }
+
+  void Wake() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++wake_epoch_;
+    }
+    wake_.notify_all();
+  }
+
+  // Segments one frame and hands the result to the board (nothing on error: it is recorded).
+  void RunInference(const ImagesPtr& images) {
+    if (auto fresh = Guarded(kStageSegment, images->ticket, [&] { return segment_(images); })) {
+      last_inference_ms_.store((*fresh)->segment_ms);
+      board_->OnSegmentation(*fresh);
+    }
+  }
+  void ClockLoop();
+  void Complete(const FrameResultPtr& result);
+  void EmitMask(const SegmentationPtr& msg);
+  PipelineResult Collect();
+
+  const nodes::FrameSource& source_;
+  SlamSystem* slam_;
+  const PipelineOptions& options_;
+  const int max_in_flight_;
+  const bool realtime_;
+  std::chrono::steady_clock::time_point start_;
+
+  // Clock state (mutex_).
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  uint64_t wake_epoch_ = 0;
+  nodes::SourceNode source_node_;
+  std::vector<Admission> admissions_;  // by seq
+  std::vector<int64_t> dropped_indices_, dropped_release_ns_;
+  int64_t admitted_ = 0, completed_ = 0;
+  size_t max_observed_in_flight_ = 0;
+  std::optional<FrameError> error_;
+  QualityLevel level_;
+  nodes::QualityController controller_;
+  std::vector<QualityChange> changes_;
+  std::vector<FrameRecord> frames_;
+  double period_ms_ = 0;
+
+  // Stages (each called as its node's concurrency allows).
+  nodes::PreprocessNode preprocess_;
+  nodes::OrbNode orb_left_, orb_right_;
+  nodes::StereoNode stereo_;
+  nodes::SegmentNode segment_;
+  // Realtime: the frame waiting for the network (newest wins) and whether a call is running.
+  std::mutex inference_mutex_;
+  ImagesPtr pending_inference_;
+  bool inference_running_ = false;
+  std::atomic<double> last_inference_ms_{0};
+  std::atomic<size_t> inferences_busy_{0};
+  nodes::FilterNode filter_;
+  nodes::TrackingNode tracking_;
+  nodes::MappingNode mapping_;
+  std::unique_ptr<FrameClock[]> clocks_;  // by seq (< source size)
+  const nodes::QualitySettings fixed_settings_;
+  Profiler profiler_;
+
+  // Graph (built in Run()).
+  std::unique_ptr<oneapi::tbb::task_group_context> context_;
+  std::unique_ptr<tf::graph> graph_;
+  std::unique_ptr<tf::limiter_node<FrameTicket>> limiter_;
+  std::unique_ptr<tf::join_node<StereoAndMask, tf::key_matching<int64_t>>> mask_join_;
+  std::unique_ptr<MaskBoard> board_;
+};
+
+void GraphRun::EmitMask(const SegmentationPtr& msg) {
+  clocks_[msg->ticket.seq].mask_ready_ns.store(NowNs());
+  tf::input_port<1>(*mask_join_).try_put(msg);
+}
+
+PipelineResult GraphRun::Run() {
+  start_ = std::chrono::steady_clock::now();
+  context_ = std::make_unique<oneapi::tbb::task_group_context>();
+  graph_ = std::make_unique<tf::graph>(*context_);
+  tf::graph& g = *graph_;
+  const double deadline_ms = realtime_ ? options_.mask_deadline_ms : -1.0;
+  board_ = std::make_unique<MaskBoard>(
+      deadline_ms, [this](const SegmentationPtr& m) { EmitMask(m); }, [this] { Wake(); });
+
+  auto key_of = [](const auto& msg) { return msg->ticket.seq; };
+  limiter_ = std::make_unique<tf::limiter_node<FrameTicket>>(g, max_in_flight_);
+
+  StageNode<FrameTicket, ImagesPtr> preprocess(
+      g, tf::unlimited, [this](const FrameTicket& t, auto& ports) {
+        if (auto out = Guarded(kStagePreprocess, t, [&] { return preprocess_(t); }))
+          std::get<0>(ports).try_put(*out);
+      });
+  auto orb_body = [this](const nodes::OrbNode& node, const char* stage) {
+    return [this, &node, stage](const ImagesPtr& images, auto& ports) {
+      if (auto out = Guarded(stage, images->ticket, [&] { return node(images); }))
+        std::get<0>(ports).try_put(*out);
+    };
+  };
+  StageNode<ImagesPtr, FeaturesPtr> orb_left(g, tf::unlimited, orb_body(orb_left_, kStageOrbLeft));
+  StageNode<ImagesPtr, FeaturesPtr> orb_right(g, tf::unlimited,
+                                              orb_body(orb_right_, kStageOrbRight));
+  tf::join_node<std::tuple<FeaturesPtr, FeaturesPtr>, tf::key_matching<int64_t>> feature_join(
+      g, key_of, key_of);
+  StageNode<std::tuple<FeaturesPtr, FeaturesPtr>, StereoPtr> stereo(
+      g, tf::unlimited, [this](const std::tuple<FeaturesPtr, FeaturesPtr>& in, auto& ports) {
+        const FrameTicket& t = TicketOf(in);
+        auto out =
+            Guarded(kStageStereo, t, [&] { return stereo_(std::get<0>(in), std::get<1>(in)); });
+        if (!out) return;
+        const int64_t now = NowNs();
+        clocks_[t.seq].stereo_end_ns.store(now);
+        std::get<0>(ports).try_put(*out);
+        board_->OnFeaturesReady(t, now);
+      });
+
+  // The segmentation branch answers for every frame: its result or a "not run" value. Serial
+  // (every frame is segmented, in arrival order) except in realtime, where the network takes the
+  // newest waiting frame when it becomes free and frames it skipped answer "busy" at once.
+  tf::function_node<ImagesPtr, tf::continue_msg> segment(
+      g, realtime_ ? tf::unlimited : tf::serial, [this](const ImagesPtr& images) {
+        if (!segment_.WillRun(images->ticket)) {
+          board_->OnSegmentation(segment_(images));  // "not run", immediately
+        } else if (!realtime_) {
+          RunInference(images);
+        } else {
+          ImagesPtr skipped;
+          bool runner = false;
+          {
+            std::lock_guard<std::mutex> lock(inference_mutex_);
+            skipped = std::exchange(pending_inference_, images);
+            runner = !inference_running_;
+            inference_running_ = true;
+          }
+          if (skipped) {
+            ++inferences_busy_;
+            board_->OnSegmentation(
+                nodes::SegmentNode::NotRun(skipped->ticket, SegmentationOutcome::kBusy));
+          }
+          while (runner) {
+            ImagesPtr next;
+            {
+              std::lock_guard<std::mutex> lock(inference_mutex_);
+              next = std::exchange(pending_inference_, nullptr);
+              inference_running_ = next != nullptr;
+            }
+            if (!next) break;
+            RunInference(next);
+          }
+        }
+        return tf::continue_msg();
+      });
+
+  mask_join_ =
+      std::make_unique<tf::join_node<StereoAndMask, tf::key_matching<int64_t>>>(g, key_of, key_of);
+  auto seq_of = [](const auto& msg) { return static_cast<size_t>(TicketOf(msg).seq); };
+  tf::sequencer_node<StereoAndMask> filter_order(g, seq_of);
+  StageNode<StereoAndMask, FilteredPtr> filter(
+      g, tf::serial, [this](const StereoAndMask& in, auto& ports) {
+        if (auto out = Guarded(kStageFilter, TicketOf(in),
+                               [&] { return filter_(std::get<0>(in), std::get<1>(in)); }))
+          std::get<0>(ports).try_put(*out);
+      });
+  tf::sequencer_node<FilteredPtr> tracking_order(g, seq_of);
+  tf::queue_node<Token> tokens(g);
+  tf::join_node<TrackingInput, tf::reserving> token_join(g);
+  StageNode<TrackingInput, TrackedPtr> tracking(
+      g, tf::serial, [this](const TrackingInput& in, auto& ports) {
+        const FilteredPtr& filtered = std::get<0>(in);
+        if (auto out = Guarded(kStageTracking, filtered->ticket, [&] {
+              if (options_.tracking_delay_ms > 0)
+                std::this_thread::sleep_for(
+                    std::chrono::microseconds(std::llround(options_.tracking_delay_ms * 1e3)));
+              return tracking_(filtered);
+            }))
+          std::get<0>(ports).try_put(*out);
+      });
+  // Mapping (keyframes only; other frames pass through unprofiled) hands the token back once the
+  // map holds frame k's edits. Loop closing will sit here: one more serial node between mapping
+  // and the token return.
+  StageNode<TrackedPtr, FrameResultPtr, Token> mapping(
+      g, tf::serial, [this](const TrackedPtr& tracked, auto& ports) {
+        const bool keyframe = nodes::MappingNode::NeedsMapping(*tracked);
+        if (auto out = Guarded(
+                kStageMapping, tracked->ticket, [&] { return mapping_(tracked); }, keyframe)) {
+          std::get<1>(ports).try_put(Token{0});
+          std::get<0>(ports).try_put(*out);
+        }
+      });
+  tf::function_node<FrameResultPtr, tf::continue_msg> sink(
+      g, tf::serial, [this](const FrameResultPtr& result) {
+        try {
+          Complete(result);
+        } catch (const std::exception& e) {
+          RecordError("sink", result->ticket, e.what());
+        }
+        return tf::continue_msg();
+      });
+
+  tf::make_edge(*limiter_, preprocess);
+  tf::make_edge(tf::output_port<0>(preprocess), orb_left);
+  tf::make_edge(tf::output_port<0>(preprocess), orb_right);
+  tf::make_edge(tf::output_port<0>(preprocess), segment);
+  tf::make_edge(tf::output_port<0>(orb_left), tf::input_port<0>(feature_join));
+  tf::make_edge(tf::output_port<0>(orb_right), tf::input_port<1>(feature_join));
+  tf::make_edge(feature_join, stereo);
+  tf::make_edge(tf::output_port<0>(stereo), tf::input_port<0>(*mask_join_));
+  tf::make_edge(*mask_join_, filter_order);
+  tf::make_edge(filter_order, filter);
+  tf::make_edge(tf::output_port<0>(filter), tracking_order);
+  tf::make_edge(tracking_order, tf::input_port<0>(token_join));
+  tf::make_edge(tokens, tf::input_port<1>(token_join));
+  tf::make_edge(token_join, tracking);
+  tf::make_edge(tf::output_port<0>(tracking), mapping);
+  tf::make_edge(tf::output_port<0>(mapping), sink);
+  tf::make_edge(tf::output_port<1>(mapping), tokens);
+  tokens.try_put(Token{0});
+
+  g.reserve_wait();  // released by the clock when it is done
+  std::thread clock([this] { ClockLoop(); });
+  try {
+    g.wait_for_all();
+  } catch (...) {
+    // Stage bodies catch everything; anything else still must not leave the clock running.
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!error_) error_ = FrameError{-1, -1, "graph", "unexpected exception in the flow graph"};
+      ++wake_epoch_;
+    }
+    wake_.notify_all();
+    clock.join();
+    throw;
+  }
+  clock.join();
+  return Collect();
+}
+
+void GraphRun::ClockLoop() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (true) {
+    const int64_t now = NowNs();
+    if (error_ && completed_ >= error_->seq) {
+      // Every frame before the failing one is done: stop the rest.
+      graph_->cancel();
+      break;
+    }
+    for (const nodes::WaitingFrame& d : source_node_.ReleaseDue(now)) {
+      dropped_indices_.push_back(source_.frame_indices[d.entry]);
+      dropped_release_ns_.push_back(d.release_ns);
+    }
+    while (!error_ && source_node_.HasWaiting()) {
+      const nodes::QualitySettings& settings =
+          options_.adaptive ? options_.levels.At(level_) : fixed_settings_;
+      const FrameTicket ticket = source_node_.PeekTicket(level_, settings);
+      if (!limiter_->try_put(ticket)) break;  // no free token
+      const nodes::WaitingFrame w = source_node_.Admit(ticket);
+      admissions_.push_back({w.release_ns, NowNs()});
+      ++admitted_;
+      max_observed_in_flight_ =
+          std::max(max_observed_in_flight_, static_cast<size_t>(admitted_ - completed_));
+    }
+    board_->ExpireDue(NowNs());
+    if (!error_ && source_node_.AllReleased() && !source_node_.HasWaiting() &&
+        completed_ == admitted_)
+      break;
+
+    int64_t wake_at_ns = -1;  // next release or mask deadline; -1: only a notification
+    if (const auto release = source_node_.NextReleaseNs(); release && !error_)
+      wake_at_ns = *release;
+    if (const auto deadline = board_->NextDeadlineNs();
+        deadline && (wake_at_ns < 0 || *deadline < wake_at_ns))
+      wake_at_ns = *deadline;
+    const uint64_t epoch = wake_epoch_;
+    auto woken = [&] { return wake_epoch_ != epoch; };
+    if (wake_at_ns >= 0) {
+      wake_.wait_until(lock, start_ + std::chrono::nanoseconds(wake_at_ns), woken);
+    } else {
+      wake_.wait(lock, woken);
+    }
+  }
+  lock.unlock();
+  graph_->release_wait();
+}
+
+void GraphRun::Complete(const FrameResultPtr& result) {
+  const int64_t done = NowNs();
+  const FrameTicket& t = result->ticket;
+  FrameRecord r;
+  r.seq = t.seq;
+  r.frame_index = t.frame_index;
+  r.t_ns = t.t_ns;
+  r.quality = t.quality;
+  r.inference_scheduled = t.run_inference;
+  r.mask = result->mask;
+  r.num_excluded = result->num_excluded;
+  r.output = result->output;
+  r.done_ns = done;
+
+  // Eq. 8 for this frame: T_slam (its SLAM-path stage calls, wall time, mapping included),
+  // T_inference (its own network call, or the latest one when it had none or it is still
+  // running, amortised over the level's cadence), T_sync (features waiting for the mask).
+  const FrameClock& clock = clocks_[t.seq];
+  const double slam_ms = NsToMs(clock.slam_ns.load());
+  double inference_ms = 0;
+  if (const int64_t own = clock.inference_ns.load(); own > 0) {
+    inference_ms = NsToMs(own);
+  } else if (segment_.has_segmenter()) {
+    inference_ms = last_inference_ms_.load() / std::max(1, t.settings.inference_every);
+  }
+  const int64_t stereo_end = clock.stereo_end_ns.load();
+  const int64_t mask_ready = clock.mask_ready_ns.load();
+  const double sync_ms =
+      stereo_end >= 0 && mask_ready > stereo_end ? NsToMs(mask_ready - stereo_end) : 0.0;
+  r.busy_ms = std::max(slam_ms, inference_ms) + sync_ms;
+
+  size_t completed = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const Admission& a = admissions_[static_cast<size_t>(t.seq)];
+    r.release_ns = a.release_ns;
+    r.admit_ns = a.admit_ns;
+    r.latency_ms = NsToMs(done - (realtime_ ? a.release_ns : a.admit_ns));
+    r.segmentation = result->segmentation;
+    if (options_.adaptive) {
+      const QualityLevel before = controller_.level();
+      const QualityLevel after = controller_.Update(period_ms_, r.busy_ms);
+      if (after != before) {
+        changes_.push_back(
+            {t.seq, before, after, controller_.available_ms(), controller_.threshold_ms()});
+        spdlog::info(
+            "pipeline: quality {} -> {} after frame {} (available {:.1f} ms, threshold "
+            "{:.1f} ms)",
+            nodes::ToString(before), nodes::ToString(after), t.frame_index,
+            controller_.available_ms(), controller_.threshold_ms());
+      }
+      level_ = after;
+    }
+    frames_.push_back(std::move(r));
+    ++completed_;
+    completed = static_cast<size_t>(completed_);
+  }
+  // Progress before the token goes back, so an observer never sees more frames in flight than
+  // the bound.
+  if (options_.on_frame) options_.on_frame(completed, source_.size(), result->output);
+  limiter_->decrementer().try_put(tf::continue_msg());
+  Wake();
+}
+
+PipelineResult GraphRun::Collect() {
+  PipelineResult out;
+  out.frames = std::move(frames_);
+  out.dropped_frame_indices = std::move(dropped_indices_);
+  out.dropped_release_ns = std::move(dropped_release_ns_);
+  out.tracked = slam_->RefinedTrajectory();
+  out.keyframes = slam_->map().num_keyframes();
+  out.map_points = slam_->map().num_points();
+  out.events = profiler_.Events();
+  if (error_) {
+    out.error_frame_index = error_->frame_index;
+    out.error_stage = error_->stage;
+    out.error = "frame " + std::to_string(error_->frame_index) + ", stage " + error_->stage + ": " +
+                error_->what;
+  }
+
+  PipelineStats& s = out.stats;
+  s.policy = ToString(options_.policy);
+  s.threads = options_.threads;
+  s.max_in_flight = max_in_flight_;
+  s.rate = options_.rate;
+  s.adaptive = options_.adaptive;
+  s.period_ms = period_ms_;
+  s.frames_total = source_.size();
+  s.frames_admitted = static_cast<size_t>(admitted_);
+  s.frames_completed = out.frames.size();
+  s.frames_dropped = out.dropped_frame_indices.size();
+  s.masks_late = board_->late();
+  s.late_results = board_->late_results();
+  s.inferences_busy = inferences_busy_.load();
+  s.max_in_flight_observed = max_observed_in_flight_;
+  s.profile_threads = profiler_.num_threads();
+  TimingSeries latency, busy;
+  int64_t last_done = 0;
+  for (const FrameRecord& f : out.frames) {
+    latency.Add(f.latency_ms);
+    busy.Add(f.busy_ms);
+    last_done = std::max(last_done, f.done_ns);
+    switch (f.mask) {
+      case nodes::MaskStatus::kFresh:
+        ++s.masks_fresh;
+        break;
+      case nodes::MaskStatus::kStale:
+        ++s.masks_stale;
+        break;
+      case nodes::MaskStatus::kSkipped:
+        ++s.masks_skipped;
+        break;
+    }
+    ++s.quality_frames[static_cast<size_t>(f.quality)];
+  }
+  s.latency = latency.Summarize();
+  s.busy = busy.Summarize();
+  s.wall_s = static_cast<double>(last_done) * 1e-9;
+  s.fps = s.wall_s > 0 ? static_cast<double>(out.frames.size()) / s.wall_s : 0.0;
+  s.quality_changes = changes_;
+
+  // Stage timings and queue waits from the profile. Input ready = end of the upstream stages of
+  // the same frame (admission for preprocess; the mask emission for the filter).
+  std::map<std::pair<std::string, int64_t>, int64_t> end_of;
+  for (const StageEvent& e : out.events) end_of[{e.stage, e.seq}] = e.end_ns;
+  auto ready = [&](const StageEvent& e) -> std::optional<int64_t> {
+    const std::string stage = e.stage;
+    auto end = [&](const char* up) -> std::optional<int64_t> {
+      const auto it = end_of.find({up, e.seq});
+      if (it == end_of.end()) return std::nullopt;
+      return it->second;
+    };
+    auto latest = [](std::optional<int64_t> a, std::optional<int64_t> b) -> std::optional<int64_t> {
+      if (!a || !b) return std::nullopt;
+      return std::max(*a, *b);
+    };
+    if (stage == kStagePreprocess) {
+      if (e.seq < 0 || static_cast<size_t>(e.seq) >= admissions_.size()) return std::nullopt;
+      return admissions_[static_cast<size_t>(e.seq)].admit_ns;
+    }
+    if (stage == kStageOrbLeft || stage == kStageOrbRight || stage == kStageSegment)
+      return end(kStagePreprocess);
+    if (stage == kStageStereo) return latest(end(kStageOrbLeft), end(kStageOrbRight));
+    if (stage == kStageFilter) {
+      const int64_t mask = clocks_[e.seq].mask_ready_ns.load();
+      return latest(end(kStageStereo), mask >= 0 ? std::optional<int64_t>(mask) : std::nullopt);
+    }
+    if (stage == kStageTracking) return end(kStageFilter);
+    if (stage == kStageMapping) return end(kStageTracking);
+    return std::nullopt;
+  };
+  std::map<std::string, TimingSeries> times, waits;
+  std::map<std::string, std::vector<StageWait>> intervals;
+  for (StageEvent& e : out.events) {
+    times[e.stage].Add(NsToMs(e.end_ns - e.start_ns));
+    if (const auto r = ready(e)) {
+      const int64_t ready_ns = std::min(*r, e.start_ns);
+      e.ready_ns = ready_ns;
+      waits[e.stage].Add(NsToMs(e.start_ns - ready_ns));
+      intervals[e.stage].push_back({ready_ns, e.start_ns});
+    }
+  }
+  for (const auto& [stage, series] : times) {
+    StageStats& st = s.stages[stage];
+    st.time = series.Summarize();
+    st.wait = waits[stage].Summarize();
+    st.max_queue_depth = MaxQueueDepth(intervals[stage]);
+  }
+  return out;
+}
+
+}  // namespace
+
+PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& slam_options,
+                           const PipelineOptions& options, const nodes::SegmenterSet& segmenters,
+                           nodes::FrameScorer* scorer) {
+  std::string why;
+  if (!options.IsValid(&why)) throw ConfigError("PipelineOptions: " + why);
+  if (!source.IsValid(&why)) throw ConfigError("FrameSource " + source.name + ": " + why);
+
+  SlamOptions capped = slam_options;
+  capped.mapping.bundle_adjustment.num_threads =
+      std::min(capped.mapping.bundle_adjustment.num_threads, options.threads);
+  SlamSystem slam(source.rig, capped);
+
+  // Extractors for the adaptive levels' keypoint counts (same pyramid as the SLAM system's).
+  std::vector<std::unique_ptr<OrbExtractor>> extractors;
+  std::vector<const OrbExtractor*> extra;
+  if (options.adaptive) {
+    for (QualityLevel l : {QualityLevel::kLow, QualityLevel::kMedium, QualityLevel::kHigh}) {
+      const int n = options.levels.At(l).orb_features;
+      const bool known = n == capped.orb.num_features ||
+                         std::any_of(extra.begin(), extra.end(), [n](const OrbExtractor* e) {
+                           return e->options().num_features == n;
+                         });
+      if (known) continue;
+      OrbOptions o = capped.orb;
+      o.num_features = n;
+      extractors.push_back(std::make_unique<OrbExtractor>(o));
+      extra.push_back(extractors.back().get());
+    }
+  }
+  std::unique_ptr<nodes::MaskScorer> default_scorer;
+  if (!scorer && !segmenters.empty()) {
+    default_scorer = std::make_unique<nodes::MaskScorer>(options.scorer);
+    scorer = default_scorer.get();
+  }
+
+  const int max_in_flight = options.policy == Policy::kSequential ? 1 : options.max_in_flight;
+  const int arena_threads = options.policy == Policy::kSequential ? 1 : options.threads;
+  oneapi::tbb::global_control parallelism(oneapi::tbb::global_control::max_allowed_parallelism,
+                                          static_cast<size_t>(options.threads));
+  CvThreadsScope cv_threads(options.threads);
+  oneapi::tbb::task_arena arena(arena_threads);
+  spdlog::debug("pipeline: {} on {} ({} frames), {} threads, {} in flight",
+                ToString(options.policy), source.name, source.size(), options.threads,
+                max_in_flight);
+  GraphRun run(source, &slam, options, max_in_flight, segmenters, scorer, extra);
+  PipelineResult result;
+  arena.execute([&] { result = run.Run(); });
+  return result;
+}
+
+}  // namespace pcr::graph

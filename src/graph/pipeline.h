@@ -1,0 +1,110 @@
+#pragma once
+// The SLAM pipeline as a oneTBB flow graph:
+//
+//   clock ─> limiter ─> preprocess ─┬─> orb_left ──┐
+//   (source:        (tokens =       ├─> orb_right ─┴─> stereo ─────────────┐ (key_matching
+//    dataset or      max in flight) └─> segment ─> mask board (deadline) ──┴─> join by seq)
+//    replay clock)                                                          │
+//        sequencer ─> filter (serial) ─> sequencer ─┬─> tracking (serial) ─> mapping (serial) ─┐
+//                                       token ──────┘<───────────── token ─────────────────────┤
+//        limiter.decrement <─ sink (serial: results, profile, quality controller) <────────────┘
+//
+// Tracking and local mapping both mutate the map: tracking of frame k+1 starts only after mapping
+// of frame k returned the token, so the map sees exactly the calls of SlamSystem::ProcessFrame
+// in a loop and the trajectory is identical to the sequential one (with Ceres on one thread).
+// Loop closing, when it exists, is one more serial node between mapping and the token return.
+//
+// Every branch emits one message per admitted frame ("not run", "late" and "busy" segmentations
+// are values), so joins always complete. The in-flight bound is the limiter's token count: a
+// token is taken at admission and given back by the sink, so at most max_in_flight frames (and
+// their images and features) exist at once, whatever the policy.
+// Threads: a clock thread (outside TBB, sleeping on a condition variable) releases and admits
+// frames and fires mask deadlines; node bodies run in a task_arena of `threads` (1 for
+// sequential), the caller's thread taking part through wait_for_all.
+//
+// An exception in a stage is recorded with its frame and stage; no new frame is admitted, the
+// frames before it finish, then the graph's task_group_context is cancelled: the result holds
+// the poses of every frame before the failing one, and `error` says what failed.
+#include <array>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "graph/pipeline_options.h"
+#include "graph/profiler.h"
+#include "nodes/frame_source.h"
+#include "nodes/messages.h"
+#include "nodes/segment_node.h"
+#include "slam/system/slam_system.h"
+
+namespace pcr::graph {
+
+struct FrameRecord {
+  int64_t seq = -1;
+  int64_t frame_index = -1;
+  int64_t t_ns = 0;
+  nodes::QualityLevel quality = nodes::QualityLevel::kHigh;
+  bool inference_scheduled = false;
+  nodes::SegmentationOutcome segmentation = nodes::SegmentationOutcome::kNoSegmenter;
+  nodes::MaskStatus mask = nodes::MaskStatus::kSkipped;
+  int num_excluded = 0;
+  FrameOutput output;
+  // Nanoseconds since the start of the run: released by the source (camera time in realtime),
+  // admitted into the graph, pose available (mapping done).
+  int64_t release_ns = 0, admit_ns = 0, done_ns = 0;
+  double latency_ms = 0;  // realtime: release -> pose; otherwise admission -> pose
+  double busy_ms = 0;     // max(T_slam, T_inference) + T_sync, the controller's input
+};
+
+struct QualityChange {
+  int64_t seq = -1;  // the frame whose completion triggered the change
+  nodes::QualityLevel from = nodes::QualityLevel::kHigh, to = nodes::QualityLevel::kHigh;
+  double available_ms = 0, threshold_ms = 0;
+};
+
+struct PipelineStats {
+  std::string policy;
+  int threads = 0, max_in_flight = 0;
+  double rate = 0;
+  bool adaptive = false;
+  double period_ms = 0;  // nominal frame period used by the controller
+  size_t frames_total = 0, frames_admitted = 0, frames_completed = 0, frames_dropped = 0;
+  size_t masks_fresh = 0, masks_stale = 0, masks_skipped = 0;
+  size_t masks_late = 0;       // realtime: mask deadline passed
+  size_t inferences_busy = 0;  // realtime: frame not segmented, network busy
+  size_t late_results = 0;     // inference finished after its frame went on
+  size_t max_in_flight_observed = 0;
+  double wall_s = 0;  // start to the last pose
+  double fps = 0;     // completed frames / wall_s
+  TimingSummary latency;
+  TimingSummary busy;  // per frame max(T_slam, T_inference) + T_sync (Eq. 8), the controller input
+  std::map<std::string, StageStats> stages;
+  std::array<size_t, nodes::kNumQualityLevels> quality_frames{};  // indexed by QualityLevel
+  std::vector<QualityChange> quality_changes;
+  int profile_threads = 0;
+};
+
+struct PipelineResult {
+  std::vector<FrameRecord> frames;  // completed frames, in order
+  std::vector<int64_t> dropped_frame_indices;
+  std::vector<int64_t> dropped_release_ns;
+  Trajectory tracked;  // SlamSystem::RefinedTrajectory() at the end
+  size_t keyframes = 0, map_points = 0;
+  PipelineStats stats;
+  std::vector<StageEvent> events;
+  std::string error;  // empty when every frame ran; else "frame N, stage S: what"
+  int64_t error_frame_index = -1;
+  std::string error_stage;
+};
+
+// Runs `source` through the graph. Segmenters are optional (none: every mask is "skipped" and no
+// keypoint is filtered); scorer defaults to a MaskScorer when a segmenter is given. Throws
+// ConfigError for invalid options or source; errors while processing frames are reported in the
+// result (see above), never thrown.
+PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& slam_options,
+                           const PipelineOptions& options,
+                           const nodes::SegmenterSet& segmenters = {},
+                           nodes::FrameScorer* scorer = nullptr);
+
+}  // namespace pcr::graph

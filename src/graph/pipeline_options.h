@@ -1,0 +1,66 @@
+#pragma once
+// Options of a flow-graph pipeline run. Scheduling policies are data:
+//   sequential  one frame in flight and one thread for the graph: each stage of a frame runs
+//               after the previous one (the deterministic reference; OpenCV/Ceres may still use
+//               `threads` inside a stage);
+//   pipelined   up to max_in_flight frames overlap: ORB left/right and segmentation run in
+//               parallel and with other frames' tracking (T = max(T_slam, T_inference) + T_sync);
+//   realtime    frames are released at their timestamps scaled by `rate`, like a camera; a
+//               released frame waits for a free in-flight slot, and when the waiting room is full
+//               the oldest waiting frame is dropped; the network takes the newest frame waiting
+//               for it when it becomes free (frames it skips answer "busy"), and tracking waits
+//               at most mask_deadline_ms for a late segmentation and then uses the newest older
+//               mask, marked stale.
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+
+#include "nodes/filter_node.h"
+#include "nodes/quality.h"
+#include "slam/system/slam_system.h"
+
+namespace pcr::graph {
+
+enum class Policy { kSequential, kPipelined, kRealtime };
+const char* ToString(Policy policy);
+// "sequential", "pipelined", "realtime"; false for anything else.
+bool ParsePolicy(const std::string& text, Policy* policy);
+
+// Stage names used in profiles, traces and stats.
+inline constexpr const char* kStagePreprocess = "preprocess";
+inline constexpr const char* kStageOrbLeft = "orb_left";
+inline constexpr const char* kStageOrbRight = "orb_right";
+inline constexpr const char* kStageSegment = "segment";
+inline constexpr const char* kStageStereo = "stereo";
+inline constexpr const char* kStageFilter = "filter";
+inline constexpr const char* kStageTracking = "tracking";
+inline constexpr const char* kStageMapping = "mapping";
+
+struct PipelineOptions {
+  Policy policy = Policy::kPipelined;
+  int threads = 2;        // caps TBB (global_control), OpenCV (cv::setNumThreads) and Ceres
+  int max_in_flight = 4;  // frames admitted and not finished (sequential uses 1)
+  // realtime: frame i is released (t_i - t_0) * rate after the start (1 = real time, 0.5 = twice
+  // as fast, 0 = all at once).
+  double rate = 1.0;
+  int waiting_capacity = 1;      // realtime: released frames waiting for a slot
+  double mask_deadline_ms = 10;  // realtime: wait for a late mask at most this long
+  // Adaptive quality control (Eq. 9). Off: every frame uses the run configuration (ORB count of
+  // the SLAM options, the fast segmenter slot on every frame).
+  bool adaptive = false;
+  nodes::QualityLevels levels;
+  nodes::QualityControllerOptions controller;
+  nodes::MaskCarryOptions carry;
+  nodes::MaskScorerOptions scorer;  // the default scorer when a segmenter is given
+  // Testing and demonstrations: artificial delay added to every tracking call (simulates a slow
+  // back end), and a hook called at the start of every stage body (may sleep or throw).
+  double tracking_delay_ms = 0;
+  std::function<void(std::string_view stage, int64_t frame_index)> stage_hook;
+  // Progress: called after each completed frame (from the serial sink, in frame order).
+  std::function<void(size_t completed, size_t total, const FrameOutput& output)> on_frame;
+
+  bool IsValid(std::string* why) const;
+};
+
+}  // namespace pcr::graph

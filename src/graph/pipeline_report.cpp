@@ -1,0 +1,300 @@
+#include "graph/pipeline_report.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <set>
+#include <sstream>
+
+#include "slam/common/error.h"
+
+namespace pcr::graph {
+namespace {
+
+nlohmann::json TimingJson(const TimingSummary& s) {
+  return {{"count", s.count},   {"mean_ms", s.mean_ms}, {"p50_ms", s.p50_ms},
+          {"p95_ms", s.p95_ms}, {"p99_ms", s.p99_ms},   {"max_ms", s.max_ms}};
+}
+
+double Us(int64_t ns) { return static_cast<double>(ns) * 1e-3; }
+
+// Stages in pipeline order (others after, by name).
+std::vector<std::string> OrderedStages(const std::vector<std::string>& present) {
+  const std::vector<std::string> order = {kStagePreprocess, kStageOrbLeft, kStageOrbRight,
+                                          kStageSegment,    kStageStereo,  kStageFilter,
+                                          kStageTracking,   kStageMapping};
+  std::vector<std::string> out;
+  for (const std::string& s : order) {
+    if (std::find(present.begin(), present.end(), s) != present.end()) out.push_back(s);
+  }
+  for (const std::string& s : present) {
+    if (std::find(out.begin(), out.end(), s) == out.end()) out.push_back(s);
+  }
+  return out;
+}
+
+cv::Scalar StageColour(const std::string& stage) {
+  // BGR.
+  if (stage == kStagePreprocess) return {160, 160, 160};
+  if (stage == kStageOrbLeft) return {200, 120, 30};
+  if (stage == kStageOrbRight) return {230, 170, 90};
+  if (stage == kStageSegment) return {60, 60, 220};
+  if (stage == kStageStereo) return {190, 80, 150};
+  if (stage == kStageFilter) return {40, 170, 230};
+  if (stage == kStageTracking) return {60, 170, 60};
+  if (stage == kStageMapping) return {40, 110, 40};
+  return {120, 120, 120};
+}
+
+void Text(cv::Mat& image, const std::string& text, cv::Point at, double scale = 0.45,
+          cv::Scalar colour = {30, 30, 30}, int thickness = 1) {
+  cv::putText(image, text, at, cv::FONT_HERSHEY_SIMPLEX, scale, colour, thickness, cv::LINE_AA);
+}
+
+// A "nice" tick step (1, 2 or 5 times a power of ten) giving about `count` ticks over span.
+double TickStep(double span, int count) {
+  const double raw = span / std::max(1, count);
+  const double p = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    if (raw <= m * p) return m * p;
+  }
+  return 10 * p;
+}
+
+}  // namespace
+
+nlohmann::json StatsToJson(const PipelineStats& s) {
+  nlohmann::json j;
+  j["policy"] = s.policy;
+  j["threads"] = s.threads;
+  j["max_in_flight"] = s.max_in_flight;
+  j["rate"] = s.rate;
+  j["adaptive"] = s.adaptive;
+  j["period_ms"] = s.period_ms;
+  j["frames"] = {{"total", s.frames_total},
+                 {"admitted", s.frames_admitted},
+                 {"completed", s.frames_completed},
+                 {"dropped", s.frames_dropped}};
+  j["masks"] = {{"fresh", s.masks_fresh},
+                {"stale", s.masks_stale},
+                {"skipped", s.masks_skipped},
+                {"late", s.masks_late},
+                {"inference_busy", s.inferences_busy},
+                {"late_results", s.late_results}};
+  j["wall_s"] = s.wall_s;
+  j["fps"] = s.fps;
+  j["latency_ms"] = TimingJson(s.latency);
+  j["frame_busy_ms"] = TimingJson(s.busy);
+  j["max_in_flight_observed"] = s.max_in_flight_observed;
+  j["threads_seen"] = s.profile_threads;
+  for (const auto& [name, st] : s.stages) {
+    nlohmann::json stage = TimingJson(st.time);
+    stage["wait"] = TimingJson(st.wait);
+    stage["max_queue_depth"] = st.max_queue_depth;
+    j["stages"][name] = stage;
+  }
+  for (int l = 0; l < nodes::kNumQualityLevels; ++l) {
+    j["quality"]["frames"][nodes::ToString(static_cast<nodes::QualityLevel>(l))] =
+        s.quality_frames[static_cast<size_t>(l)];
+  }
+  j["quality"]["changes"] = s.quality_changes.size();
+  nlohmann::json changes = nlohmann::json::array();
+  for (const QualityChange& c : s.quality_changes) {
+    changes.push_back({{"seq", c.seq},
+                       {"from", nodes::ToString(c.from)},
+                       {"to", nodes::ToString(c.to)},
+                       {"available_ms", c.available_ms},
+                       {"threshold_ms", c.threshold_ms}});
+  }
+  j["quality"]["log"] = changes;
+  return j;
+}
+
+std::string FormatPipelineStats(const PipelineStats& s) {
+  std::ostringstream o;
+  o << fmt::format("pipeline {}: {} threads, {} in flight (max seen {}){}\n", s.policy, s.threads,
+                   s.max_in_flight, s.max_in_flight_observed,
+                   s.policy == "realtime" ? fmt::format(", rate {:.3g}", s.rate) : std::string());
+  o << fmt::format(
+      "frames: {} of {} completed, {} dropped; {:.2f} s, {:.2f} fps; latency p50 {:.1f} p95 "
+      "{:.1f} p99 {:.1f} ms\n",
+      s.frames_completed, s.frames_total, s.frames_dropped, s.wall_s, s.fps, s.latency.p50_ms,
+      s.latency.p95_ms, s.latency.p99_ms);
+  o << fmt::format("masks: {} fresh, {} stale, {} skipped ({} late, {} busy)\n", s.masks_fresh,
+                   s.masks_stale, s.masks_skipped, s.masks_late, s.inferences_busy);
+  if (s.adaptive) {
+    o << fmt::format(
+        "quality: high {}, medium {}, low {} frames; {} changes (period {:.1f} ms, busy p50 "
+        "{:.1f} ms)\n",
+        s.quality_frames[2], s.quality_frames[1], s.quality_frames[0], s.quality_changes.size(),
+        s.period_ms, s.busy.p50_ms);
+  }
+  o << fmt::format("{:<11} {:>6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>6}\n", "stage", "calls",
+                   "mean ms", "p50 ms", "p95 ms", "p99 ms", "wait p95", "queue");
+  std::vector<std::string> names;
+  for (const auto& [name, st] : s.stages) names.push_back(name);
+  for (const std::string& name : OrderedStages(names)) {
+    const StageStats& st = s.stages.at(name);
+    o << fmt::format("{:<11} {:>6} {:>8.2f} {:>8.2f} {:>8.2f} {:>8.2f} {:>9.2f} {:>6}\n", name,
+                     st.time.count, st.time.mean_ms, st.time.p50_ms, st.time.p95_ms, st.time.p99_ms,
+                     st.wait.p95_ms, st.max_queue_depth);
+  }
+  return o.str();
+}
+
+void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
+  nlohmann::json events = nlohmann::json::array();
+  events.push_back(
+      {{"name", "process_name"}, {"ph", "M"}, {"pid", 1}, {"args", {{"name", "stages"}}}});
+  events.push_back(
+      {{"name", "process_name"}, {"ph", "M"}, {"pid", 2}, {"args", {{"name", "frames"}}}});
+  std::set<int> threads;
+  for (const StageEvent& e : result.events) {
+    threads.insert(e.thread);
+    events.push_back(
+        {{"name", e.stage},
+         {"cat", "stage"},
+         {"ph", "X"},
+         {"ts", Us(e.start_ns)},
+         {"dur", Us(e.end_ns - e.start_ns)},
+         {"pid", 1},
+         {"tid", e.thread},
+         {"args",
+          {{"frame", e.frame_index},
+           {"seq", e.seq},
+           {"wait_ms",
+            e.ready_ns >= 0 ? static_cast<double>(e.start_ns - e.ready_ns) * 1e-6 : 0.0}}}});
+  }
+  for (int t : threads) {
+    events.push_back({{"name", "thread_name"},
+                      {"ph", "M"},
+                      {"pid", 1},
+                      {"tid", t},
+                      {"args", {{"name", fmt::format("worker {}", t)}}}});
+  }
+  const int lanes = std::max(1, result.stats.max_in_flight);
+  for (const FrameRecord& f : result.frames) {
+    const int64_t from = result.stats.policy == "realtime" ? f.release_ns : f.admit_ns;
+    events.push_back(
+        {{"name", fmt::format("frame {}", f.frame_index)},
+         {"cat", "frame"},
+         {"ph", "X"},
+         {"ts", Us(from)},
+         {"dur", Us(f.done_ns - from)},
+         {"pid", 2},
+         {"tid", static_cast<int>(f.seq % lanes)},
+         {"args",
+          {{"seq", f.seq},
+           {"quality", nodes::ToString(f.quality)},
+           {"mask", nodes::ToString(f.mask)},
+           {"segmentation", nodes::ToString(f.segmentation)},
+           {"excluded", f.num_excluded},
+           {"tracked", f.output.num_tracked},
+           {"keyframe", f.output.keyframe_inserted},
+           {"wait_for_slot_ms", static_cast<double>(f.admit_ns - f.release_ns) * 1e-6}}}});
+  }
+  for (size_t i = 0; i < result.dropped_frame_indices.size(); ++i) {
+    events.push_back({{"name", fmt::format("dropped frame {}", result.dropped_frame_indices[i])},
+                      {"cat", "drop"},
+                      {"ph", "i"},
+                      {"s", "p"},
+                      {"ts", Us(result.dropped_release_ns[i])},
+                      {"pid", 2},
+                      {"tid", 0}});
+  }
+  nlohmann::json trace = {{"traceEvents", events}, {"displayTimeUnit", "ms"}};
+  std::ofstream out(path);
+  out << trace.dump() << "\n";
+  if (!out) throw InputError(path, 0, "cannot write the trace");
+}
+
+void WriteTimingChart(const std::string& path, const PipelineResult& result, double max_seconds) {
+  const PipelineStats& s = result.stats;
+  int64_t end_ns = 1;
+  int num_threads = 1;
+  for (const StageEvent& e : result.events) {
+    end_ns = std::max(end_ns, e.end_ns);
+    num_threads = std::max(num_threads, e.thread + 1);
+  }
+  if (max_seconds > 0) end_ns = std::min(end_ns, static_cast<int64_t>(max_seconds * 1e9));
+  std::vector<std::string> names;
+  for (const auto& [name, st] : s.stages) names.push_back(name);
+  const std::vector<std::string> stages = OrderedStages(names);
+
+  const int width = 1600, left = 110, right = 30, lane_h = 26;
+  const int gantt_top = 60, gantt_h = num_threads * lane_h;
+  const int legend_top = gantt_top + gantt_h + 40;
+  const int bars_top = legend_top + 40, bar_h = 22;
+  const int height = bars_top + static_cast<int>(stages.size()) * (bar_h + 8) + 40;
+  cv::Mat image(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
+
+  Text(image,
+       fmt::format("PCR-ORB pipeline: {}, {} threads, {} in flight | {} frames, {:.2f} fps, "
+                   "latency p50 {:.0f} / p95 {:.0f} ms, {} dropped, {} stale masks",
+                   s.policy, s.threads, s.max_in_flight, s.frames_completed, s.fps,
+                   s.latency.p50_ms, s.latency.p95_ms, s.frames_dropped, s.masks_stale),
+       {10, 25}, 0.55, {0, 0, 0}, 1);
+  Text(image, "stage calls per worker thread over time", {10, gantt_top - 10});
+
+  // Gantt.
+  const double span_ms = static_cast<double>(end_ns) * 1e-6;
+  const double px_per_ms = (width - left - right) / span_ms;
+  for (int t = 0; t < num_threads; ++t) {
+    const int y = gantt_top + t * lane_h;
+    cv::rectangle(image, {left, y}, {width - right, y + lane_h - 4}, {245, 245, 245}, cv::FILLED);
+    Text(image, fmt::format("thread {}", t), {10, y + lane_h - 10});
+  }
+  for (const StageEvent& e : result.events) {
+    if (e.start_ns >= end_ns) continue;
+    const int x0 =
+        left + static_cast<int>(std::lround(static_cast<double>(e.start_ns) * 1e-6 * px_per_ms));
+    const int x1 = left + static_cast<int>(std::lround(
+                              static_cast<double>(std::min(e.end_ns, end_ns)) * 1e-6 * px_per_ms));
+    const int y = gantt_top + e.thread * lane_h;
+    cv::rectangle(image, {x0, y + 1}, {std::max(x0 + 1, x1), y + lane_h - 5}, StageColour(e.stage),
+                  cv::FILLED);
+  }
+  const double step = TickStep(span_ms, 10);
+  for (double t = 0; t <= span_ms + 1e-9; t += step) {
+    const int x = left + static_cast<int>(std::lround(t * px_per_ms));
+    cv::line(image, {x, gantt_top + gantt_h}, {x, gantt_top + gantt_h + 5}, {0, 0, 0});
+    Text(image, step >= 1000 ? fmt::format("{:g} s", t / 1000) : fmt::format("{:g} ms", t),
+         {x - 15, gantt_top + gantt_h + 20}, 0.4);
+  }
+
+  // Legend.
+  int x = left;
+  for (const std::string& stage : stages) {
+    cv::rectangle(image, {x, legend_top - 12}, {x + 18, legend_top + 2}, StageColour(stage),
+                  cv::FILLED);
+    Text(image, stage, {x + 24, legend_top});
+    x += 30 + static_cast<int>(stage.size()) * 9 + 20;
+  }
+
+  // Per-stage p50 (solid) and p95 (outline) bars.
+  double max_ms = 1e-3;
+  for (const std::string& stage : stages) max_ms = std::max(max_ms, s.stages.at(stage).time.p95_ms);
+  const double bar_px_per_ms = (width - left - right - 420) / max_ms;
+  Text(image, "per-stage time per call: p50 (filled), p95 (outline), calls", {10, bars_top - 12});
+  for (size_t i = 0; i < stages.size(); ++i) {
+    const StageStats& st = s.stages.at(stages[i]);
+    const int y = bars_top + static_cast<int>(i) * (bar_h + 8);
+    Text(image, stages[i], {10, y + bar_h - 6});
+    const int p50 = static_cast<int>(std::lround(st.time.p50_ms * bar_px_per_ms));
+    const int p95 = static_cast<int>(std::lround(st.time.p95_ms * bar_px_per_ms));
+    cv::rectangle(image, {left, y}, {left + std::max(1, p50), y + bar_h}, StageColour(stages[i]),
+                  cv::FILLED);
+    cv::rectangle(image, {left, y}, {left + std::max(1, p95), y + bar_h}, {0, 0, 0}, 1);
+    Text(image,
+         fmt::format("p50 {:.1f}  p95 {:.1f}  p99 {:.1f} ms  ({} calls)", st.time.p50_ms,
+                     st.time.p95_ms, st.time.p99_ms, st.time.count),
+         {left + std::max(p95, p50) + 8, y + bar_h - 6});
+  }
+  if (!cv::imwrite(path, image)) throw InputError(path, 0, "cannot write the timing chart");
+}
+
+}  // namespace pcr::graph

@@ -1,0 +1,28 @@
+#pragma once
+// Outputs of a pipeline run's profile: statistics as JSON and text, the Chrome trace (Trace Event
+// Format, open in chrome://tracing or https://ui.perfetto.dev) and a per-stage timing chart.
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "graph/pipeline.h"
+
+namespace pcr::graph {
+
+// Per stage: calls and mean/p50/p95/p99/max ms, queue waits, max queue depth; end-to-end latency
+// percentiles, throughput, drops, stale masks, quality-level histogram and changes, max in flight.
+nlohmann::json StatsToJson(const PipelineStats& stats);
+
+// The same as a console table.
+std::string FormatPipelineStats(const PipelineStats& stats);
+
+// Chrome trace: one "X" (complete) event per stage call on pid 1 with the thread as tid; one per
+// frame (release -> pose) on pid 2, lanes by seq modulo the in-flight bound; an instant event per
+// dropped frame. ts/dur in microseconds. Throws InputError when the file cannot be written.
+void WriteChromeTrace(const std::string& path, const PipelineResult& result);
+
+// PNG: a Gantt chart of the stage calls per thread over the run (or its first `max_seconds`),
+// and per-stage p50/p95 bars. Throws InputError when the file cannot be written.
+void WriteTimingChart(const std::string& path, const PipelineResult& result,
+                      double max_seconds = 0);
+
+}  // namespace pcr::graph

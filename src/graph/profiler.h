@@ -1,0 +1,54 @@
+#pragma once
+// Per-node profiling of a pipeline run: every stage call is recorded with its frame, thread and
+// start/end times (nanoseconds since the start of the run, steady clock). Queue waits and queue
+// depths are derived afterwards from the graph's topology: a stage's input is ready when the
+// last of its upstream stages finished for that frame.
+// Profiler is thread-safe (a mutex around an append); the summaries are pure functions.
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "slam/common/timing.h"
+
+namespace pcr::graph {
+
+struct StageEvent {
+  const char* stage = "";  // one of the kStage* names (static storage)
+  int64_t seq = -1;
+  int64_t frame_index = -1;
+  int thread = 0;  // small id: order of first appearance in this run
+  int64_t start_ns = 0, end_ns = 0;
+  int64_t ready_ns = -1;  // input ready (filled in by the run's summary; -1 = unknown)
+};
+
+class Profiler {
+ public:
+  void Record(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
+              int64_t end_ns);
+  std::vector<StageEvent> Events() const;
+  int num_threads() const;
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<StageEvent> events_;
+  std::map<std::thread::id, int> thread_ids_;
+};
+
+// Time from "input ready" to "stage start" of one call.
+struct StageWait {
+  int64_t ready_ns = 0, start_ns = 0;
+};
+
+struct StageStats {
+  TimingSummary time;          // call durations
+  TimingSummary wait;          // queue waits (ready -> start)
+  size_t max_queue_depth = 0;  // most calls ready and not started at the same time
+};
+
+// Largest number of [ready, start) intervals that overlap (a call waiting in the queue).
+size_t MaxQueueDepth(const std::vector<StageWait>& waits);
+
+}  // namespace pcr::graph

@@ -1,0 +1,104 @@
+#include "nodes/filter_node.h"
+
+#include <chrono>
+#include <stdexcept>
+
+#include "slam/common/error.h"
+#include "slam/common/timing.h"
+
+namespace pcr::nodes {
+
+bool MaskScorerOptions::IsValid(std::string* why) const {
+  if (!(exclude_threshold > 0.0f && exclude_threshold <= 1.0f)) {
+    if (why) *why = "exclude_threshold must be in (0, 1]";
+    return false;
+  }
+  return true;
+}
+
+MaskScorer::MaskScorer(const MaskScorerOptions& options) : options_(options) {
+  std::string why;
+  if (!options_.IsValid(&why)) throw ConfigError("MaskScorerOptions: " + why);
+}
+
+KeypointFilter MaskScorer::Score(const ScoringInput& input) {
+  if (input.mask.status == MaskStatus::kSkipped || !input.mask.segmentation) return {};
+  const cv::Mat& confidence = input.mask.segmentation->dynamic_confidence;
+  if (confidence.empty()) return {};
+  if (confidence.type() != CV_32FC1)
+    throw std::invalid_argument("MaskScorer: dynamic_confidence must be CV_32FC1");
+  FrameFilterInput filter;
+  filter.excluded_mask = confidence >= options_.exclude_threshold;  // CV_8UC1, 0/255
+  if (options_.weights) {
+    filter.weight_map = 1.0 - confidence;  // CV_32FC1
+  }
+  return SlamSystem::SampleFilter(filter, input.left.keypoints);
+}
+
+bool MaskCarryOptions::IsValid(std::string* why) const {
+  if (max_age_frames < 1) {
+    if (why) *why = "max_age_frames must be >= 1";
+    return false;
+  }
+  return true;
+}
+
+MaskCarry::MaskCarry(const MaskCarryOptions& options) : options_(options) {
+  std::string why;
+  if (!options_.IsValid(&why)) throw ConfigError("MaskCarryOptions: " + why);
+}
+
+MaskMsg MaskCarry::Resolve(const SegmentationMsg& msg) {
+  const int64_t seq = msg.ticket.seq;
+  MaskMsg out;
+  if (msg.outcome == SegmentationOutcome::kFresh && msg.segmentation) {
+    out.status = MaskStatus::kFresh;
+    out.segmentation = msg.segmentation;
+    out.source_seq = seq;
+    last_ = msg.segmentation;
+    last_seq_ = seq;
+    return out;
+  }
+  if (msg.outcome == SegmentationOutcome::kNoSegmenter || !options_.use_stale) return out;
+  std::shared_ptr<const Segmentation> best = last_;
+  int64_t best_seq = last_seq_;
+  if (msg.fallback && msg.fallback_seq < seq && msg.fallback_seq > best_seq) {
+    best = msg.fallback;
+    best_seq = msg.fallback_seq;
+  }
+  if (best && best_seq >= 0 && seq - best_seq <= options_.max_age_frames) {
+    out.status = MaskStatus::kStale;
+    out.segmentation = best;
+    out.source_seq = best_seq;
+  }
+  return out;
+}
+
+FilterNode::FilterNode(FrameScorer* scorer, const MaskCarryOptions& carry)
+    : scorer_(scorer), carry_(carry) {}
+
+FilteredPtr FilterNode::operator()(const StereoPtr& stereo, const SegmentationPtr& segmentation) {
+  if (stereo->ticket.seq != segmentation->ticket.seq)
+    throw std::invalid_argument("FilterNode: stereo and segmentation of different frames");
+  const auto start = std::chrono::steady_clock::now();
+  auto msg = std::make_shared<FilteredMsg>();
+  msg->ticket = stereo->ticket;
+  msg->stereo = stereo;
+  msg->segmentation = segmentation->outcome;
+  msg->mask = carry_.Resolve(*segmentation);
+  if (scorer_) {
+    const ScoringInput input{msg->ticket, *stereo->images, stereo->left->features, stereo->stereo,
+                             msg->mask};
+    msg->filter = scorer_->Score(input);
+    const size_t n = stereo->left->features.keypoints.size();
+    if ((!msg->filter.excluded.empty() && msg->filter.excluded.size() != n) ||
+        (!msg->filter.weight.empty() && msg->filter.weight.size() != n))
+      throw std::invalid_argument("FilterNode: scorer " + scorer_->Name() +
+                                  " returned vectors that do not match the keypoints");
+    for (uint8_t e : msg->filter.excluded) msg->num_excluded += e ? 1 : 0;
+  }
+  msg->filter_ms = MsSince(start);
+  return msg;
+}
+
+}  // namespace pcr::nodes

@@ -1,0 +1,82 @@
+#pragma once
+// The scoring/filter stage: joins a frame's stereo features with its segmentation result, picks
+// the mask to apply (the frame's own, an older one carried forward and marked stale, or none),
+// and asks a FrameScorer which keypoints to exclude and how to weight the rest.
+// Stateful (the carried mask, and whatever a scorer keeps across frames, e.g. optical flow or
+// temporal votes): thread-compatible, called once per frame in frame order.
+#include <memory>
+#include <string>
+
+#include "nodes/messages.h"
+
+namespace pcr::nodes {
+
+struct ScoringInput {
+  const FrameTicket& ticket;
+  const ImagesMsg& images;
+  const OrbFeatures& left;
+  const StereoMatches& stereo;
+  const MaskMsg& mask;  // kSkipped: no mask for this frame
+};
+
+// The dynamic-point filter plugs in here (paper Eq. 2 / Alg. 3). Called in frame order.
+class FrameScorer {
+ public:
+  virtual ~FrameScorer() = default;
+  // Per left keypoint: excluded flags and static-confidence weights (empty vectors: none).
+  virtual KeypointFilter Score(const ScoringInput& input) = 0;
+  virtual std::string Name() const = 0;
+};
+
+struct MaskScorerOptions {
+  float exclude_threshold = 0.5f;  // dynamic confidence at which a keypoint is excluded
+  bool weights = true;             // also weight kept keypoints by 1 - dynamic confidence
+  bool IsValid(std::string* why) const;
+};
+
+// The segmentation-only scorer: samples the mask's dynamic-confidence map at each keypoint
+// (nearest pixel, as SlamSystem::SampleFilter does). Nothing is filtered without a mask.
+class MaskScorer final : public FrameScorer {
+ public:
+  explicit MaskScorer(const MaskScorerOptions& options = {});
+  KeypointFilter Score(const ScoringInput& input) override;
+  std::string Name() const override { return "mask"; }
+
+ private:
+  MaskScorerOptions options_;
+};
+
+struct MaskCarryOptions {
+  bool use_stale = true;   // carry an older frame's mask forward when a frame has none
+  int max_age_frames = 5;  // ... if it is at most this many frames (seq) older
+  bool IsValid(std::string* why) const;
+};
+
+// Chooses the mask of each frame, in frame order: a fresh segmentation is used and remembered;
+// otherwise the newest earlier mask among the message's fallback and the last fresh one seen here
+// is used as kStale (within max_age_frames); else kSkipped.
+class MaskCarry {
+ public:
+  explicit MaskCarry(const MaskCarryOptions& options = {});
+  MaskMsg Resolve(const SegmentationMsg& msg);
+
+ private:
+  MaskCarryOptions options_;
+  std::shared_ptr<const Segmentation> last_;
+  int64_t last_seq_ = -1;
+};
+
+class FilterNode {
+ public:
+  // scorer may be null (not owned): no keypoint is filtered, as when SLAM runs without a filter.
+  FilterNode(FrameScorer* scorer, const MaskCarryOptions& carry);
+  // Throws std::invalid_argument when the two messages belong to different frames, and when the
+  // scorer's vectors do not match the keypoint count.
+  FilteredPtr operator()(const StereoPtr& stereo, const SegmentationPtr& segmentation);
+
+ private:
+  FrameScorer* scorer_;
+  MaskCarry carry_;
+};
+
+}  // namespace pcr::nodes

@@ -1,0 +1,90 @@
+#pragma once
+// Adaptive quality control (paper Eq. 9): the processing parameters of a frame come from one of
+// three levels, and a controller picks the level from the time still available per frame:
+//   Q_high   if T_available > T_threshold
+//   Q_medium if T_available > 0.5 * T_threshold
+//   Q_low    otherwise,
+// with T_available = frame period - measured busy time per frame, smoothed, plus a hysteresis
+// band and a dwell time so the level does not flap. Pure and thread-compatible.
+#include <array>
+#include <string>
+
+namespace pcr::nodes {
+
+enum class QualityLevel { kLow = 0, kMedium = 1, kHigh = 2 };
+inline constexpr int kNumQualityLevels = 3;
+const char* ToString(QualityLevel level);
+// "low", "medium", "high" (case-sensitive); false for anything else.
+bool ParseQualityLevel(const std::string& text, QualityLevel* level);
+
+// Which network the segmentation branch runs (the pipeline holds one segmenter per slot; a slot
+// without a segmenter falls back to the other).
+enum class SegmenterSlot { kAccurate = 0, kFast = 1 };
+
+struct QualitySettings {
+  int orb_features = 2000;  // keypoints per image
+  SegmenterSlot segmenter = SegmenterSlot::kFast;
+  int inference_every = 1;     // segment every n-th frame at this level (>= 1)
+  bool optical_flow = true;    // LK flow in the dynamic filter (its scorer)
+  int ba_max_iterations = 10;  // local BA iterations (see pipeline notes)
+  bool IsValid(std::string* why) const;
+  bool operator==(const QualitySettings&) const = default;
+};
+
+// The three levels, defaults as in the issue: High = YOLO 384x1280 every frame, 2000 features,
+// LK flow on; Medium = YOLO 224x640; Low = inference every second frame, 1200 features, fewer BA
+// iterations.
+struct QualityLevels {
+  QualitySettings high{2000, SegmenterSlot::kAccurate, 1, true, 10};
+  QualitySettings medium{2000, SegmenterSlot::kFast, 1, true, 10};
+  QualitySettings low{1200, SegmenterSlot::kFast, 2, false, 5};
+  const QualitySettings& At(QualityLevel level) const;
+  bool IsValid(std::string* why) const;
+};
+
+struct QualityControllerOptions {
+  // T_threshold as a fraction of the frame period.
+  double threshold_fraction = 0.3;
+  // Half-width of the band around each boundary, as a fraction of T_threshold: moving up needs
+  // T_available above the boundary plus the band, moving down below it minus the band.
+  double hysteresis_fraction = 0.15;
+  // Frames spent at a level before the controller may move up again (moving down is immediate:
+  // a late frame costs more than a lower quality).
+  int min_dwell_frames = 5;
+  // Weight of the newest sample in the exponential moving average of the busy time (1 = none).
+  double smoothing = 0.3;
+  QualityLevel initial = QualityLevel::kHigh;
+  bool IsValid(std::string* why) const;
+};
+
+class QualityController {
+ public:
+  // Throws ConfigError when options are invalid.
+  explicit QualityController(const QualityControllerOptions& options = {});
+
+  // Eq. 9 without hysteresis.
+  static QualityLevel Classify(double available_ms, double threshold_ms);
+
+  // One finished frame: the frame period and the time the frame kept the pipeline busy
+  // (max(T_slam, T_inference) + T_sync, milliseconds). Returns the level for the next frames.
+  QualityLevel Update(double period_ms, double busy_ms);
+
+  QualityLevel level() const { return level_; }
+  double available_ms() const { return available_ms_; }  // after smoothing, last update
+  double threshold_ms() const { return threshold_ms_; }  // last update
+  int changes() const { return changes_; }
+  int frames_at_level() const { return frames_at_level_; }
+  const QualityControllerOptions& options() const { return options_; }
+
+ private:
+  QualityControllerOptions options_;
+  QualityLevel level_;
+  bool has_average_ = false;
+  double busy_average_ms_ = 0;
+  double available_ms_ = 0;
+  double threshold_ms_ = 0;
+  int changes_ = 0;
+  int frames_at_level_ = 0;
+};
+
+}  // namespace pcr::nodes

@@ -1,0 +1,68 @@
+#include "nodes/segment_node.h"
+
+#include <chrono>
+
+#include "slam/common/timing.h"
+
+namespace pcr::nodes {
+
+const char* ToString(SegmentationOutcome outcome) {
+  switch (outcome) {
+    case SegmentationOutcome::kFresh:
+      return "fresh";
+    case SegmentationOutcome::kNoSegmenter:
+      return "no segmenter";
+    case SegmentationOutcome::kNotScheduled:
+      return "not scheduled";
+    case SegmentationOutcome::kBusy:
+      return "busy";
+    case SegmentationOutcome::kLate:
+      return "late";
+  }
+  return "?";
+}
+
+const char* ToString(MaskStatus status) {
+  switch (status) {
+    case MaskStatus::kFresh:
+      return "fresh";
+    case MaskStatus::kStale:
+      return "stale";
+    case MaskStatus::kSkipped:
+      return "skipped";
+  }
+  return "?";
+}
+
+Segmenter* SegmenterSet::For(SegmenterSlot slot) const {
+  Segmenter* wanted = slot == SegmenterSlot::kAccurate ? accurate : fast;
+  return wanted ? wanted : (accurate ? accurate : fast);
+}
+
+bool SegmentNode::WillRun(const FrameTicket& ticket) const {
+  return ticket.run_inference && !segmenters_.empty();
+}
+
+SegmentationPtr SegmentNode::NotRun(const FrameTicket& ticket, SegmentationOutcome outcome) {
+  auto msg = std::make_shared<SegmentationMsg>();
+  msg->ticket = ticket;
+  msg->outcome = outcome;
+  return msg;
+}
+
+SegmentationPtr SegmentNode::operator()(const ImagesPtr& images) const {
+  const FrameTicket& ticket = images->ticket;
+  if (segmenters_.empty()) return NotRun(ticket, SegmentationOutcome::kNoSegmenter);
+  if (!ticket.run_inference) return NotRun(ticket, SegmentationOutcome::kNotScheduled);
+  Segmenter* segmenter = segmenters_.For(ticket.settings.segmenter);
+  const auto start = std::chrono::steady_clock::now();
+  auto msg = std::make_shared<SegmentationMsg>();
+  msg->ticket = ticket;
+  msg->outcome = SegmentationOutcome::kFresh;
+  msg->segmentation = std::make_shared<const Segmentation>(segmenter->Segment(images->left));
+  msg->model = segmenter->Name();
+  msg->segment_ms = MsSince(start);
+  return msg;
+}
+
+}  // namespace pcr::nodes

@@ -1,0 +1,66 @@
+#include "nodes/slam_nodes.h"
+
+#include <chrono>
+
+#include "slam/common/timing.h"
+
+namespace pcr::nodes {
+
+TrackedPtr TrackingNode::operator()(const FilteredPtr& filtered) {
+  const auto start = std::chrono::steady_clock::now();
+  const StereoMsg& stereo = *filtered->stereo;
+  auto msg = std::make_shared<TrackedMsg>();
+  msg->ticket = filtered->ticket;
+  msg->filtered = filtered;
+  msg->frame = slam_->BuildFrame(filtered->ticket.t_ns, stereo.left->features, stereo.stereo,
+                                 filtered->filter);
+  msg->tracking = slam_->Track(msg->frame, filtered->ticket.frame_index);
+  msg->keyframe = slam_->DecideKeyframe(msg->tracking);
+
+  FrameOutput& out = msg->output;
+  const TrackingResult& tracking = msg->tracking;
+  out.frame_index = filtered->ticket.frame_index;
+  out.t_ns = filtered->ticket.t_ns;
+  out.num_keypoints = msg->frame->size();
+  out.num_stereo = msg->frame->num_stereo();
+  out.status = tracking.status;
+  out.method = tracking.method;
+  out.num_tracked = tracking.num_tracked;
+  out.num_matches_initial = tracking.num_matches_initial;
+  out.num_inliers_initial = tracking.num_inliers_initial;
+  out.num_local_projected = tracking.num_local_projected;
+  out.num_local_matches = tracking.num_local_matches;
+  out.world_from_cam = tracking.cam_from_world.inverse();
+  out.times_ms.orb_left = stereo.left->extract_ms;
+  out.times_ms.orb_right = stereo.orb_right_ms;
+  out.times_ms.stereo = stereo.match_ms;
+  out.times_ms.tracking = MsSince(start);
+  return msg;
+}
+
+FrameResultPtr MappingNode::operator()(const TrackedPtr& tracked) {
+  const auto start = std::chrono::steady_clock::now();
+  auto msg = std::make_shared<FrameResultMsg>();
+  msg->ticket = tracked->ticket;
+  msg->segmentation = tracked->filtered->segmentation;
+  msg->mask = tracked->filtered->mask.status;
+  msg->num_excluded = tracked->filtered->num_excluded;
+  msg->filter_ms = tracked->filtered->filter_ms;
+  FrameOutput& out = msg->output;
+  out = tracked->output;
+  out.keyframe_reason = tracked->keyframe.reason;
+  if (tracked->keyframe.insert) {
+    out.mapping = slam_->InsertKeyframe(tracked->frame, tracked->tracking);
+    out.keyframe_inserted = true;
+  }
+  out.keyframe_inserted =
+      out.keyframe_inserted || tracked->tracking.method == TrackingMethod::kInitialisation;
+  out.times_ms.local_mapping = MsSince(start);
+  out.num_keyframes = slam_->map().num_keyframes();
+  out.num_map_points = slam_->map().num_points();
+  out.times_ms.total = out.times_ms.orb_left + out.times_ms.orb_right + out.times_ms.stereo +
+                       out.times_ms.tracking + out.times_ms.local_mapping;
+  return msg;
+}
+
+}  // namespace pcr::nodes

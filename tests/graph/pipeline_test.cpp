@@ -1,0 +1,393 @@
+// The flow-graph pipeline on a real KITTI stereo clip (seq 06): sequential and pipelined runs
+// equal SlamSystem::ProcessFrame in a loop, the in-flight bound holds, failures keep the poses
+// before them, the realtime policy drops frames and carries masks forward when it must.
+#include "graph/pipeline.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "graph/pipeline_report.h"
+#include "kitti_clip.h"
+#include "slam/common/error.h"
+#include "slam/dynamic/yolo_segmenter.h"
+#include "support/data_paths.h"
+
+namespace pcr::graph {
+namespace {
+
+std::string Seq06() { return test::SharedPath("data/kitti/sequences/06"); }
+
+// The reference: every stage in one thread, as `pcr_orb run` does.
+struct Reference {
+  std::vector<FrameOutput> outputs;
+  Trajectory tracked;
+};
+
+Reference RunReference(const nodes::FrameSource& source, const SlamOptions& options) {
+  SlamSystem slam(source.rig, options);
+  Reference ref;
+  for (size_t i = 0; i < source.size(); ++i) {
+    const int64_t index = source.frame_indices[i];
+    ref.outputs.push_back(slam.ProcessFrame(index, source.t_ns[i], source.load_left(index),
+                                            source.load_right(index)));
+  }
+  ref.tracked = slam.RefinedTrajectory();
+  return ref;
+}
+
+void ExpectSameTrajectory(const Trajectory& expected, const Trajectory& actual) {
+  ASSERT_EQ(expected.size(), actual.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(expected[i].frame_index, actual[i].frame_index);
+    EXPECT_EQ(expected[i].t_ns, actual[i].t_ns);
+    // Bit-identical: same calls on the same map in the same order.
+    EXPECT_TRUE(expected[i].world_from_cam.matrix() == actual[i].world_from_cam.matrix())
+        << "frame " << expected[i].frame_index << "\n"
+        << expected[i].world_from_cam.matrix() << "\nvs\n"
+        << actual[i].world_from_cam.matrix();
+  }
+}
+
+void ExpectSameOutputs(const std::vector<FrameOutput>& expected,
+                       const std::vector<FrameRecord>& actual) {
+  ASSERT_EQ(expected.size(), actual.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    const FrameOutput& a = actual[i].output;
+    EXPECT_EQ(expected[i].frame_index, a.frame_index);
+    EXPECT_EQ(expected[i].status, a.status) << "frame " << a.frame_index;
+    EXPECT_EQ(expected[i].num_keypoints, a.num_keypoints);
+    EXPECT_EQ(expected[i].num_stereo, a.num_stereo);
+    EXPECT_EQ(expected[i].num_tracked, a.num_tracked) << "frame " << a.frame_index;
+    EXPECT_EQ(expected[i].keyframe_inserted, a.keyframe_inserted);
+    EXPECT_EQ(expected[i].num_keyframes, a.num_keyframes);
+    EXPECT_EQ(expected[i].num_map_points, a.num_map_points);
+    EXPECT_TRUE(expected[i].world_from_cam.matrix() == a.world_from_cam.matrix());
+  }
+}
+
+PipelineOptions Options(Policy policy, int max_in_flight = 3) {
+  PipelineOptions o;
+  o.policy = policy;
+  o.threads = 2;
+  o.max_in_flight = max_in_flight;
+  return o;
+}
+
+// A deterministic segmenter for tests: the left `fraction` of the image is a dynamic object with
+// confidence 1. Optionally slow (sleeps), to play a late network.
+class HalfImageSegmenter final : public Segmenter {
+ public:
+  explicit HalfImageSegmenter(double fraction, int delay_ms = 0)
+      : fraction_(fraction), delay_ms_(delay_ms) {}
+  Segmentation Segment(const cv::Mat& image) override {
+    if (delay_ms_ > 0) std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms_));
+    ++calls_;
+    Segmentation s;
+    s.dynamic_confidence = cv::Mat::zeros(image.size(), CV_32FC1);
+    const int cols = static_cast<int>(image.cols * fraction_);
+    s.dynamic_confidence.colRange(0, cols).setTo(1.0f);
+    s.instance_map = cv::Mat::zeros(image.size(), CV_16UC1);
+    s.backend = "test";
+    return s;
+  }
+  std::string Name() const override { return "half-image"; }
+  int calls() const { return calls_.load(); }
+
+ private:
+  double fraction_;
+  int delay_ms_;
+  std::atomic<int> calls_{0};
+};
+
+TEST(PipelineTest, SequentialAndPipelinedEqualProcessFrameLoop) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 16);
+  const SlamOptions slam_options;
+  const Reference ref = RunReference(clip, slam_options);
+  ASSERT_GE(ref.tracked.size(), 14u);  // the clip tracks: the comparison means something
+  size_t keyframes_inserted = 0;
+  for (const FrameOutput& o : ref.outputs)
+    keyframes_inserted += o.keyframe_inserted && o.method != TrackingMethod::kInitialisation;
+  ASSERT_GT(keyframes_inserted, 0u);
+
+  const PipelineResult sequential = RunPipeline(clip, slam_options, Options(Policy::kSequential));
+  const PipelineResult pipelined = RunPipeline(clip, slam_options, Options(Policy::kPipelined, 4));
+  for (const PipelineResult* r : {&sequential, &pipelined}) {
+    SCOPED_TRACE(r->stats.policy);
+    EXPECT_TRUE(r->error.empty()) << r->error;
+    ExpectSameTrajectory(ref.tracked, r->tracked);
+    ExpectSameOutputs(ref.outputs, r->frames);
+    EXPECT_EQ(r->stats.frames_completed, 16u);
+    EXPECT_EQ(r->stats.frames_dropped, 0u);
+    EXPECT_EQ(r->stats.masks_skipped, 16u);  // no segmenter: every mask is a "skipped" value
+    for (const char* stage : {kStagePreprocess, kStageOrbLeft, kStageOrbRight, kStageStereo,
+                              kStageFilter, kStageTracking}) {
+      ASSERT_TRUE(r->stats.stages.count(stage)) << stage;
+      EXPECT_EQ(r->stats.stages.at(stage).time.count, 16u) << stage;
+    }
+    // Local mapping is profiled for keyframe insertions only.
+    ASSERT_TRUE(r->stats.stages.count(kStageMapping));
+    EXPECT_EQ(r->stats.stages.at(kStageMapping).time.count, keyframes_inserted);
+    EXPECT_EQ(r->stats.stages.count(kStageSegment), 0u);
+    EXPECT_GT(r->stats.fps, 0.0);
+    EXPECT_GT(r->stats.latency.p50_ms, 0.0);
+  }
+  EXPECT_EQ(sequential.stats.max_in_flight_observed, 1u);
+  EXPECT_EQ(sequential.stats.profile_threads, 1);  // one thread runs the sequential graph
+  EXPECT_GT(pipelined.stats.max_in_flight_observed, 1u);
+}
+
+TEST(PipelineTest, InFlightBoundIsNeverExceeded) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 10);
+  PipelineOptions options = Options(Policy::kPipelined, 2);
+  options.tracking_delay_ms = 15;  // a slow back end: frames queue up behind tracking
+  std::mutex mutex;
+  std::set<int64_t> started;
+  size_t completed = 0, worst = 0;
+  options.stage_hook = [&](std::string_view stage, int64_t frame) {
+    if (stage != kStagePreprocess) return;
+    std::lock_guard<std::mutex> lock(mutex);
+    started.insert(frame);
+    worst = std::max(worst, started.size() - completed);
+  };
+  options.on_frame = [&](size_t done, size_t, const FrameOutput&) {
+    std::lock_guard<std::mutex> lock(mutex);
+    completed = done;
+  };
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(r.frames.size(), 10u);
+  EXPECT_EQ(worst, 2u);  // reached, never exceeded
+  EXPECT_EQ(r.stats.max_in_flight_observed, 2u);
+  for (const auto& [name, st] : r.stats.stages) EXPECT_LE(st.max_queue_depth, 2u) << name;
+}
+
+TEST(PipelineTest, UnreadableImageStopsTheRunAndKeepsEarlierPoses) {
+  const std::string copy = test::CopyClip(Seq06(), 12);
+  {
+    std::ofstream bad(copy + "/image_0/000008.png", std::ios::binary | std::ios::trunc);
+    bad << "not a png";
+  }
+  const nodes::FrameSource clip = test::KittiOdometryClip(copy, 0, 12);
+  nodes::FrameSource first8 = test::KittiOdometryClip(copy, 0, 8);
+  const Reference ref = RunReference(first8, SlamOptions{});
+
+  for (Policy policy : {Policy::kSequential, Policy::kPipelined}) {
+    SCOPED_TRACE(ToString(policy));
+    const PipelineResult r = RunPipeline(clip, SlamOptions{}, Options(policy, 4));
+    EXPECT_NE(r.error.find("frame 8"), std::string::npos) << r.error;
+    EXPECT_NE(r.error.find("preprocess"), std::string::npos) << r.error;
+    EXPECT_NE(r.error.find("000008.png"), std::string::npos) << r.error;  // names the file
+    EXPECT_EQ(r.error_frame_index, 8);
+    EXPECT_EQ(r.error_stage, kStagePreprocess);
+    // Every frame before the broken one finished, nothing after it.
+    ExpectSameOutputs(ref.outputs, r.frames);
+    ExpectSameTrajectory(ref.tracked, r.tracked);
+  }
+  std::filesystem::remove_all(copy);
+}
+
+TEST(PipelineTest, ExceptionInTheSerialBackEndSurfaces) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 8);
+  PipelineOptions options = Options(Policy::kPipelined, 3);
+  options.stage_hook = [](std::string_view stage, int64_t frame) {
+    if (stage == kStageTracking && frame == 5) throw std::runtime_error("injected failure");
+  };
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options);
+  EXPECT_EQ(r.error, "frame 5, stage tracking: injected failure");
+  ASSERT_EQ(r.frames.size(), 5u);
+  for (size_t i = 0; i < r.frames.size(); ++i) EXPECT_EQ(r.frames[i].frame_index, int64_t(i));
+  EXPECT_GE(r.tracked.size(), 4u);
+  for (const StampedPose& p : r.tracked) EXPECT_LT(p.frame_index, 5);
+}
+
+TEST(PipelineTest, RealtimeDropsFramesWhenProcessingIsSlow) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 16);
+  PipelineOptions options = Options(Policy::kRealtime, 2);
+  options.rate = 0.2;              // a camera 5x faster than KITTI: a frame every ~20 ms
+  options.tracking_delay_ms = 60;  // and a back end far slower than that
+  options.waiting_capacity = 1;
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  EXPECT_GT(r.stats.frames_dropped, 3u);
+  EXPECT_EQ(r.stats.frames_completed + r.stats.frames_dropped, 16u);
+  EXPECT_EQ(r.dropped_frame_indices.size(), r.stats.frames_dropped);
+  EXPECT_LE(r.stats.max_in_flight_observed, 2u);
+  std::set<int64_t> seen(r.dropped_frame_indices.begin(), r.dropped_frame_indices.end());
+  for (size_t i = 0; i < r.frames.size(); ++i) {
+    EXPECT_EQ(r.frames[i].seq, int64_t(i));  // seq stays contiguous across drops
+    EXPECT_FALSE(seen.count(r.frames[i].frame_index));
+    if (i > 0) {
+      EXPECT_GT(r.frames[i].frame_index, r.frames[i - 1].frame_index);
+    }
+    EXPECT_GE(r.frames[i].admit_ns, r.frames[i].release_ns);
+  }
+  // Latency counts from the camera release, so it includes waiting for a slot.
+  EXPECT_GT(r.stats.latency.p95_ms, 60.0);
+}
+
+TEST(PipelineTest, RealtimeCarriesMasksForwardWhenInferenceIsLate) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 10);
+  HalfImageSegmenter slow(0.3, /*delay_ms=*/150);
+  nodes::SegmenterSet segmenters;
+  segmenters.fast = &slow;
+  PipelineOptions options = Options(Policy::kRealtime, 3);
+  options.rate = 0.5;  // a frame every ~50 ms, inference takes 150 ms
+  options.waiting_capacity = 4;
+  options.mask_deadline_ms = 0;
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options, segmenters);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(r.stats.frames_completed + r.stats.frames_dropped, 10u);
+  EXPECT_GT(r.stats.masks_stale, 0u);
+  EXPECT_GT(r.stats.masks_late + r.stats.inferences_busy, 0u);
+  EXPECT_LT(slow.calls(), 10);  // the network did not see every frame
+  for (const FrameRecord& f : r.frames) {
+    if (f.mask == nodes::MaskStatus::kSkipped) {
+      EXPECT_EQ(f.num_excluded, 0);
+    } else {
+      EXPECT_GT(f.num_excluded, 0) << "frame " << f.frame_index;
+    }
+  }
+}
+
+TEST(PipelineTest, SegmentationBranchIsDeterministicWhenWaitedFor) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 8);
+  HalfImageSegmenter seg_a(0.25, 20), seg_b(0.25, 20);
+  nodes::SegmenterSet set_a, set_b;
+  set_a.fast = &seg_a;
+  set_b.fast = &seg_b;
+  const PipelineResult seq = RunPipeline(clip, SlamOptions{}, Options(Policy::kSequential), set_a);
+  const PipelineResult pip =
+      RunPipeline(clip, SlamOptions{}, Options(Policy::kPipelined, 4), set_b);
+  for (const PipelineResult* r : {&seq, &pip}) {
+    EXPECT_TRUE(r->error.empty()) << r->error;
+    EXPECT_EQ(r->stats.masks_fresh, 8u);
+    EXPECT_EQ(r->stats.stages.at(kStageSegment).time.count, 8u);
+    for (const FrameRecord& f : r->frames) EXPECT_GT(f.num_excluded, 0);
+  }
+  ExpectSameTrajectory(seq.tracked, pip.tracked);
+  ASSERT_EQ(seq.frames.size(), pip.frames.size());
+  for (size_t i = 0; i < seq.frames.size(); ++i)
+    EXPECT_EQ(seq.frames[i].num_excluded, pip.frames[i].num_excluded);
+  // The filter reached tracking: keypoints on the left quarter were excluded.
+  const PipelineResult plain = RunPipeline(clip, SlamOptions{}, Options(Policy::kSequential));
+  EXPECT_FALSE(plain.tracked.size() == seq.tracked.size() &&
+               plain.tracked.back().world_from_cam.matrix() ==
+                   seq.tracked.back().world_from_cam.matrix());
+}
+
+TEST(PipelineTest, LowQualityRunsInferenceEverySecondFrameWithFewerFeatures) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 7);
+  HalfImageSegmenter seg(0.25);
+  nodes::SegmenterSet segmenters;
+  segmenters.fast = &seg;
+  PipelineOptions options = Options(Policy::kPipelined, 3);
+  options.adaptive = true;
+  options.controller.initial = nodes::QualityLevel::kLow;
+  options.controller.min_dwell_frames = 1000;  // stays low for this test
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options, segmenters);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(r.stats.quality_frames[0], 7u);
+  EXPECT_EQ(r.stats.masks_fresh, 4u);  // frames 0, 2, 4, 6
+  EXPECT_EQ(r.stats.masks_stale, 3u);  // 1, 3, 5 reuse the previous frame's mask
+  EXPECT_EQ(seg.calls(), 4);
+  for (const FrameRecord& f : r.frames) {
+    EXPECT_EQ(f.mask, f.seq % 2 == 0 ? nodes::MaskStatus::kFresh : nodes::MaskStatus::kStale);
+    EXPECT_LE(f.output.num_keypoints, 1200);
+    EXPECT_GT(f.num_excluded, 0);
+  }
+}
+
+TEST(PipelineTest, AdaptiveControllerLowersQualityWhenFramesTakeLongerThanThePeriod) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 8);
+  HalfImageSegmenter seg(0.25);
+  nodes::SegmenterSet segmenters;
+  segmenters.fast = &seg;
+  PipelineOptions options = Options(Policy::kPipelined, 2);
+  options.adaptive = true;
+  options.tracking_delay_ms = 120;  // every frame costs more than the 100 ms camera period
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options, segmenters);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  ASSERT_FALSE(r.stats.quality_changes.empty());
+  EXPECT_EQ(r.stats.quality_changes.front().from, nodes::QualityLevel::kHigh);
+  EXPECT_EQ(r.stats.quality_changes.front().to, nodes::QualityLevel::kLow);
+  EXPECT_LT(r.stats.quality_changes.front().available_ms, 0.0);
+  EXPECT_NEAR(r.stats.period_ms, 103.6, 2.0);  // seq 06 runs at ~9.65 Hz
+  EXPECT_GT(r.stats.busy.p50_ms, 120.0);
+  EXPECT_GT(r.stats.quality_frames[0], 0u);
+  EXPECT_EQ(r.stats.quality_frames[0] + r.stats.quality_frames[2], 8u);
+  for (const FrameRecord& f : r.frames) {
+    if (f.quality == nodes::QualityLevel::kLow) {
+      EXPECT_LE(f.output.num_keypoints, 1200);
+    } else {
+      EXPECT_GT(f.output.num_keypoints, 1200);
+    }
+  }
+}
+
+TEST(PipelineTest, RunsTheYoloSegmenterInItsBranch) {
+  const std::string model = test::SharedPath("models/yolov8n-seg_coco_224x640.onnx");
+  if (!std::filesystem::exists(model)) GTEST_SKIP() << "no model at " << model;
+  YoloOptions yolo_options;
+  yolo_options.model_path = model;
+  YoloSegmenter yolo(yolo_options);
+  nodes::SegmenterSet segmenters;
+  segmenters.fast = &yolo;
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 4);
+  const PipelineResult r =
+      RunPipeline(clip, SlamOptions{}, Options(Policy::kPipelined), segmenters);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(r.stats.masks_fresh, 4u);
+  EXPECT_EQ(r.stats.stages.at(kStageSegment).time.count, 4u);
+  int excluded = 0;
+  for (const FrameRecord& f : r.frames) excluded += f.num_excluded;
+  RecordProperty("excluded_keypoints", excluded);
+  EXPECT_GT(excluded, 0);  // parked cars line the street
+}
+
+TEST(PipelineTest, WritesTraceAndChart) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 4);
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, Options(Policy::kPipelined));
+  const std::string dir = test::MakeTempDir("pcr_graph_report");
+  WriteChromeTrace(dir + "/trace.json", r);
+  WriteTimingChart(dir + "/timing.png", r);
+  std::ifstream in(dir + "/trace.json");
+  const nlohmann::json trace = nlohmann::json::parse(in);
+  size_t stage_events = 0, frame_events = 0;
+  for (const nlohmann::json& e : trace["traceEvents"]) {
+    if (e["ph"] != "X") continue;
+    EXPECT_GE(e["dur"].get<double>(), 0.0);
+    EXPECT_GE(e["ts"].get<double>(), 0.0);
+    (e["pid"] == 1 ? stage_events : frame_events)++;
+  }
+  EXPECT_EQ(stage_events, r.events.size());
+  EXPECT_EQ(frame_events, 4u);
+  EXPECT_GT(std::filesystem::file_size(dir + "/timing.png"), 1000u);
+  const nlohmann::json stats = StatsToJson(r.stats);
+  EXPECT_EQ(stats["frames"]["completed"], 4);
+  EXPECT_EQ(stats["stages"]["tracking"]["count"], 4);
+  EXPECT_FALSE(FormatPipelineStats(r.stats).empty());
+  std::filesystem::remove_all(dir);
+}
+
+TEST(PipelineTest, RejectsInvalidOptions) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 2);
+  PipelineOptions options;
+  options.max_in_flight = 0;
+  EXPECT_THROW(RunPipeline(clip, SlamOptions{}, options), ConfigError);
+  options = PipelineOptions{};
+  options.rate = -1;
+  EXPECT_THROW(RunPipeline(clip, SlamOptions{}, options), ConfigError);
+  nodes::FrameSource broken = clip;
+  broken.load_right = nullptr;
+  EXPECT_THROW(RunPipeline(broken, SlamOptions{}, PipelineOptions{}), ConfigError);
+}
+
+}  // namespace
+}  // namespace pcr::graph

@@ -1,0 +1,227 @@
+// Mask carry-forward, the mask scorer and the filter stage, with hand-made messages.
+#include "nodes/filter_node.h"
+
+#include <gtest/gtest.h>
+
+#include "nodes/segment_node.h"
+#include "slam/common/error.h"
+
+namespace pcr::nodes {
+namespace {
+
+FrameTicket Ticket(int64_t seq) {
+  FrameTicket t;
+  t.seq = seq;
+  t.frame_index = 10 + seq;
+  t.t_ns = seq * 100'000'000;
+  return t;
+}
+
+std::shared_ptr<const Segmentation> MaskWithValue(float value) {
+  auto s = std::make_shared<Segmentation>();
+  s->dynamic_confidence = cv::Mat(4, 6, CV_32FC1, cv::Scalar(value));
+  return s;
+}
+
+SegmentationMsg Fresh(int64_t seq, std::shared_ptr<const Segmentation> s) {
+  SegmentationMsg m;
+  m.ticket = Ticket(seq);
+  m.outcome = SegmentationOutcome::kFresh;
+  m.segmentation = std::move(s);
+  return m;
+}
+
+SegmentationMsg NotRun(int64_t seq, SegmentationOutcome outcome) {
+  return *SegmentNode::NotRun(Ticket(seq), outcome);
+}
+
+TEST(MaskCarryTest, FreshMasksAreUsedAndCarriedForwardAsStale) {
+  MaskCarry carry;
+  const auto m0 = MaskWithValue(0.1f);
+  MaskMsg r = carry.Resolve(Fresh(0, m0));
+  EXPECT_EQ(r.status, MaskStatus::kFresh);
+  EXPECT_EQ(r.segmentation, m0);
+  EXPECT_EQ(r.source_seq, 0);
+  r = carry.Resolve(NotRun(1, SegmentationOutcome::kNotScheduled));
+  EXPECT_EQ(r.status, MaskStatus::kStale);
+  EXPECT_EQ(r.segmentation, m0);
+  EXPECT_EQ(r.source_seq, 0);
+  r = carry.Resolve(NotRun(2, SegmentationOutcome::kBusy));
+  EXPECT_EQ(r.status, MaskStatus::kStale);
+  EXPECT_EQ(r.source_seq, 0);
+}
+
+TEST(MaskCarryTest, PrefersTheNewerFallbackButNeverAFutureOne) {
+  MaskCarry carry;
+  const auto m0 = MaskWithValue(0.1f), m3 = MaskWithValue(0.3f), m9 = MaskWithValue(0.9f);
+  carry.Resolve(Fresh(0, m0));
+  SegmentationMsg late = NotRun(4, SegmentationOutcome::kLate);
+  late.fallback = m3;  // a result that finished after its own frame went on
+  late.fallback_seq = 3;
+  MaskMsg r = carry.Resolve(late);
+  EXPECT_EQ(r.segmentation, m3);
+  EXPECT_EQ(r.source_seq, 3);
+  SegmentationMsg future = NotRun(5, SegmentationOutcome::kLate);
+  future.fallback = m9;
+  future.fallback_seq = 9;
+  r = carry.Resolve(future);
+  EXPECT_EQ(r.status, MaskStatus::kStale);
+  EXPECT_EQ(r.source_seq, 0);  // the carried fallback is not remembered; the last fresh one is
+}
+
+TEST(MaskCarryTest, SkipsWithoutSegmenterTooOldOrDisabled) {
+  MaskCarry carry(MaskCarryOptions{true, 2});
+  carry.Resolve(Fresh(0, MaskWithValue(0.5f)));
+  EXPECT_EQ(carry.Resolve(NotRun(1, SegmentationOutcome::kNoSegmenter)).status,
+            MaskStatus::kSkipped);
+  EXPECT_EQ(carry.Resolve(NotRun(2, SegmentationOutcome::kLate)).status, MaskStatus::kStale);
+  EXPECT_EQ(carry.Resolve(NotRun(3, SegmentationOutcome::kLate)).status, MaskStatus::kSkipped);
+  MaskCarry no_stale(MaskCarryOptions{false, 5});
+  no_stale.Resolve(Fresh(0, MaskWithValue(0.5f)));
+  EXPECT_EQ(no_stale.Resolve(NotRun(1, SegmentationOutcome::kNotScheduled)).status,
+            MaskStatus::kSkipped);
+  MaskCarry empty;
+  EXPECT_EQ(empty.Resolve(NotRun(0, SegmentationOutcome::kNotScheduled)).status,
+            MaskStatus::kSkipped);
+  EXPECT_THROW(MaskCarry(MaskCarryOptions{true, 0}), ConfigError);
+}
+
+// A stereo message with keypoints at given pixels (no descriptors needed by the filter).
+StereoPtr StereoWithKeypoints(int64_t seq, const std::vector<cv::Point2f>& points) {
+  auto images = std::make_shared<ImagesMsg>();
+  images->ticket = Ticket(seq);
+  images->left = cv::Mat::zeros(4, 6, CV_8UC1);
+  images->right = images->left.clone();
+  auto left = std::make_shared<FeaturesMsg>();
+  left->ticket = images->ticket;
+  left->images = images;
+  for (const cv::Point2f& p : points) left->features.keypoints.emplace_back(p, 31.0f);
+  auto stereo = std::make_shared<StereoMsg>();
+  stereo->ticket = images->ticket;
+  stereo->images = images;
+  stereo->left = left;
+  stereo->stereo.u_right_px.assign(points.size(), -1.0f);
+  stereo->stereo.depth_m.assign(points.size(), -1.0f);
+  return stereo;
+}
+
+TEST(MaskScorerTest, ExcludesConfidentPixelsAndWeightsTheRest) {
+  auto s = std::make_shared<Segmentation>();
+  s->dynamic_confidence = cv::Mat::zeros(4, 6, CV_32FC1);
+  s->dynamic_confidence.at<float>(1, 2) = 0.9f;  // row 1, column 2
+  s->dynamic_confidence.at<float>(3, 5) = 0.3f;
+  const StereoPtr stereo =
+      StereoWithKeypoints(0, {{2.2f, 0.8f}, {5.0f, 3.0f}, {0.0f, 0.0f}, {9.0f, -2.0f}});
+  MaskMsg mask;
+  mask.status = MaskStatus::kFresh;
+  mask.segmentation = s;
+  MaskScorer scorer;
+  const ScoringInput input{stereo->ticket, *stereo->images, stereo->left->features, stereo->stereo,
+                           mask};
+  const KeypointFilter f = scorer.Score(input);
+  ASSERT_EQ(f.excluded.size(), 4u);
+  ASSERT_EQ(f.weight.size(), 4u);
+  EXPECT_EQ(f.excluded, (std::vector<uint8_t>{1, 0, 0, 0}));
+  EXPECT_NEAR(f.weight[1], 0.7f, 1e-6);
+  EXPECT_NEAR(f.weight[2], 1.0f, 1e-6);
+  EXPECT_NEAR(f.weight[3], 1.0f, 1e-6);  // clamped to the image: pixel (5, 0)
+  mask.status = MaskStatus::kSkipped;
+  mask.segmentation = nullptr;
+  const KeypointFilter none = scorer.Score(input);
+  EXPECT_TRUE(none.excluded.empty());
+  EXPECT_TRUE(none.weight.empty());
+}
+
+class FixedScorer final : public FrameScorer {
+ public:
+  explicit FixedScorer(std::vector<uint8_t> excluded) : excluded_(std::move(excluded)) {}
+  KeypointFilter Score(const ScoringInput& input) override {
+    last_mask = input.mask.status;
+    KeypointFilter f;
+    f.excluded = excluded_;
+    return f;
+  }
+  std::string Name() const override { return "fixed"; }
+  MaskStatus last_mask = MaskStatus::kSkipped;
+
+ private:
+  std::vector<uint8_t> excluded_;
+};
+
+TEST(FilterNodeTest, JoinsStereoAndMaskAndCountsExclusions) {
+  FixedScorer scorer({1, 0, 1});
+  FilterNode node(&scorer, MaskCarryOptions{});
+  const auto seg = std::make_shared<const SegmentationMsg>(Fresh(0, MaskWithValue(0.2f)));
+  const FilteredPtr out = node(StereoWithKeypoints(0, {{1, 1}, {2, 2}, {3, 3}}), seg);
+  EXPECT_EQ(out->ticket.seq, 0);
+  EXPECT_EQ(out->num_excluded, 2);
+  EXPECT_EQ(out->mask.status, MaskStatus::kFresh);
+  EXPECT_EQ(out->segmentation, SegmentationOutcome::kFresh);
+  EXPECT_EQ(scorer.last_mask, MaskStatus::kFresh);
+  const FilteredPtr next = node(StereoWithKeypoints(1, {{1, 1}, {2, 2}, {3, 3}}),
+                                SegmentNode::NotRun(Ticket(1), SegmentationOutcome::kLate));
+  EXPECT_EQ(next->mask.status, MaskStatus::kStale);
+  EXPECT_EQ(next->mask.source_seq, 0);
+}
+
+TEST(FilterNodeTest, RejectsMismatchedInputs) {
+  FixedScorer wrong_size({1, 0});
+  FilterNode node(&wrong_size, MaskCarryOptions{});
+  const auto seg = SegmentNode::NotRun(Ticket(0), SegmentationOutcome::kNoSegmenter);
+  EXPECT_THROW(node(StereoWithKeypoints(0, {{1, 1}, {2, 2}, {3, 3}}), seg), std::invalid_argument);
+  FilterNode plain(nullptr, MaskCarryOptions{});
+  EXPECT_THROW(plain(StereoWithKeypoints(1, {{1, 1}}), seg), std::invalid_argument);
+  const FilteredPtr out = plain(StereoWithKeypoints(0, {{1, 1}}), seg);
+  EXPECT_TRUE(out->filter.excluded.empty());
+  EXPECT_EQ(out->mask.status, MaskStatus::kSkipped);
+}
+
+// A segmenter answering with its name, counting calls.
+class NamedSegmenter final : public Segmenter {
+ public:
+  explicit NamedSegmenter(std::string name) : name_(std::move(name)) {}
+  Segmentation Segment(const cv::Mat& image) override {
+    ++calls;
+    Segmentation s;
+    s.dynamic_confidence = cv::Mat::zeros(image.size(), CV_32FC1);
+    s.backend = name_;
+    return s;
+  }
+  std::string Name() const override { return name_; }
+  int calls = 0;
+
+ private:
+  std::string name_;
+};
+
+TEST(SegmentNodeTest, RunsTheSlotOfTheTicketOrSaysWhyNot) {
+  NamedSegmenter accurate("accurate"), fast("fast");
+  auto images = std::make_shared<ImagesMsg>();
+  images->ticket = Ticket(0);
+  images->left = cv::Mat::zeros(4, 6, CV_8UC1);
+
+  SegmentNode none(SegmenterSet{});
+  EXPECT_FALSE(none.WillRun(images->ticket));
+  EXPECT_EQ(none(images)->outcome, SegmentationOutcome::kNoSegmenter);
+
+  SegmentNode both(SegmenterSet{&accurate, &fast});
+  images->ticket.settings.segmenter = SegmenterSlot::kAccurate;
+  SegmentationPtr out = both(images);
+  EXPECT_EQ(out->outcome, SegmentationOutcome::kFresh);
+  EXPECT_EQ(out->model, "accurate");
+  EXPECT_EQ(out->segmentation->dynamic_confidence.size(), images->left.size());
+  images->ticket.settings.segmenter = SegmenterSlot::kFast;
+  EXPECT_EQ(both(images)->model, "fast");
+  images->ticket.run_inference = false;
+  EXPECT_FALSE(both.WillRun(images->ticket));
+  EXPECT_EQ(both(images)->outcome, SegmentationOutcome::kNotScheduled);
+  EXPECT_EQ(accurate.calls + fast.calls, 2);
+
+  SegmentNode fast_only(SegmenterSet{nullptr, &fast});
+  images->ticket.run_inference = true;
+  images->ticket.settings.segmenter = SegmenterSlot::kAccurate;  // falls back to the other slot
+  EXPECT_EQ(fast_only(images)->model, "fast");
+}
+
+}  // namespace
+}  // namespace pcr::nodes
