@@ -6,6 +6,7 @@
 #include <set>
 
 #include "slam/common/error.h"
+#include "slam/geometry/se3.h"
 #include "slam/map/matcher.h"
 #include "slam/map/stereo_points.h"
 
@@ -184,6 +185,16 @@ int Tracker::OptimizeAndPrune(const Frame& frame, SE3* pose, Matches* m,
   return inliers;
 }
 
+SE3 Tracker::PredictedMotion(int64_t t_ns) const {
+  const int64_t dt_ns = last_.frame ? t_ns - last_.frame->t_ns() : 0;
+  if (velocity_dt_ns_ <= 0 || dt_ns <= 0) return velocity_;
+  const double ratio = static_cast<double>(dt_ns) / static_cast<double>(velocity_dt_ns_);
+  // Regular frame spacing: the measured motion as it is (no exp/log round trip).
+  if (std::abs(ratio - 1.0) < 0.05) return velocity_;
+  // Skipped or dropped frames: the same twist over a longer (or shorter) time.
+  return ExpSE3(ratio * LogSE3(velocity_));
+}
+
 bool Tracker::TrackMotionModel(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
                                int* n1) {
   const Frame& last = *last_.frame;
@@ -209,7 +220,7 @@ bool Tracker::TrackMotionModel(const Frame& frame, const Map& map, SE3* pose, Ma
       candidate_point.push_back(MapPointId());
     }
   }
-  *pose = velocity_ * last_.cam_from_world;
+  *pose = PredictedMotion(frame.t_ns()) * last_.cam_from_world;
   const double radius_px = frame.rig().IsStereo() ? options_.motion_search_radius_px
                                                   : options_.motion_search_radius_px_monocular;
   std::vector<int> assigned;
@@ -550,7 +561,8 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
     result.status = TrackingStatus::kLost;
     result.method = TrackingMethod::kNone;
     // Best guess for a lost frame: the last tracked pose, moved on by the last velocity once.
-    result.cam_from_world = previous_ok ? velocity_ * last_.cam_from_world : last_.cam_from_world;
+    result.cam_from_world =
+        previous_ok ? PredictedMotion(frame.t_ns()) * last_.cam_from_world : last_.cam_from_world;
     result.map_delta.found_increments.clear();
     last_.frame = frame_ptr;
     last_.points.assign(frame.size(), MapPointId());
@@ -565,7 +577,10 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
   result.reference_keyframe = reference_;
   // The motion model needs two consecutive tracked frames.
   has_velocity_ = previous_ok;
-  if (previous_ok) velocity_ = pose * last_.cam_from_world.inverse();
+  if (previous_ok) {
+    velocity_ = pose * last_.cam_from_world.inverse();
+    velocity_dt_ns_ = frame.t_ns() - last_.frame->t_ns();
+  }
   status_ = TrackingStatus::kOk;
   last_.frame = frame_ptr;
   last_.cam_from_world = pose;

@@ -156,6 +156,10 @@ class Tracker {
   LastFrame last_;
   bool has_velocity_ = false;
   SE3 velocity_ = SE3::Identity();  // current_from_last camera motion
+  int64_t velocity_dt_ns_ = 0;      // time over which velocity_ was measured
+  // Camera motion from the last frame to a frame at t_ns: velocity_ scaled by elapsed time, so
+  // frames dropped by a real-time replay do not break the motion model.
+  SE3 PredictedMotion(int64_t t_ns) const;
   KeyframeId reference_;
   int64_t last_keyframe_t_ns_ = 0;
   int64_t frames_since_relocalisation_ = 1 << 30;
