@@ -68,58 +68,13 @@ RunSummary ToRunSummary(const Dataset& dataset, FrameRange range,
   s.range = range;
   s.error = result.error;
   s.wall_s = result.stats.wall_s;
+  s.tracked = result.tracked;
+  for (const graph::FrameRecord& f : result.frames) AddFrameToSummary(f.output, true, &s);
   s.keyframes = result.keyframes;
   s.map_points = result.map_points;
-  s.tracked = result.tracked;
-  for (const graph::FrameRecord& f : result.frames) {
-    ++s.frames_in;
-    switch (f.output.status) {
-      case TrackingStatus::kOk:
-        ++s.frames_tracked;
-        break;
-      case TrackingStatus::kLost:
-        ++s.frames_lost;
-        break;
-      case TrackingStatus::kNotInitialized:
-        ++s.frames_not_initialized;
-        break;
-    }
-    const StageTimesMs& t = f.output.times_ms;
-    s.stages["orb_left"].Add(t.orb_left);
-    s.stages["orb_right"].Add(t.orb_right);
-    s.stages["stereo"].Add(t.stereo);
-    s.stages["tracking"].Add(t.tracking);
-    if (f.output.keyframe_inserted) s.stages["local_mapping"].Add(t.local_mapping);
-    s.stages["total"].Add(t.total);
-  }
   int64_t end = static_cast<int64_t>(range.end);
   if (!result.error.empty() && result.error_frame_index >= 0) end = result.error_frame_index;
-  std::map<int64_t, SE3> refined;
-  for (const StampedPose& p : s.tracked) refined[p.frame_index] = p.world_from_cam;
-  SE3 last = SE3::Identity();
-  std::vector<int64_t> indices;
-  for (int64_t i = static_cast<int64_t>(range.first); i < end; ++i) {
-    StampedPose p;
-    p.frame_index = i;
-    p.t_ns = dataset.t_ns[static_cast<size_t>(i)];
-    const auto it = refined.find(i);
-    s.frame_tracked.push_back(it != refined.end());
-    if (it != refined.end()) last = it->second;
-    p.world_from_cam = last;
-    s.per_frame.push_back(p);
-    indices.push_back(i);
-  }
-  if (dataset.ground_truth && s.tracked.size() >= 3) {
-    Trajectory gt;
-    for (int64_t i : indices) gt.push_back((*dataset.ground_truth)[static_cast<size_t>(i)]);
-    s.eval_options.alignment.mode = eval::AlignMode::kSe3;
-    s.eval_options.kitti.lengths_m = {5, 10, 20, 40, 80, 100, 200, 400, 800};
-    try {
-      s.evaluation = eval::Evaluate(eval::AssociateByFrameIndex(gt, s.tracked), s.eval_options);
-    } catch (const std::exception& e) {
-      spdlog::warn("evaluation skipped: {}", e.what());
-    }
-  }
+  CompleteSummary(dataset, static_cast<int64_t>(range.first), end, false, &s);
   return s;
 }
 

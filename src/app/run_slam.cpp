@@ -56,6 +56,58 @@ FrameRange FrameRange::Parse(const std::string& text, size_t size) {
   return r;
 }
 
+void AddFrameToSummary(const FrameOutput& out, bool stereo, RunSummary* s) {
+  ++s->frames_in;
+  switch (out.status) {
+    case TrackingStatus::kOk:
+      ++s->frames_tracked;
+      break;
+    case TrackingStatus::kLost:
+      ++s->frames_lost;
+      break;
+    case TrackingStatus::kNotInitialized:
+      ++s->frames_not_initialized;
+      break;
+  }
+  s->stages["orb_left"].Add(out.times_ms.orb_left);
+  if (stereo) {
+    s->stages["orb_right"].Add(out.times_ms.orb_right);
+    s->stages["stereo"].Add(out.times_ms.stereo);
+  }
+  s->stages["tracking"].Add(out.times_ms.tracking);
+  if (out.keyframe_inserted) s->stages["local_mapping"].Add(out.times_ms.local_mapping);
+  s->stages["total"].Add(out.times_ms.total);
+  s->keyframes = out.num_keyframes;
+  s->map_points = out.num_map_points;
+}
+
+void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool monocular,
+                     RunSummary* s) {
+  std::map<int64_t, SE3> refined;
+  for (const StampedPose& p : s->tracked) refined[p.frame_index] = p.world_from_cam;
+  SE3 last = SE3::Identity();
+  Trajectory gt;
+  for (int64_t i = first; i < end; ++i) {
+    StampedPose p;
+    p.frame_index = i;
+    p.t_ns = dataset.t_ns[static_cast<size_t>(i)];
+    const auto it = refined.find(i);
+    s->frame_tracked.push_back(it != refined.end());
+    if (it != refined.end()) last = it->second;
+    p.world_from_cam = last;
+    s->per_frame.push_back(p);
+    if (dataset.ground_truth) gt.push_back((*dataset.ground_truth)[static_cast<size_t>(i)]);
+  }
+  if (!dataset.ground_truth || s->tracked.size() < 3) return;
+  s->eval_options.alignment.mode = monocular ? eval::AlignMode::kSim3 : eval::AlignMode::kSe3;
+  s->eval_options.kitti.lengths_m = {5, 10, 20, 40, 80, 100, 200, 400, 800};
+  try {
+    s->evaluation = eval::Evaluate(eval::AssociateByFrameIndex(gt, s->tracked), s->eval_options);
+  } catch (const std::exception& e) {
+    spdlog::warn("evaluation skipped: {}", e.what());
+  }
+}
+
 RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, FrameRange range,
                    const FrameCallback& on_frame) {
   return RunSlam(dataset, config, SlamMode::kStereo, range, on_frame);
@@ -93,60 +145,15 @@ RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, SlamMode mod
         out.num_stereo, out.num_tracked, out.num_inliers_initial, out.num_matches_initial,
         out.num_local_matches, out.num_local_projected, out.keyframe_inserted, out.keyframe_reason);
     indices.push_back(static_cast<int64_t>(i));
-    ++summary.frames_in;
-    switch (out.status) {
-      case TrackingStatus::kOk:
-        ++summary.frames_tracked;
-        break;
-      case TrackingStatus::kLost:
-        ++summary.frames_lost;
-        break;
-      case TrackingStatus::kNotInitialized:
-        ++summary.frames_not_initialized;
-        break;
-    }
-    summary.stages["orb_left"].Add(out.times_ms.orb_left);
-    if (stereo) {
-      summary.stages["orb_right"].Add(out.times_ms.orb_right);
-      summary.stages["stereo"].Add(out.times_ms.stereo);
-    }
-    summary.stages["tracking"].Add(out.times_ms.tracking);
-    if (out.keyframe_inserted) summary.stages["local_mapping"].Add(out.times_ms.local_mapping);
-    summary.stages["total"].Add(out.times_ms.total);
-    summary.keyframes = out.num_keyframes;
-    summary.map_points = out.num_map_points;
+    AddFrameToSummary(out, stereo, &summary);
     if (on_frame) on_frame(summary.frames_in, range.end - range.first, out);
   }
   summary.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   // Refined poses of tracked frames; hold the last known pose elsewhere.
   summary.tracked = slam.RefinedTrajectory();
-  std::map<int64_t, SE3> refined;
-  for (const StampedPose& p : summary.tracked) refined[p.frame_index] = p.world_from_cam;
-  SE3 last = SE3::Identity();
-  for (int64_t i : indices) {
-    StampedPose p;
-    p.frame_index = i;
-    p.t_ns = dataset.t_ns[static_cast<size_t>(i)];
-    const auto it = refined.find(i);
-    summary.frame_tracked.push_back(it != refined.end());
-    if (it != refined.end()) last = it->second;
-    p.world_from_cam = last;
-    summary.per_frame.push_back(p);
-  }
-
-  if (dataset.ground_truth && summary.tracked.size() >= 3) {
-    Trajectory gt;
-    for (int64_t i : indices) gt.push_back((*dataset.ground_truth)[static_cast<size_t>(i)]);
-    summary.eval_options.alignment.mode = stereo ? eval::AlignMode::kSe3 : eval::AlignMode::kSim3;
-    summary.eval_options.kitti.lengths_m = {5, 10, 20, 40, 80, 100, 200, 400, 800};
-    try {
-      summary.evaluation =
-          eval::Evaluate(eval::AssociateByFrameIndex(gt, summary.tracked), summary.eval_options);
-    } catch (const std::exception& e) {
-      spdlog::warn("evaluation skipped: {}", e.what());
-    }
-  }
+  const int64_t end = indices.empty() ? static_cast<int64_t>(range.first) : indices.back() + 1;
+  CompleteSummary(dataset, static_cast<int64_t>(range.first), end, !stereo, &summary);
   return summary;
 }
 

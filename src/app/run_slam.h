@@ -38,6 +38,15 @@ struct RunSummary {
   std::string error;  // non-empty when the run stopped early (outputs cover the frames done)
 };
 
+// Counts one processed frame (status, stage times, map size) into the summary.
+void AddFrameToSummary(const FrameOutput& out, bool stereo, RunSummary* summary);
+
+// Fills per_frame (one pose per frame index in [first, end), holding the last known pose where a
+// frame was not tracked) and frame_tracked from summary->tracked, then evaluates against the
+// dataset's ground truth when present (SE(3) alignment, Sim(3) for monocular runs).
+void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool monocular,
+                     RunSummary* summary);
+
 using FrameCallback = std::function<void(size_t done, size_t total, const FrameOutput&)>;
 
 // Runs frames [range.first, range.end) in the given mode (monocular: left images only, the

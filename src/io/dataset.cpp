@@ -144,4 +144,26 @@ Dataset OpenDataset(const std::string& path, KittiCameras cams) {
                    "(image_00/data/)");
 }
 
+void SetRigFromProjections(const Eigen::Matrix<double, 3, 4>& p_left,
+                           const Eigen::Matrix<double, 3, 4>& p_right,
+                           const std::string& calib_name, Dataset* dataset) {
+  PinholeCamera& cam = dataset->rig.left;
+  cam.fx = p_left(0, 0);
+  cam.fy = p_left(1, 1);
+  cam.cx = p_left(0, 2);
+  cam.cy = p_left(1, 2);
+  const cv::Size size = ImageSizeOf(dataset->left_paths.front());
+  cam.width_px = size.width;
+  cam.height_px = size.height;
+  if (dataset->has_right()) {
+    dataset->rig.baseline_m = (p_left(0, 3) - p_right(0, 3)) / cam.fx;
+    if (!(dataset->rig.baseline_m > 0))
+      throw InputError(calib_name, 0,
+                       "stereo baseline from the projection matrices is not positive");
+  }
+  std::string why;
+  if (!dataset->rig.IsValid(&why))
+    throw InputError(calib_name, 0, "calibration gives an invalid camera: " + why);
+}
+
 }  // namespace pcr

@@ -2,6 +2,7 @@
 // A recorded image sequence (KITTI odometry sequence or raw drive) as plain data: calibration,
 // timestamps, image paths and optional ground truth. Images are read lazily and checked, so a
 // truncated or unreadable file throws pcr::InputError naming it.
+#include <Eigen/Core>
 #include <cstdint>
 #include <opencv2/core/mat.hpp>
 #include <optional>
@@ -53,6 +54,13 @@ cv::Mat LoadGreyImage(const std::string& path);
 
 // Width and height of a PNG from its IHDR chunk (other formats are decoded).
 cv::Size ImageSizeOf(const std::string& path);
+
+// Fills dataset->rig from rectified 3x4 projection matrices (left, and right when the dataset has a
+// right image stream: baseline = (P_left[0][3] - P_right[0][3]) / fx) and the size of the first
+// left image. Throws InputError naming calib_name for a non-positive baseline or an invalid camera.
+void SetRigFromProjections(const Eigen::Matrix<double, 3, 4>& p_left,
+                           const Eigen::Matrix<double, 3, 4>& p_right,
+                           const std::string& calib_name, Dataset* dataset);
 
 // Sorted paths of the files in `dir` whose names end with `extension` (e.g. ".png").
 std::vector<std::string> ListFiles(const std::string& dir, const std::string& extension);

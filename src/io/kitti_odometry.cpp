@@ -56,25 +56,8 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
                          std::to_string(dataset.left_paths.size()) + " images in " + left_dir_name);
 
   const CalibFile calib = CalibFile::Read((dir / "calib.txt").string());
-  const Eigen::Matrix<double, 3, 4> p_left = calib.Matrix3x4(color ? "P2" : "P0");
-  PinholeCamera& cam = dataset.rig.left;
-  cam.fx = p_left(0, 0);
-  cam.fy = p_left(1, 1);
-  cam.cx = p_left(0, 2);
-  cam.cy = p_left(1, 2);
-  const cv::Size size = ImageSizeOf(dataset.left_paths.front());
-  cam.width_px = size.width;
-  cam.height_px = size.height;
-  if (dataset.has_right()) {
-    const Eigen::Matrix<double, 3, 4> p_right = calib.Matrix3x4(color ? "P3" : "P1");
-    dataset.rig.baseline_m = (p_left(0, 3) - p_right(0, 3)) / cam.fx;
-    if (!(dataset.rig.baseline_m > 0))
-      throw InputError(calib.name(), 0,
-                       "stereo baseline from the projection matrices is not positive");
-  }
-  std::string why;
-  if (!dataset.rig.IsValid(&why))
-    throw InputError(calib.name(), 0, "calibration gives an invalid camera: " + why);
+  SetRigFromProjections(calib.Matrix3x4(color ? "P2" : "P0"), calib.Matrix3x4(color ? "P3" : "P1"),
+                        calib.name(), &dataset);
 
   const fs::path poses_path = dir.parent_path().parent_path() / "poses" / (dataset.name + ".txt");
   if (fs::is_regular_file(poses_path, ec)) {

@@ -221,26 +221,9 @@ Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams) {
   dataset.t_ns.resize(dataset.size());
 
   const CalibFile cam_to_cam = CalibFile::Read((calib_dir / "calib_cam_to_cam.txt").string());
-  const Eigen::Matrix<double, 3, 4> p_left =
-      cam_to_cam.Matrix3x4(color ? "P_rect_02" : "P_rect_00");
-  PinholeCamera& cam = dataset.rig.left;
-  cam.fx = p_left(0, 0);
-  cam.fy = p_left(1, 1);
-  cam.cx = p_left(0, 2);
-  cam.cy = p_left(1, 2);
-  const cv::Size size = ImageSizeOf(dataset.left_paths.front());
-  cam.width_px = size.width;
-  cam.height_px = size.height;
-  if (dataset.has_right()) {
-    const Eigen::Matrix<double, 3, 4> p_right =
-        cam_to_cam.Matrix3x4(color ? "P_rect_03" : "P_rect_01");
-    dataset.rig.baseline_m = (p_left(0, 3) - p_right(0, 3)) / cam.fx;
-    if (!(dataset.rig.baseline_m > 0))
-      throw InputError(cam_to_cam.name(), 0, "stereo baseline from P_rect is not positive");
-  }
-  std::string why;
-  if (!dataset.rig.IsValid(&why))
-    throw InputError(cam_to_cam.name(), 0, "calibration gives an invalid camera: " + why);
+  SetRigFromProjections(cam_to_cam.Matrix3x4(color ? "P_rect_02" : "P_rect_00"),
+                        cam_to_cam.Matrix3x4(color ? "P_rect_03" : "P_rect_01"), cam_to_cam.name(),
+                        &dataset);
 
   const fs::path oxts_dir = dir / "oxts" / "data";
   if (fs::is_directory(oxts_dir, ec)) {
