@@ -1,0 +1,115 @@
+#include "app/truth_segmenter.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+
+#include "sim/sequence_writer.h"
+#include "slam/common/error.h"
+#include "support/data_paths.h"
+
+namespace pcr::app {
+namespace {
+
+// A small synthetic sequence (quarter size, 3 frames) with movers and parked cars.
+const std::string& SequenceDir() {
+  static const std::string dir = [] {
+    sim::SynthOptions o = sim::SynthOptions{}.Scaled(0.5);
+    o.frames = 3;
+    o.num_movers = 6;
+    o.num_parked = 8;
+    o.seed = 3;
+    return sim::WriteSequence(o, test::MakeTempDir("pcr_truthseg")).sequence_dir;
+  }();
+  return dir;
+}
+
+int CountObjectPixels(const cv::Mat& ids, const sim::InstanceTable& table) {
+  int n = 0;
+  for (int v = 0; v < ids.rows; ++v)
+    for (int u = 0; u < ids.cols; ++u) n += table.IsObject(ids.at<uint16_t>(v, u)) ? 1 : 0;
+  return n;
+}
+
+TEST(TruthSegmenter, PerfectDetectorCoversEveryObjectPixel) {
+  TruthSegmenter seg(SequenceDir(), {});
+  seg.SetFrame(1);
+  const cv::Mat ids = cv::imread(SequenceDir() + "/instance_0/000001.png", cv::IMREAD_UNCHANGED);
+  const Segmentation s = seg.Segment(cv::Mat(ids.size(), CV_8UC1));
+  ASSERT_FALSE(s.instances.empty());
+  int covered = 0, object_pixels = 0, background_flagged = 0;
+  for (int v = 0; v < ids.rows; ++v)
+    for (int u = 0; u < ids.cols; ++u) {
+      const bool object = seg.instances().IsObject(ids.at<uint16_t>(v, u));
+      const bool in_map = s.instance_map.at<uint16_t>(v, u) != 0;
+      object_pixels += object;
+      covered += object && in_map;
+      background_flagged += !object && in_map;
+    }
+  EXPECT_EQ(covered, object_pixels);
+  EXPECT_EQ(background_flagged, 0);
+  EXPECT_EQ(object_pixels, CountObjectPixels(ids, seg.instances()));
+  // The confidence map is high on objects and zero far from them (sky corner).
+  EXPECT_EQ(s.dynamic_confidence.at<float>(0, 0), 0.0f);
+  EXPECT_EQ(s.backend, "ground-truth");
+}
+
+TEST(TruthSegmenter, EmulatedErrorsChangeTheMasks) {
+  TruthSegmenterOptions all_missed;
+  all_missed.miss_rate = 1.0;
+  TruthSegmenter missing(SequenceDir(), all_missed);
+  missing.SetFrame(0);
+  EXPECT_TRUE(missing.Segment(cv::Mat()).instances.empty());
+
+  TruthSegmenterOptions eroded;
+  eroded.mask_offset_px = -2;
+  TruthSegmenterOptions dilated;
+  dilated.mask_offset_px = 2;
+  TruthSegmenter perfect_seg(SequenceDir(), {}), eroded_seg(SequenceDir(), eroded),
+      dilated_seg(SequenceDir(), dilated);
+  auto area = [](const Segmentation& s) { return cv::countNonZero(s.instance_map); };
+  const int a_perfect = area(perfect_seg.Segment(cv::Mat()));
+  EXPECT_LT(area(eroded_seg.Segment(cv::Mat())), a_perfect);
+  EXPECT_GT(area(dilated_seg.Segment(cv::Mat())), a_perfect);
+
+  TruthSegmenterOptions noisy;
+  noisy.false_positives_per_frame = 3.0;
+  noisy.seed = 5;
+  TruthSegmenter fp(SequenceDir(), noisy);
+  size_t extra = 0;
+  const size_t base = perfect_seg.Segment(cv::Mat()).instances.size();
+  for (int k = 0; k < 5; ++k) extra += fp.Segment(cv::Mat()).instances.size() - base;
+  EXPECT_GT(extra, 5u);  // about 15 expected over 5 frames
+}
+
+TEST(TruthSegmenter, MissRateMatchesOverManyDraws) {
+  TruthSegmenterOptions o;
+  o.miss_rate = 0.2;
+  o.seed = 11;
+  TruthSegmenter perfect(SequenceDir(), {}), lossy(SequenceDir(), o);
+  const double n_all = static_cast<double>(perfect.Segment(cv::Mat()).instances.size());
+  double kept = 0;
+  const int rounds = 40;
+  for (int k = 0; k < rounds; ++k)
+    kept += static_cast<double>(lossy.Segment(cv::Mat()).instances.size());
+  EXPECT_NEAR(kept / (rounds * n_all), 0.8, 0.06);
+}
+
+TEST(TruthSegmenter, BadInputIsNamed) {
+  EXPECT_THROW(TruthSegmenter("/nonexistent/seq", {}), InputError);
+  TruthSegmenterOptions bad;
+  bad.miss_rate = 1.5;
+  EXPECT_THROW(TruthSegmenter(SequenceDir(), bad), ConfigError);
+  TruthSegmenter seg(SequenceDir(), {});
+  seg.SetFrame(99);
+  try {
+    seg.Segment(cv::Mat());
+    FAIL() << "no error for a missing frame";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("000099.png"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace pcr::app
