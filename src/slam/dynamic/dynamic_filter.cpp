@@ -1,0 +1,543 @@
+#include "slam/dynamic/dynamic_filter.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "slam/common/error.h"
+#include "slam/common/timing.h"
+#include "slam/geometry/se3.h"
+
+namespace pcr {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+bool Fail(std::string* why, const std::string& message) {
+  if (why) *why = message;
+  return false;
+}
+
+// Bilinear sample of a CV_32F map at a camera-convention pixel position, clamped to the image.
+float SampleBilinear(const cv::Mat& map, float u, float v) {
+  const float x = std::clamp(u, 0.0f, static_cast<float>(map.cols - 1));
+  const float y = std::clamp(v, 0.0f, static_cast<float>(map.rows - 1));
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const int x1 = std::min(x0 + 1, map.cols - 1), y1 = std::min(y0 + 1, map.rows - 1);
+  const float ax = x - x0, ay = y - y0;
+  const float* r0 = map.ptr<float>(y0);
+  const float* r1 = map.ptr<float>(y1);
+  return (1 - ay) * ((1 - ax) * r0[x0] + ax * r0[x1]) + ay * ((1 - ax) * r1[x0] + ax * r1[x1]);
+}
+
+// Where static points at the keypoints would have been in the previous image, for those with a
+// stereo depth; (-1, -1) for the others (a guess at infinite depth is poor for mid-range points)
+// and where the prediction leaves the image.
+std::vector<cv::Point2f> PredictPreviousPixels(const PinholeCamera& camera,
+                                               const std::vector<cv::Point2f>& cur_uv,
+                                               const std::vector<float>& depth_m,
+                                               const SE3& prev_from_cur) {
+  std::vector<cv::Point2f> out(cur_uv.size());
+  for (size_t i = 0; i < cur_uv.size(); ++i) {
+    out[i] = cv::Point2f(-1.0f, -1.0f);
+    if (!(depth_m[i] > 0.0f)) continue;
+    const Eigen::Vector2d uv(cur_uv[i].x, cur_uv[i].y);
+    const Eigen::Vector3d p = prev_from_cur * camera.Unproject(uv, depth_m[i]);
+    if (p.z() > 0.05) {
+      const Eigen::Vector2d q = camera.Project(p);
+      if (camera.InImage(q))
+        out[i] = cv::Point2f(static_cast<float>(q.x()), static_cast<float>(q.y()));
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+const char* MotionSourceName(MotionSource source) {
+  switch (source) {
+    case MotionSource::kNone:
+      return "none";
+    case MotionSource::kPrior:
+      return "prior";
+    case MotionSource::kPnp:
+      return "pnp";
+  }
+  return "unknown";
+}
+
+bool DynamicFilterOptions::IsValid(std::string* why) const {
+  std::string sub;
+  auto check = [&](bool ok, const char* name) {
+    if (!ok && why) *why = std::string(name) + ": " + sub;
+    return ok;
+  };
+  if (!check(lk.IsValid(&sub), "lk") || !check(ego_motion.IsValid(&sub), "ego_motion") ||
+      !check(motion.IsValid(&sub), "motion") || !check(ground.IsValid(&sub), "ground") ||
+      !check(edge.IsValid(&sub), "edge") || !check(sky.IsValid(&sub), "sky") ||
+      !check(voting.IsValid(&sub), "voting") || !check(scoring.IsValid(&sub), "scoring") ||
+      !check(instances.IsValid(&sub), "instances") || !check(cluster.IsValid(&sub), "cluster") ||
+      !check(mask_depth.IsValid(&sub), "mask_depth") || !check(classes.IsValid(&sub), "classes")) {
+    return false;
+  }
+  if (!(keypoint_sigma_px > 0.0 && lk_sigma_px > 0.0)) {
+    return Fail(why, "keypoint_sigma_px and lk_sigma_px must be > 0");
+  }
+  if (!(track_match_radius_px > 0.0)) return Fail(why, "track_match_radius_px must be > 0");
+  if (!(pnp_max_dynamic_confidence > 0.0f && pnp_max_dynamic_confidence <= 1.0f)) {
+    return Fail(why, "pnp_max_dynamic_confidence must be in (0, 1]");
+  }
+  if (!(default_frame_dt_s > 0.0)) return Fail(why, "default_frame_dt_s must be > 0");
+  if (max_plane_age_frames < 0) return Fail(why, "max_plane_age_frames must be >= 0");
+  if (!(max_prior_deviation_m > 0.0 && max_prior_deviation_rad > 0.0)) {
+    return Fail(why, "max_prior_deviation_m and max_prior_deviation_rad must be > 0");
+  }
+  if (!(stale_mask_scale >= 0.0f && stale_mask_scale <= 1.0f)) {
+    return Fail(why, "stale_mask_scale must be in [0, 1]");
+  }
+  return true;
+}
+
+DynamicFilter::DynamicFilter(const DynamicFilterOptions& options)
+    : options_(options), voting_(options.voting) {
+  std::string why;
+  if (!options_.IsValid(&why)) throw ConfigError("DynamicFilterOptions: " + why);
+}
+
+void DynamicFilter::Reset() {
+  voting_.Clear();
+  has_previous_ = false;
+  previous_frame_ = -1;
+  previous_t_ns_ = 0;
+  previous_size_ = cv::Size();
+  previous_pyramid_.clear();
+  previous_uv_.clear();
+  previous_track_ids_.clear();
+  previous_states_.clear();
+  last_plane_.reset();
+  last_plane_frame_ = -1;
+  last_motion_.reset();
+}
+
+FilterOutput DynamicFilter::Process(const FilterInput& input) {
+  const auto start = Clock::now();
+  const size_t n = input.keypoints.size();
+  const cv::Mat& image = input.left_image;
+  if (image.empty() || image.type() != CV_8UC1) {
+    throw std::invalid_argument("DynamicFilter: left_image must be a non-empty CV_8UC1");
+  }
+  if (!input.previous_left_image.empty() && (input.previous_left_image.type() != CV_8UC1 ||
+                                             input.previous_left_image.size() != image.size())) {
+    throw std::invalid_argument(
+        "DynamicFilter: previous_left_image must be CV_8UC1 of the image's size");
+  }
+  if ((!input.depth_m.empty() && input.depth_m.size() != n) ||
+      (!input.point_ids.empty() && input.point_ids.size() != n) ||
+      (!input.previous_uv_px.empty() && input.previous_uv_px.size() != n)) {
+    throw std::invalid_argument("DynamicFilter: per-keypoint inputs must match the keypoints");
+  }
+  if (!(input.scale_factor >= 1.0)) {
+    throw std::invalid_argument("DynamicFilter: scale_factor must be >= 1");
+  }
+  const Segmentation* seg = input.segmentation;
+  if (seg) {
+    if (!seg->dynamic_confidence.empty() && (seg->dynamic_confidence.type() != CV_32FC1 ||
+                                             seg->dynamic_confidence.size() != image.size())) {
+      throw std::invalid_argument("DynamicFilter: dynamic_confidence must be CV_32F, image size");
+    }
+    if (!seg->instance_map.empty() &&
+        (seg->instance_map.type() != CV_16UC1 || seg->instance_map.size() != image.size())) {
+      throw std::invalid_argument("DynamicFilter: instance_map must be CV_16U, image size");
+    }
+  }
+  const int64_t frame = input.frame_index >= 0 ? input.frame_index : previous_frame_ + 1;
+  if (has_previous_ && frame <= previous_frame_) {
+    throw std::invalid_argument("DynamicFilter: frame_index must increase (call Reset())");
+  }
+  const PinholeCamera& camera = input.rig.left;
+  const double bf = input.rig.IsStereo() ? input.rig.Bf() : 0.0;
+
+  FilterOutput out;
+  out.frame_index = frame;
+  out.t_ns = input.t_ns;
+  out.points.resize(n);
+  std::vector<cv::Point2f> cur_uv(n);
+  std::vector<float> depth(n, -1.0f);
+  std::vector<double> scale(n, 1.0);
+  for (size_t i = 0; i < n; ++i) {
+    cur_uv[i] = input.keypoints[i].pt;
+    if (!input.depth_m.empty() && bf > 0.0 && input.depth_m[i] > 0.0f &&
+        std::isfinite(input.depth_m[i])) {
+      depth[i] = input.depth_m[i];
+    }
+    scale[i] = std::pow(input.scale_factor, std::max(0, input.keypoints[i].octave));
+  }
+
+  // 1. Mask sample.
+  auto stage = Clock::now();
+  std::vector<float> confidence(n, 0.0f);
+  std::vector<uint16_t> instance(n, 0);  // dynamic-class instances only
+  std::vector<uint8_t> sky_instance(n, 0);
+  std::vector<uint8_t> mask_outlier(n, 0);
+  int num_instances = 0;
+  if (seg) {
+    num_instances = static_cast<int>(seg->instances.size());
+    std::vector<uint8_t> is_dynamic(num_instances + 1, 0), is_sky(num_instances + 1, 0);
+    for (int k = 1; k <= num_instances; ++k) {
+      const std::string& name = seg->instances[k - 1].class_name;
+      is_dynamic[k] = options_.classes.Find(name) != nullptr;
+      is_sky[k] = std::find(options_.sky.class_names.begin(), options_.sky.class_names.end(),
+                            name) != options_.sky.class_names.end();
+    }
+    const float mask_scale = seg->stale ? options_.stale_mask_scale : 1.0f;
+    for (size_t i = 0; i < n; ++i) {
+      if (!seg->dynamic_confidence.empty()) {
+        confidence[i] = std::clamp(
+            SampleBilinear(seg->dynamic_confidence, cur_uv[i].x, cur_uv[i].y) * mask_scale, 0.0f,
+            1.0f);
+      }
+      if (!seg->instance_map.empty()) {
+        const int u = std::clamp(static_cast<int>(std::lround(cur_uv[i].x)), 0, image.cols - 1);
+        const int v = std::clamp(static_cast<int>(std::lround(cur_uv[i].y)), 0, image.rows - 1);
+        const int k = seg->instance_map.at<uint16_t>(v, u);
+        if (k >= 1 && k <= num_instances) {
+          if (is_dynamic[k]) instance[i] = static_cast<uint16_t>(k);
+          sky_instance[i] = is_sky[k];
+        }
+      }
+    }
+    std::vector<cv::Rect2f> boxes(num_instances);
+    for (int k = 1; k <= num_instances; ++k) {
+      if (is_dynamic[k]) boxes[k - 1] = seg->instances[k - 1].box_px;
+    }
+    MaskMembership membership =
+        ResolveMaskMembership(cur_uv, depth, instance, confidence, boxes, options_.mask_depth);
+    instance = std::move(membership.instance);
+    mask_outlier = std::move(membership.depth_outlier);
+    for (size_t i = 0; i < n; ++i) {
+      if (mask_outlier[i]) confidence[i] = 0.0f;
+    }
+  }
+  out.timing.mask_ms = MsSince(stage);
+
+  // 2. Previous-image positions (matched or LK) and track ids.
+  stage = Clock::now();
+  std::vector<cv::Point2f> prev_uv(n, cv::Point2f(-1.0f, -1.0f));
+  std::vector<uint8_t> observed(n, 0);
+  std::vector<int64_t> track_ids(n, -1);
+  std::vector<int> continues(n, -1);  // index of the previous keypoint this one continues
+  std::vector<cv::Mat> cur_pyramid;
+  const bool matched_mode = !input.previous_uv_px.empty();
+  if (matched_mode) {
+    for (size_t i = 0; i < n; ++i) {
+      const cv::Point2f p = input.previous_uv_px[i];
+      if (p.x >= 0.0f && p.y >= 0.0f && std::isfinite(p.x) && std::isfinite(p.y)) {
+        prev_uv[i] = p;
+        observed[i] = 1;
+      }
+    }
+  } else if (options_.use_lk) {
+    cur_pyramid = BuildLkPyramid(image, options_.lk);
+    std::vector<cv::Mat> given_previous;
+    const std::vector<cv::Mat>* prev_pyramid = nullptr;
+    if (!input.previous_left_image.empty()) {
+      given_previous = BuildLkPyramid(input.previous_left_image, options_.lk);
+      prev_pyramid = &given_previous;
+    } else if (has_previous_ && previous_size_ == image.size() && !previous_pyramid_.empty()) {
+      prev_pyramid = &previous_pyramid_;
+    }
+    if (prev_pyramid) {
+      // Start LK at the static prediction under the caller's prior or, failing that, the last
+      // frame's motion (constant velocity): near points flow too fast to be found from zero.
+      std::vector<cv::Point2f> guess;
+      const SE3* guess_motion = input.cur_from_prev ? &*input.cur_from_prev
+                                : last_motion_      ? &*last_motion_
+                                                    : nullptr;
+      if (options_.lk_predict_initial_flow && guess_motion) {
+        guess = PredictPreviousPixels(camera, cur_uv, depth, guess_motion->inverse());
+      }
+      const FlowTracks tracks =
+          TrackIntoPrevious(*prev_pyramid, cur_pyramid, cur_uv, options_.lk, guess);
+      prev_uv = tracks.prev_uv_px;
+      observed = tracks.valid;
+      // Each tracked keypoint continues the previous keypoint nearest to where LK found it
+      // (within the radius): its temporal state and track id. Several keypoints may continue
+      // the same one (the same corner found at several octaves).
+      if (has_previous_ && input.previous_left_image.empty() && !previous_uv_.empty()) {
+        const double cell = std::max(4.0, 2.0 * options_.track_match_radius_px);
+        const int cols = static_cast<int>(image.cols / cell) + 1;
+        const int rows = static_cast<int>(image.rows / cell) + 1;
+        std::vector<std::vector<int>> grid(static_cast<size_t>(cols * rows));
+        for (size_t j = 0; j < previous_uv_.size(); ++j) {
+          const int cu = std::clamp(static_cast<int>(previous_uv_[j].x / cell), 0, cols - 1);
+          const int cv = std::clamp(static_cast<int>(previous_uv_[j].y / cell), 0, rows - 1);
+          grid[cv * cols + cu].push_back(static_cast<int>(j));
+        }
+        const double r2 = options_.track_match_radius_px * options_.track_match_radius_px;
+        for (size_t i = 0; i < n; ++i) {
+          if (!observed[i]) continue;
+          const int cu = static_cast<int>(prev_uv[i].x / cell);
+          const int cv = static_cast<int>(prev_uv[i].y / cell);
+          double best_d2 = r2;
+          for (int y = std::max(0, cv - 1); y <= std::min(rows - 1, cv + 1); ++y) {
+            for (int x = std::max(0, cu - 1); x <= std::min(cols - 1, cu + 1); ++x) {
+              for (int j : grid[y * cols + x]) {
+                const cv::Point2f d = previous_uv_[j] - prev_uv[i];
+                const double d2 = d.x * d.x + d.y * d.y;
+                if (d2 <= best_d2) {
+                  best_d2 = d2;
+                  continues[i] = j;
+                }
+              }
+            }
+          }
+          if (continues[i] >= 0) {
+            track_ids[i] = previous_track_ids_[continues[i]];
+            ++out.num_continued;
+          }
+        }
+      }
+    }
+    for (size_t i = 0; i < n; ++i) {
+      if (track_ids[i] < 0) track_ids[i] = next_track_id_++;
+    }
+  }
+  for (size_t i = 0; i < n; ++i) out.num_tracked += observed[i] ? 1 : 0;
+  out.timing.flow_ms = MsSince(stage);
+
+  // 3. Camera motion previous -> current.
+  stage = Clock::now();
+  const SE3* prior = input.cur_from_prev ? &*input.cur_from_prev : nullptr;
+  const bool want_pnp = options_.motion_source == MotionSourcePolicy::kPnpElsePrior ||
+                        (options_.motion_source == MotionSourcePolicy::kPriorElsePnp && !prior);
+  if (want_pnp && bf > 0.0 && out.num_tracked > 0) {
+    std::vector<uint8_t> usable(n, 0);
+    for (size_t i = 0; i < n; ++i) {
+      usable[i] = observed[i] && depth[i] > 0.0f &&
+                  confidence[i] < options_.pnp_max_dynamic_confidence && !sky_instance[i];
+    }
+    const EgoMotionEstimate pnp =
+        EstimateCurFromPrev(camera, cur_uv, depth, prev_uv, usable, prior, options_.ego_motion);
+    out.pnp_candidates = pnp.num_candidates;
+    out.pnp_inliers = pnp.num_inliers;
+    if (pnp.success && prior) {
+      // A PnP far from the prior is more likely locked on a large moving object than right.
+      const SE3 delta = prior->inverse() * pnp.cur_from_prev;
+      const double dt_m = delta.translation().norm();
+      const double dr_rad = RotationAngleRad(delta.linear());
+      if (dt_m > options_.max_prior_deviation_m || dr_rad > options_.max_prior_deviation_rad) {
+        out.motion_note = "PnP rejected: " + std::to_string(dt_m) + " m / " +
+                          std::to_string(RadToDeg(dr_rad)) + " deg from the prior";
+      } else {
+        out.motion_source = MotionSource::kPnp;
+        out.cur_from_prev = pnp.cur_from_prev;
+      }
+    } else if (pnp.success) {
+      out.motion_source = MotionSource::kPnp;
+      out.cur_from_prev = pnp.cur_from_prev;
+    } else {
+      out.motion_note = pnp.failure_reason;
+    }
+  }
+  if (out.motion_source == MotionSource::kNone && prior) {
+    out.motion_source = MotionSource::kPrior;
+    out.cur_from_prev = *prior;
+  }
+  out.timing.pose_ms = MsSince(stage);
+
+  // 4. Ground plane and horizon.
+  stage = Clock::now();
+  std::vector<Eigen::Vector3d> points(n, Eigen::Vector3d::Zero());
+  std::vector<uint8_t> has_depth(n, 0);
+  for (size_t i = 0; i < n; ++i) {
+    if (depth[i] <= 0.0f) continue;
+    points[i] = camera.Unproject(Eigen::Vector2d(cur_uv[i].x, cur_uv[i].y), depth[i]);
+    has_depth[i] = 1;
+  }
+  if (bf > 0.0) {
+    out.ground =
+        EstimateGroundPlane(points, has_depth, last_plane_ ? last_plane_->d : 0.0, options_.ground);
+  } else {
+    out.ground.failure_reason = "monocular rig";
+  }
+  if (out.ground.success) {
+    out.ground_plane = out.ground.plane;
+    last_plane_ = out.ground.plane;
+    last_plane_frame_ = frame;
+  } else if (last_plane_ && frame - last_plane_frame_ <= options_.max_plane_age_frames) {
+    out.ground_plane = last_plane_;
+    out.ground_from_previous = true;
+  }
+  if (out.ground_plane) {
+    out.horizon = HorizonFromPlane(camera, *out.ground_plane);
+  } else {
+    Plane prior_plane;
+    prior_plane.normal = Eigen::Vector3d(0.0, -1.0, 0.0);
+    prior_plane.d = options_.ground.prior_height_m;
+    out.horizon = HorizonFromPlane(camera, prior_plane);
+    out.horizon.from_prior = true;
+  }
+  out.timing.ransac_ms = MsSince(stage);
+
+  // 5. Scoring.
+  stage = Clock::now();
+  double dt_s = options_.default_frame_dt_s;
+  if (has_previous_ && input.t_ns > previous_t_ns_) dt_s = NsToSeconds(input.t_ns - previous_t_ns_);
+  const double displacement_m = options_.motion.reference_speed_mps * dt_s;
+  const SE3 prev_from_cur = out.cur_from_prev.inverse();
+  Eigen::Vector3d travel_dir(0.0, 0.0, 1.0);  // camera travel in the current frame
+  const Eigen::Vector3d travel = -out.cur_from_prev.translation();
+  if (travel.norm() > 1e-3) travel_dir = travel.normalized();
+  const PoseSigma pose_sigma = out.motion_source == MotionSource::kPnp ? options_.motion.pnp_pose
+                                                                       : options_.motion.prior_pose;
+
+  std::vector<uint8_t> has_motion(n, 0);
+  std::vector<float> static_prob(n, 0.5f), observability(n, 0.0f);
+  std::vector<TrackVote> votes(n);
+  std::vector<TrackState> states(n);
+  for (size_t i = 0; i < n; ++i) {
+    KeypointDiagnostics& d = out.points[i];
+    d.track_id = track_ids[i];
+    d.instance = instance[i];
+    d.mask_depth_outlier = mask_outlier[i];
+    PointMotion pm;
+    if (observed[i] && out.motion_source != MotionSource::kNone) {
+      PointNoise noise;
+      if (matched_mode) {
+        noise.cur_sigma_px = options_.keypoint_sigma_px * scale[i];
+        noise.prev_sigma_px = options_.keypoint_sigma_px * scale[i];
+      } else {
+        noise.cur_sigma_px = 0.0;  // LK tracks the patch at the keypoint itself
+        noise.prev_sigma_px = options_.lk_sigma_px;
+      }
+      noise.disparity_sigma_px = options_.motion.disparity_sigma_px * scale[i];
+      pm = ScorePointMotion(camera, bf, Eigen::Vector2d(cur_uv[i].x, cur_uv[i].y), depth[i],
+                            Eigen::Vector2d(prev_uv[i].x, prev_uv[i].y), prev_from_cur, pose_sigma,
+                            noise, displacement_m, travel_dir, options_.motion);
+    }
+    d.test = pm.test;
+    if (pm.valid()) {
+      d.frame_static_prob = static_cast<float>(pm.static_prob);
+      d.observability = static_cast<float>(pm.observability);
+      d.residual_px = static_cast<float>(pm.residual_px);
+      d.chi2 = static_cast<float>(pm.chi2);
+    }
+    // Temporal state: the map point's when it has one, else the state carried along the LK
+    // track, else a fresh one.
+    const int64_t map_id = input.point_ids.empty() ? -1 : input.point_ids[i];
+    TrackState state;
+    const TrackState* stored = map_id >= 0 ? voting_.Find(map_id) : nullptr;
+    if (stored) {
+      state = *stored;
+    } else if (continues[i] >= 0) {
+      state = previous_states_[continues[i]];
+    }
+    const MotionEvidence evidence{pm.static_prob, pm.observability};
+    votes[i] = voting_.Advance(&state, frame, pm.valid() ? &evidence : nullptr);
+    if (map_id >= 0) voting_.Store(map_id, state);
+    states[i] = state;
+    d.vote_log_odds = static_cast<float>(votes[i].log_odds);
+    if (votes[i].window_count > 0) {
+      has_motion[i] = 1;
+      static_prob[i] = static_cast<float>(votes[i].window_static_prob);
+      observability[i] = static_cast<float>(votes[i].window_observability);
+    }
+  }
+
+  // Instance-level motion: unobserved points of a confirmed static (parked) or moving instance
+  // take the instance's verdict.
+  if (num_instances > 0) {
+    const std::vector<InstanceMotion> summary = SummarizeInstances(
+        instance, num_instances, has_motion, static_prob, observability, options_.instances);
+    for (size_t i = 0; i < n; ++i) {
+      if (instance[i] == 0) continue;
+      const InstanceMotion& m = summary[instance[i]];
+      if (m.state == InstanceState::kUnknown) continue;
+      if (!has_motion[i]) {
+        has_motion[i] = 1;
+        static_prob[i] = static_cast<float>(m.median_static_prob);
+        observability[i] = static_cast<float>(m.median_observability);
+      } else if (m.state == InstanceState::kStatic) {
+        // A point of a confirmed static instance whose own test saw no motion shares the
+        // instance's confirmation (e.g. a point without depth: epipolar test only).
+        observability[i] = std::max(observability[i], static_cast<float>(m.median_observability));
+      }
+    }
+  }
+
+  std::vector<uint8_t> seeds(n, 0), candidates(n, 0), weak(n, 0);
+  for (size_t i = 0; i < n; ++i) {
+    KeypointDiagnostics& d = out.points[i];
+    const Eigen::Vector2d uv(cur_uv[i].x, cur_uv[i].y);
+    PointTerms terms;
+    terms.s_mask = 1.0 - confidence[i];
+    terms.has_motion = has_motion[i];
+    if (has_motion[i]) terms.m_motion = GateByObservability(static_prob[i], observability[i]);
+    if (out.ground_plane && has_depth[i] &&
+        IsGroundPoint(*out.ground_plane, points[i], bf, options_.ground)) {
+      terms.ground = true;
+      terms.g_ground = options_.ground.ground_score;
+    }
+    terms.e_edge = EdgeScore(uv, image.size(), options_.edge);
+    terms.hard_edge = BorderDistancePx(uv, image.size()) < options_.edge.exclude_within_px;
+    terms.sky = sky_instance[i] || IsSkyPoint(image, uv, depth[i], out.horizon, options_.sky);
+    if (terms.sky) terms.e_edge = 0.0;
+    const double score = StaticScore(terms, options_.scoring.weights);
+    FilterReason reason =
+        DecidePoint(terms, score, options_.scoring, options_.ground.remove_ground);
+    if (reason == FilterReason::kKept && votes[i].dynamic) reason = FilterReason::kVote;
+    d.s_mask = static_cast<float>(terms.s_mask);
+    d.m_motion = static_cast<float>(terms.m_motion);
+    d.has_motion = terms.has_motion;
+    d.g_ground = static_cast<float>(terms.g_ground);
+    d.e_edge = static_cast<float>(terms.e_edge);
+    d.ground = terms.ground;
+    d.sky = terms.sky;
+    d.score = static_cast<float>(score);
+    d.reason = reason;
+    seeds[i] = reason == FilterReason::kMaskMotion || reason == FilterReason::kMotion ||
+               reason == FilterReason::kVote;
+    // kMask points may be relabelled: cluster evidence says more than the mask alone.
+    candidates[i] = (reason == FilterReason::kKept || reason == FilterReason::kMask) &&
+                    !(terms.has_motion && terms.m_motion >= options_.cluster.protect_static_above);
+    weak[i] = terms.has_motion && terms.m_motion < options_.scoring.motion_evidence_below;
+  }
+  const std::vector<uint8_t> joined =
+      ClusterExclusions(camera, cur_uv, depth,
+                        seg ? std::span<const uint16_t>(instance) : std::span<const uint16_t>(),
+                        seeds, candidates, options_.cluster, weak);
+
+  out.filter.weight.resize(n);
+  out.filter.excluded.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    KeypointDiagnostics& d = out.points[i];
+    if (joined[i]) d.reason = FilterReason::kCluster;
+    out.filter.excluded[i] = d.reason != FilterReason::kKept;
+    out.filter.weight[i] = WeightFromScore(d.score, options_.scoring);
+    ++out.reason_counts[static_cast<int>(d.reason)];
+    if (out.filter.excluded[i]) ++out.num_excluded;
+    if (IsMovingReason(d.reason)) ++out.num_moving;
+  }
+  out.timing.scoring_ms = MsSince(stage);
+
+  // 6. State for the next frame.
+  voting_.Prune(frame);
+  if (out.motion_source != MotionSource::kNone) {
+    last_motion_ = out.cur_from_prev;
+  } else {
+    last_motion_.reset();
+  }
+  has_previous_ = true;
+  previous_frame_ = frame;
+  previous_t_ns_ = input.t_ns;
+  previous_size_ = image.size();
+  previous_pyramid_ = std::move(cur_pyramid);
+  previous_uv_ = std::move(cur_uv);
+  previous_track_ids_ = std::move(track_ids);
+  previous_states_ = std::move(states);
+  out.timing.total_ms = MsSince(start);
+  return out;
+}
+
+}  // namespace pcr

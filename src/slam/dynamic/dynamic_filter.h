@@ -1,0 +1,196 @@
+#pragma once
+// The dynamic-point filter: per left keypoint of a stereo frame, a static-confidence score
+// (paper Eq. 2: mask, ego-motion-compensated motion, ground, border/sky terms), exclusion of the
+// keypoints on moving objects and of unreliable ones, and a weight in (0, 1] for the optimiser
+// of the rest, each with the reason of its decision.
+//
+// Stages of Process(), in order (each timed):
+//   1. mask:    samples the segmentation (optional) at the keypoints: S_mask = 1 - dynamic
+//               confidence, instance id; drops the mask where the stereo depth shows background
+//               or an occluder rather than the instance (MaskDepthOptions);
+//   2. flow:    positions of the keypoints in the previous left image: the caller's matched
+//               positions, or pyramidal LK from the current keypoints back into the previous image
+//               (kept from the last call), searched from zero flow and, for keypoints with depth,
+//               from the static prediction under the prior (else the last frame's motion), with a
+//               forward-backward check; a tracked keypoint continues the previous keypoint
+//               nearest to where LK found it (its track id and temporal state);
+//   3. pose:    the previous->current camera motion: PnP RANSAC on the tracked stereo points
+//               outside dynamic masks, or the caller's prior (e.g. the motion model), by
+//               DynamicFilterOptions::motion_source (FilterOutput::motion_source says which);
+//   4. ground:  RANSAC ground plane from the stereo points and its horizon;
+//   5. scoring: per-point motion test, temporal window and vote (per map point when the input
+//               carries ids, else carried along LK tracks),
+//               instance-level motion (parked-car protection), Eq. 2 score, decision, cluster
+//               filtering, weights.
+// Without segmentation (nullptr) the geometric and temporal stages run alone.
+//
+// Threading: thread-compatible (one caller at a time, frames in increasing frame_index); the
+// object keeps the previous image's LK pyramid, keypoints, track ids, the last ground plane and
+// the per-track temporal state. Pure: no threads, no I/O.
+#include <array>
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "slam/common/camera.h"
+#include "slam/common/pose.h"
+#include "slam/dynamic/ground_score.h"
+#include "slam/dynamic/motion_score.h"
+#include "slam/dynamic/point_scorer.h"
+#include "slam/dynamic/segmenter.h"
+#include "slam/dynamic/sky_edge.h"
+#include "slam/dynamic/temporal_voting.h"
+
+namespace pcr {
+
+// Where the previous->current camera motion comes from.
+enum class MotionSourcePolicy : uint8_t {
+  // PnP on this frame's tracks (seeded by the prior when given); the prior when PnP fails or
+  // lands further from it than max_prior_deviation_*. The default: a motion-model prediction
+  // (what a filter running before tracking gets) is less accurate than PnP (measured on KITTI 06:
+  // 0.07-0.13 deg, 1.4-2 cm per frame).
+  kPnpElsePrior,
+  kPriorElsePnp,  // the caller's prior when given (e.g. the tracker's own result), else PnP
+  kPriorOnly,     // never PnP: without a prior the motion term is unavailable
+};
+enum class MotionSource : uint8_t { kNone, kPrior, kPnp };
+const char* MotionSourceName(MotionSource source);
+
+struct DynamicFilterOptions {
+  LkOptions lk;
+  EgoMotionOptions ego_motion;
+  MotionScoreOptions motion;
+  GroundOptions ground;
+  EdgeOptions edge;
+  SkyOptions sky;
+  TemporalVotingOptions voting;
+  ScoringOptions scoring;
+  InstanceMotionOptions instances;
+  ClusterOptions cluster;
+  MaskDepthOptions mask_depth;
+  DynamicClassPolicy classes;  // instances of these classes are dynamic-class instances
+  MotionSourcePolicy motion_source = MotionSourcePolicy::kPnpElsePrior;
+  double max_prior_deviation_m = 0.3;      // PnP further from the prior than this is rejected
+  double max_prior_deviation_rad = 0.035;  // (2 degrees)
+  bool use_lk = true;                      // LK when the input carries no matched positions
+  // Also start LK at the static prediction of keypoints with depth (under the prior, else the
+  // last frame's motion); see LkOptions::guess_*.
+  bool lk_predict_initial_flow = true;
+  double keypoint_sigma_px = 1.0;           // detection noise at level 0 (matched positions)
+  double lk_sigma_px = 0.5;                 // LK-tracked position noise
+  double track_match_radius_px = 3.0;       // LK position -> previous keypoint, for track state
+  float pnp_max_dynamic_confidence = 0.3f;  // PnP candidates lie outside stronger masks
+  double default_frame_dt_s = 0.1;          // when timestamps do not give one (KITTI: 10 Hz)
+  int max_plane_age_frames = 5;   // re-use the last ground plane this long when RANSAC fails
+  float stale_mask_scale = 0.5f;  // dynamic confidence factor of a stale segmentation
+  bool IsValid(std::string* why) const;
+};
+
+struct FilterInput {
+  int64_t frame_index = -1;  // increasing; -1: counted internally
+  int64_t t_ns = 0;
+  cv::Mat left_image;           // CV_8UC1, the rectified left image of this frame
+  cv::Mat previous_left_image;  // optional CV_8UC1; empty: the image of the last Process call
+  std::span<const cv::KeyPoint> keypoints;  // left keypoints, level-0 pixels, octave set
+  std::span<const float> depth_m;           // per keypoint stereo depth, <= 0: none; empty: none
+  std::span<const int64_t> point_ids;       // per keypoint map-point id or -1; empty: none
+  // Optional per keypoint position in the previous left image (x < 0: unknown), e.g. from
+  // descriptor matching; empty: LK tracking (DynamicFilterOptions::use_lk).
+  std::span<const cv::Point2f> previous_uv_px;
+  StereoRig rig;
+  const Segmentation* segmentation = nullptr;  // not owned; nullptr: no segmentation
+  std::optional<SE3> cur_from_prev;            // motion prior (previous -> current camera)
+  double scale_factor = 1.2;                   // pyramid scale between octaves
+};
+
+struct KeypointDiagnostics {
+  float s_mask = 1.0f;
+  float m_motion = 0.5f;  // the M term used (gated by observability), 0.5 when unavailable
+  float g_ground = 1.0f;
+  float e_edge = 1.0f;
+  float score = 1.0f;
+  float frame_static_prob = -1.0f;  // this frame's motion test, -1: none
+  float observability = 0.0f;
+  float residual_px = -1.0f;
+  float chi2 = -1.0f;
+  float vote_log_odds = 0.0f;
+  int64_t track_id = -1;  // LK track (-1: none); keypoints continuing one track share its id
+  uint16_t instance = 0;  // segmentation instance id (0: none)
+  MotionTest test = MotionTest::kNone;
+  bool has_motion = false;
+  bool mask_depth_outlier = false;  // inside a mask, but not at the instance's depth: mask ignored
+  bool ground = false;
+  bool sky = false;
+  FilterReason reason = FilterReason::kKept;
+};
+
+struct FilterTimings {
+  double mask_ms = 0.0;
+  double flow_ms = 0.0;
+  double pose_ms = 0.0;
+  double ransac_ms = 0.0;
+  double scoring_ms = 0.0;
+  double total_ms = 0.0;
+};
+
+// Per left keypoint, the same two vectors as KeypointFilter (slam/map/frame.h), which this module
+// does not depend on: move them across.
+struct FilterWeights {
+  std::vector<float> weight;      // in (0, 1]; meaningless for excluded keypoints
+  std::vector<uint8_t> excluded;  // non-zero: keep out of pose estimation and the map
+};
+
+struct FilterOutput {
+  int64_t frame_index = -1;
+  int64_t t_ns = 0;
+  FilterWeights filter;
+  std::vector<KeypointDiagnostics> points;
+  GroundEstimate ground;              // this frame's RANSAC
+  std::optional<Plane> ground_plane;  // used for scoring (this frame's or a recent one)
+  bool ground_from_previous = false;
+  HorizonLine horizon;  // from ground_plane, else from the prior plane
+  MotionSource motion_source = MotionSource::kNone;
+  SE3 cur_from_prev = SE3::Identity();  // used when motion_source != kNone
+  int pnp_candidates = 0;
+  int pnp_inliers = 0;
+  std::string motion_note;  // why PnP failed or was rejected, when it was
+  int num_tracked = 0;      // keypoints with a previous-image position
+  int num_continued = 0;    // keypoints continuing an LK track of the previous frame
+  std::array<int, kNumFilterReasons> reason_counts{};
+  int num_excluded = 0;
+  int num_moving = 0;  // excluded for IsMovingReason reasons
+  FilterTimings timing;
+};
+
+class DynamicFilter {
+ public:
+  explicit DynamicFilter(const DynamicFilterOptions& options = {});  // ConfigError if invalid
+
+  // Throws std::invalid_argument on inconsistent input (sizes, image types, segmentation map
+  // sizes, a frame_index that does not increase).
+  FilterOutput Process(const FilterInput& input);
+  // Forgets the previous frame and all temporal state (a new sequence).
+  void Reset();
+  const DynamicFilterOptions& options() const { return options_; }
+
+ private:
+  DynamicFilterOptions options_;
+  TemporalVoting voting_;
+  bool has_previous_ = false;
+  int64_t previous_frame_ = -1;
+  int64_t previous_t_ns_ = 0;
+  cv::Size previous_size_;
+  std::vector<cv::Mat> previous_pyramid_;
+  std::vector<cv::Point2f> previous_uv_;
+  std::vector<int64_t> previous_track_ids_;
+  std::vector<TrackState> previous_states_;  // temporal state per previous keypoint
+  int64_t next_track_id_ = 0;
+  std::optional<SE3> last_motion_;  // cur_from_prev of the last frame, when it had one
+  std::optional<Plane> last_plane_;
+  int64_t last_plane_frame_ = -1;
+};
+
+}  // namespace pcr

@@ -1,0 +1,175 @@
+#pragma once
+// The per-keypoint static-confidence score (paper Eq. 2) and the decisions built on it:
+//   score = w1 S_mask + w2 M_motion + w3 G_ground + w4 E_edge,  every term in [0, 1], 1 = static,
+// renormalised over the available terms when there is no motion observation (so an unobserved
+// point is neither punished nor confirmed by the motion term). A keypoint is excluded when its
+// score is below a threshold, or outright at the image border or in the sky; the decision
+// carries the reason. Instance-level motion summaries give the reverse protection (a dynamic-class
+// instance whose observed points show no motion confirms its unobserved points as static: a
+// parked car) and cluster filtering extends motion-based exclusions to the rest of an instance,
+// or of a 3-D neighbourhood, when most of it is excluded.
+//
+// Default weights put the motion term first: with S_mask = 0 (dynamic-class mask) a point is kept
+// only with confirmed static motion (M >= 0.7), and without any mask a point is excluded only on
+// clear motion evidence (M < 0.3). Pure functions; thread-compatible.
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "slam/common/camera.h"
+
+namespace pcr {
+
+enum class FilterReason : uint8_t {
+  kKept = 0,
+  kMaskMotion,  // low score with dynamic-class mask and motion evidence
+  kMotion,      // low score on motion evidence alone (no mask)
+  kMask,        // low score with a dynamic-class mask and no confirmation of static motion
+  kLowScore,    // low score otherwise (e.g. ground plus border)
+  kGround,      // ground point with GroundOptions::remove_ground
+  kSky,
+  kEdge,     // within the outermost border pixels
+  kVote,     // temporal vote for motion (kept by this frame's score)
+  kCluster,  // same instance / 3-D cluster as a majority of motion-excluded points
+};
+inline constexpr int kNumFilterReasons = 10;
+
+const char* FilterReasonName(FilterReason reason);
+// Reasons that mean "on a moving object": kMaskMotion, kMotion, kVote, kCluster.
+bool IsMovingReason(FilterReason reason);
+
+struct ScoreWeights {
+  double mask = 0.2;                     // w1 S_mask
+  double motion = 0.5;                   // w2 M_motion
+  double ground = 0.15;                  // w3 G_ground
+  double edge = 0.15;                    // w4 E_edge
+  bool IsValid(std::string* why) const;  // non-negative, sum 1
+};
+
+struct ScoringOptions {
+  ScoreWeights weights;
+  double exclude_below = 0.65;         // scores below this exclude the keypoint
+  float min_weight = 0.05f;            // optimiser weight = max(score, min_weight)
+  double motion_evidence_below = 0.5;  // M_motion below: the reason names motion
+  double mask_evidence_below = 0.5;    // S_mask below: the reason names the mask
+  bool IsValid(std::string* why) const;
+};
+
+struct PointTerms {
+  double s_mask = 1.0;      // 1 - dynamic confidence at the keypoint
+  double m_motion = 0.5;    // static probability, gated by observability
+  bool has_motion = false;  // m_motion comes from an observation (this frame or the window)
+  double g_ground = 1.0;
+  double e_edge = 1.0;     // 0 for sky points
+  bool hard_edge = false;  // within EdgeOptions::exclude_within_px
+  bool sky = false;
+  bool ground = false;
+};
+
+// Eq. 2, renormalised over the terms present (the motion term only when has_motion).
+double StaticScore(const PointTerms& terms, const ScoreWeights& weights);
+// The decision for one keypoint from its terms and score (remove_ground: GroundOptions').
+FilterReason DecidePoint(const PointTerms& terms, double score, const ScoringOptions& options,
+                         bool remove_ground);
+// Weight for the optimiser, in (0, 1].
+float WeightFromScore(double score, const ScoringOptions& options);
+
+struct InstanceMotionOptions {
+  int min_evidence = 4;                     // observed points needed for a verdict
+  double moving_below = 0.5;                // a point's static probability below: moving
+  double static_max_moving_fraction = 0.2;  // static: at most this fraction moving ...
+  double static_min_observability = 0.5;    // ... and median observability at least this
+  double moving_min_fraction = 0.5;         // moving: at least this fraction moving
+  bool IsValid(std::string* why) const;
+};
+
+enum class InstanceState : uint8_t { kUnknown, kStatic, kMoving };
+
+struct InstanceMotion {
+  int num_points = 0;
+  int num_observed = 0;
+  int num_moving = 0;
+  double median_static_prob = 0.5;
+  double median_observability = 0.0;
+  InstanceState state = InstanceState::kUnknown;
+};
+
+// One summary per instance id 1..num_instances (index 0 unused). instance[i]: the keypoint's
+// instance id (0 = none); observed[i] != 0 when static_prob[i] / observability[i] come from an
+// observation. All spans of one size, else std::invalid_argument.
+std::vector<InstanceMotion> SummarizeInstances(std::span<const uint16_t> instance,
+                                               int num_instances, std::span<const uint8_t> observed,
+                                               std::span<const float> static_prob,
+                                               std::span<const float> observability,
+                                               const InstanceMotionOptions& options);
+
+// Mask depth consistency: a keypoint inside a dynamic-class mask, or in the dilated margin around
+// one, whose stereo depth is far (either way) from that instance's median depth is background
+// seen through the mask or an occluder in front of it: its mask does not apply.
+struct MaskDepthOptions {
+  bool enabled = true;
+  double gate_rel = 0.3;  // consistent within max(gate_min_m, gate_rel * median depth)
+  double gate_min_m = 3.0;
+  int min_points = 5;                  // instance points with depth needed for a median
+  double box_margin_px = 15.0;         // margin points: within the instance box grown by this ...
+  float margin_min_confidence = 0.2f;  // ... and at least this dynamic confidence
+  bool IsValid(std::string* why) const;
+};
+
+struct MaskMembership {
+  std::vector<uint16_t> instance;      // per keypoint: dynamic-class instance id, 0: none
+  std::vector<uint8_t> depth_outlier;  // per keypoint: the mask does not apply (depth)
+};
+
+// Instance membership of the keypoints under MaskDepthOptions. instance[i]: the dynamic-class
+// instance under the keypoint (0: none); confidence[i]: the sampled dynamic confidence (high in
+// the dilated margin too); boxes[k - 1]: box of instance k (an empty box for instances that are not
+// of a dynamic class). A keypoint on an instance whose depth is inconsistent with it becomes an
+// outlier (instance 0); a margin keypoint (confidence >= margin_min_confidence, no instance) joins
+// the instance whose grown box holds it and whose depth it matches (the nearest median depth), or
+// the first such box when it has no depth, and is an outlier when it has a depth that matches none
+// of them. Spans of one size (boxes aside), else std::invalid_argument.
+MaskMembership ResolveMaskMembership(std::span<const cv::Point2f> uv_px,
+                                     std::span<const float> depth_m,
+                                     std::span<const uint16_t> instance,
+                                     std::span<const float> confidence,
+                                     std::span<const cv::Rect2f> boxes,
+                                     const MaskDepthOptions& options);
+
+struct ClusterOptions {
+  bool use_instances = true;   // segmentation instances as clusters
+  bool use_spatial = true;     // 3-D neighbourhoods of stereo points
+  double majority = 0.5;       // excluded fraction (strictly above) that takes the cluster
+  double weak_majority = 0.3;  // ... for a candidate with weak motion evidence of its own
+  int min_excluded = 3;        // and at least this many excluded points
+  // Instance clusters: a candidate joins only at a depth within max(depth_gate_min_m,
+  // depth_gate_rel * z) of the excluded points' median (background seen through a mask stays).
+  double depth_gate_rel = 0.2;
+  double depth_gate_min_m = 1.5;
+  // Spatial clusters: neighbours within spatial_radius_m + spatial_radius_rel * z in 3-D (image
+  // search radius capped at max_image_radius_px), at least spatial_min_neighbours of them.
+  double spatial_radius_m = 1.0;
+  double spatial_radius_rel = 0.05;
+  double max_image_radius_px = 60.0;
+  int spatial_min_neighbours = 4;
+  // Used by DynamicFilter: a point whose own (gated) static probability reaches this is not
+  // taken by a cluster (its own evidence beats its neighbours').
+  double protect_static_above = 0.8;
+  bool IsValid(std::string* why) const;
+};
+
+// Cluster filtering (paper Alg. 3, ClusterFiltering): flags (non-zero) of the candidates that
+// join the exclusion. seeds: points excluded on motion evidence; candidates: points that may
+// join. weak (may be empty): candidates with weak motion evidence of their own (static
+// probability below 0.5 but not low enough to exclude them alone), which join at weak_majority.
+// instance may be empty (no segmentation). depth_m <= 0: no depth. All non-empty spans of one
+// size, else std::invalid_argument.
+std::vector<uint8_t> ClusterExclusions(
+    const PinholeCamera& camera, std::span<const cv::Point2f> uv_px, std::span<const float> depth_m,
+    std::span<const uint16_t> instance, std::span<const uint8_t> seeds,
+    std::span<const uint8_t> candidates, const ClusterOptions& options,
+    std::span<const uint8_t> weak = {});
+
+}  // namespace pcr

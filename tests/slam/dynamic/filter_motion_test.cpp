@@ -1,0 +1,349 @@
+// Motion stage: the ego-motion-compensated test per point (depth, epipolar, rotation-only), its
+// noise model (Monte Carlo calibration), observability, PnP RANSAC ego-motion and LK tracking.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "filter_test_scene.h"
+#include "slam/common/error.h"
+#include "slam/dynamic/motion_score.h"
+#include "slam/geometry/se3.h"
+
+namespace pcr {
+namespace {
+
+const PinholeCamera& Camera() {
+  static const PinholeCamera camera = test::KittiRig().left;
+  return camera;
+}
+double Bf() { return test::KittiRig().Bf(); }
+
+// The camera moves 1 m forward: p_in_cur = p_in_prev - (0, 0, 1).
+SE3 ForwardOneMetre() {
+  SE3 cur_from_prev = SE3::Identity();
+  cur_from_prev.translation() = Eigen::Vector3d(0.0, 0.0, -1.0);
+  return cur_from_prev;
+}
+
+Eigen::Vector2d Px(const Eigen::Vector3d& p) { return Camera().Project(p); }
+
+PointMotion Score(const Eigen::Vector3d& p_cur, double depth_m, const Eigen::Vector2d& prev_uv,
+                  const SE3& cur_from_prev, const PointNoise& noise = {}) {
+  return ScorePointMotion(Camera(), Bf(), Px(p_cur), depth_m, prev_uv, cur_from_prev.inverse(),
+                          PoseSigma{0.001, 0.01}, noise, 0.5, Eigen::Vector3d::UnitZ(),
+                          MotionScoreOptions{});
+}
+
+TEST(FilterMotion, RawFlowIsNotMotion) {
+  const SE3 cur_from_prev = ForwardOneMetre();
+  const SE3 prev_from_cur = cur_from_prev.inverse();
+  // A static point 3 m ahead, low and to the right: it flows over 100 px.
+  const Eigen::Vector3d near_cur(2.0, 1.2, 3.0);
+  const Eigen::Vector2d near_prev_uv = Px(prev_from_cur * near_cur);
+  const double near_flow = (Px(near_cur) - near_prev_uv).norm();
+  EXPECT_GT(near_flow, 100.0);
+  const PointMotion near = Score(near_cur, near_cur.z(), near_prev_uv, cur_from_prev);
+  EXPECT_EQ(near.test, MotionTest::kDepth);
+  EXPECT_GT(near.static_prob, 0.95);
+  EXPECT_LT(near.residual_px, 1e-6);
+
+  // A far point that moved 0.5 m sideways: it flows about 12 px, but not as a static point would.
+  const Eigen::Vector3d far_cur(0.5, -1.0, 30.0);
+  const Eigen::Vector3d far_prev_true = prev_from_cur * (far_cur - Eigen::Vector3d(0.5, 0, 0));
+  const Eigen::Vector2d far_prev_uv = Px(far_prev_true);
+  const double far_flow = (Px(far_cur) - far_prev_uv).norm();
+  EXPECT_LT(far_flow, near_flow / 5.0);
+  const PointMotion far = Score(far_cur, far_cur.z(), far_prev_uv, cur_from_prev);
+  EXPECT_LT(far.static_prob, 0.05);
+  EXPECT_NEAR(far.residual_px, 718.856 * 0.5 / 31.0, 0.5);
+}
+
+TEST(FilterMotion, NoiseModelIsCalibratedOnStaticPoints) {
+  // Static points with noise drawn from the model the test assumes: the squared Mahalanobis
+  // distance must average 2 (2 dof) and the static probability fall below 0.5 rarely.
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const PoseSigma pose{0.002, 0.03};
+  PointNoise noise;
+  noise.cur_sigma_px = 1.0;
+  noise.prev_sigma_px = 1.0;
+  noise.disparity_sigma_px = 0.5;
+  MotionScoreOptions options;
+  double sum_chi2 = 0.0;
+  int flagged = 0;
+  const int trials = 4000;
+  for (int t = 0; t < trials; ++t) {
+    const Eigen::Vector3d p_cur(u(rng) * 16 - 8, u(rng) * 3 - 1.5, 3.0 + u(rng) * 40.0);
+    const SE3 cur_from_prev = ForwardOneMetre();
+    // True previous position under a perturbed (true) motion; the filter sees the nominal one.
+    Vector6d twist;
+    twist << pose.translation_m * g(rng), pose.translation_m * g(rng), pose.translation_m * g(rng),
+        pose.rotation_rad * g(rng), pose.rotation_rad * g(rng), pose.rotation_rad * g(rng);
+    const SE3 prev_from_cur_true = ExpSE3(twist) * cur_from_prev.inverse();
+    Eigen::Vector2d prev_uv = Px(prev_from_cur_true * p_cur);
+    prev_uv += noise.prev_sigma_px * Eigen::Vector2d(g(rng), g(rng));
+    const Eigen::Vector2d cur_uv = Px(p_cur) + noise.cur_sigma_px * Eigen::Vector2d(g(rng), g(rng));
+    const double disparity = Bf() / p_cur.z() + noise.disparity_sigma_px * g(rng);
+    const double depth = Bf() / disparity;
+    const PointMotion m =
+        ScorePointMotion(Camera(), Bf(), cur_uv, depth, prev_uv, cur_from_prev.inverse(), pose,
+                         noise, 0.5, Eigen::Vector3d::UnitZ(), options);
+    ASSERT_EQ(m.test, MotionTest::kDepth);
+    sum_chi2 += m.chi2;
+    flagged += m.static_prob < 0.5 ? 1 : 0;
+  }
+  const double mean_chi2 = sum_chi2 / trials;
+  EXPECT_GT(mean_chi2, 1.6);
+  EXPECT_LT(mean_chi2, 2.5);
+  EXPECT_LT(flagged, 0.03 * trials);
+}
+
+TEST(FilterMotion, EpipolarTestWithoutDepth) {
+  const SE3 cur_from_prev = ForwardOneMetre();
+  const SE3 prev_from_cur = cur_from_prev.inverse();
+  const Eigen::Vector3d p_cur(-3.0, -0.5, 12.0);
+  const Eigen::Vector2d prev_static = Px(prev_from_cur * p_cur);
+  const PointMotion still = Score(p_cur, -1.0, prev_static, cur_from_prev);
+  EXPECT_EQ(still.test, MotionTest::kEpipolar);
+  EXPECT_GT(still.static_prob, 0.9);
+  EXPECT_EQ(still.observability, 0.0);
+  EXPECT_EQ(GateByObservability(still.static_prob, still.observability), 0.5);
+
+  // Off the epipolar line (it runs through the focus of expansion, the principal point): flagged.
+  const Eigen::Vector2d radial =
+      (Px(p_cur) - Eigen::Vector2d(Camera().cx, Camera().cy)).normalized();
+  const Eigen::Vector2d across(-radial.y(), radial.x());
+  const PointMotion off = Score(p_cur, -1.0, prev_static + 8.0 * across, cur_from_prev);
+  EXPECT_LT(off.static_prob, 0.05);
+  EXPECT_NEAR(off.residual_px, 8.0 / std::sqrt(2.0), 1.5);  // Sampson splits it over both views
+  // Along the line: invisible without depth (it is the depth ambiguity itself).
+  const PointMotion along = Score(p_cur, -1.0, prev_static + 8.0 * radial, cur_from_prev);
+  EXPECT_GT(along.static_prob, 0.9);
+  // With depth the same displacement is seen.
+  const PointMotion along_depth =
+      Score(p_cur, p_cur.z(), prev_static + 8.0 * radial, cur_from_prev);
+  EXPECT_LT(along_depth.static_prob, 0.1);
+}
+
+TEST(FilterMotion, RotationOnlyMotionUsesTheInfiniteHomography) {
+  SE3 cur_from_prev = SE3::Identity();
+  cur_from_prev.linear() = ExpSO3(Eigen::Vector3d(0.0, DegToRad(2.0), 0.0));
+  const Eigen::Vector3d p_cur(1.0, 0.5, 20.0);
+  const Eigen::Vector2d prev_uv = Px(cur_from_prev.inverse() * p_cur);
+  EXPECT_GT((prev_uv - Px(p_cur)).norm(), 20.0);  // the rotation alone moves it 25 px
+  const PointMotion still = Score(p_cur, -1.0, prev_uv, cur_from_prev);
+  EXPECT_EQ(still.test, MotionTest::kRotation);
+  EXPECT_GT(still.static_prob, 0.95);
+  const PointMotion moved = Score(p_cur, -1.0, prev_uv + Eigen::Vector2d(0.0, 15.0), cur_from_prev);
+  EXPECT_LT(moved.static_prob, 0.05);
+}
+
+TEST(FilterMotion, ObservabilityOfMotionAlongTheTravelDirection) {
+  const SE3 cur_from_prev = ForwardOneMetre();
+  const SE3 prev_from_cur = cur_from_prev.inverse();
+  // Far ahead, near the image centre: a car driving along the road there is invisible.
+  const Eigen::Vector3d ahead(0.3, 0.5, 40.0);
+  const PointMotion far = Score(ahead, ahead.z(), Px(prev_from_cur * ahead), cur_from_prev);
+  EXPECT_LT(far.observability, 0.2);
+  // Near and to the side: such a motion shifts it by many sigmas.
+  const Eigen::Vector3d side(4.0, 0.5, 10.0);
+  const PointMotion near = Score(side, side.z(), Px(prev_from_cur * side), cur_from_prev);
+  EXPECT_EQ(near.observability, 1.0);
+  EXPECT_EQ(GateByObservability(near.static_prob, near.observability), near.static_prob);
+  // Motion evidence is never weakened by the gate.
+  EXPECT_EQ(GateByObservability(0.1, 0.0), 0.1);
+}
+
+TEST(FilterMotion, StaticProbabilityIsAMonotoneLogistic) {
+  MotionScoreOptions options;
+  EXPECT_NEAR(StaticProbabilityFromChi2(options.chi2_mid_2dof, 2, options), 0.5, 1e-12);
+  EXPECT_NEAR(StaticProbabilityFromChi2(options.chi2_mid_1dof, 1, options), 0.5, 1e-12);
+  double last = 1.0;
+  for (double chi2 = 0.0; chi2 < 40.0; chi2 += 0.5) {
+    const double p = StaticProbabilityFromChi2(chi2, 2, options);
+    EXPECT_LE(p, last);
+    last = p;
+  }
+  EXPECT_GT(StaticProbabilityFromChi2(0.0, 2, options), 0.98);
+  EXPECT_LT(StaticProbabilityFromChi2(25.0, 2, options), 0.001);
+  EXPECT_EQ(StaticProbabilityFromChi2(1e6, 2, options), 0.0);
+}
+
+TEST(FilterMotion, PnpRansacRecoversTheCameraMotionDespiteMovingPoints) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> g(0.0, 0.3);
+  SE3 cur_from_prev = SE3::Identity();
+  cur_from_prev.linear() = ExpSO3(Eigen::Vector3d(0.01, -0.02, 0.005));
+  cur_from_prev.translation() = Eigen::Vector3d(0.05, -0.02, -1.1);
+  const SE3 prev_from_cur = cur_from_prev.inverse();
+  std::vector<cv::Point2f> cur_uv, prev_uv;
+  std::vector<float> depth;
+  std::vector<uint8_t> usable;
+  std::vector<bool> outlier;
+  for (int i = 0; i < 400; ++i) {
+    const Eigen::Vector3d p(u(rng) * 20 - 10, u(rng) * 4 - 2.5, 4.0 + u(rng) * 30.0);
+    Eigen::Vector2d prev = Px(prev_from_cur * p);
+    const bool moving = i % 10 < 3;  // 30% on moving objects
+    if (moving) prev += Eigen::Vector2d(15.0 + 20.0 * u(rng), 5.0 * u(rng));
+    const Eigen::Vector2d cur = Px(p);
+    cur_uv.emplace_back(static_cast<float>(cur.x() + g(rng)), static_cast<float>(cur.y() + g(rng)));
+    prev_uv.emplace_back(static_cast<float>(prev.x() + g(rng)),
+                         static_cast<float>(prev.y() + g(rng)));
+    depth.push_back(static_cast<float>(p.z()));
+    usable.push_back(1);
+    outlier.push_back(moving);
+  }
+  const EgoMotionEstimate est =
+      EstimateCurFromPrev(Camera(), cur_uv, depth, prev_uv, usable, nullptr, EgoMotionOptions{});
+  ASSERT_TRUE(est.success) << est.failure_reason;
+  const SE3 error = cur_from_prev.inverse() * est.cur_from_prev;
+  EXPECT_LT(RadToDeg(RotationAngleRad(error.linear())), 0.03);
+  EXPECT_LT(error.translation().norm(), 0.01);
+  int wrong = 0;
+  for (size_t i = 0; i < outlier.size(); ++i) wrong += (est.inliers[i] != 0) == outlier[i] ? 1 : 0;
+  EXPECT_LE(wrong, 4);
+  EXPECT_EQ(est.num_candidates, 400);
+
+  // Too few usable points: a failure value, not an exception.
+  std::fill(usable.begin() + 10, usable.end(), 0);
+  const EgoMotionEstimate few =
+      EstimateCurFromPrev(Camera(), cur_uv, depth, prev_uv, usable, nullptr, EgoMotionOptions{});
+  EXPECT_FALSE(few.success);
+  EXPECT_FALSE(few.failure_reason.empty());
+  // Mismatched sizes: an error.
+  depth.pop_back();
+  EXPECT_THROW(
+      EstimateCurFromPrev(Camera(), cur_uv, depth, prev_uv, usable, nullptr, EgoMotionOptions{}),
+      std::invalid_argument);
+}
+
+TEST(FilterMotion, LucasKanadeTracksAShiftedTextureAndRejectsChangedPatches) {
+  cv::Mat prev(376, 1241, CV_8U);
+  cv::RNG rng(11);
+  rng.fill(prev, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(prev, prev, cv::Size(0, 0), 2.0);
+  cv::normalize(prev, prev, 0, 255, cv::NORM_MINMAX);
+  // The current image is the previous one shifted by (7.3, -2.6) px: cur(x) = prev(x - shift).
+  const cv::Point2f shift(7.3f, -2.6f);
+  cv::Mat cur;
+  const cv::Matx23d warp(1, 0, shift.x, 0, 1, shift.y);
+  cv::warpAffine(prev, cur, warp, prev.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+  // A patch of the current image replaced by new texture (something moved in).
+  const cv::Rect changed(800, 100, 120, 120);
+  cv::Mat fresh(changed.size(), CV_8U);
+  rng.fill(fresh, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(fresh, fresh, cv::Size(0, 0), 2.0);
+  cv::normalize(fresh, fresh, 0, 255, cv::NORM_MINMAX);
+  fresh.copyTo(cur(changed));
+
+  std::vector<cv::Point2f> pts;
+  for (int v = 40; v < 336; v += 24) {
+    for (int u = 40; u < 1200; u += 24) pts.emplace_back(u + 0.25f, v + 0.5f);
+  }
+  const LkOptions options;
+  const FlowTracks tracks =
+      TrackIntoPrevious(BuildLkPyramid(prev, options), BuildLkPyramid(cur, options), pts, options);
+  int inside_changed = 0, valid_changed = 0, outside = 0, valid_outside = 0;
+  std::vector<double> errors;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const cv::Rect core(changed.x + 15, changed.y + 15, changed.width - 30, changed.height - 30);
+    if (core.contains(pts[i])) {
+      ++inside_changed;
+      valid_changed += tracks.valid[i];
+      continue;
+    }
+    if ((cv::Rect(changed.x - 15, changed.y - 15, changed.width + 30, changed.height + 30))
+            .contains(pts[i])) {
+      continue;  // windows straddling the border of the patch
+    }
+    ++outside;
+    if (!tracks.valid[i]) continue;
+    ++valid_outside;
+    errors.push_back(cv::norm(tracks.prev_uv_px[i] - (pts[i] - shift)));
+  }
+  EXPECT_GE(valid_outside, 0.97 * outside);
+  std::sort(errors.begin(), errors.end());
+  ASSERT_FALSE(errors.empty());
+  // (The cubic warp that made the current image contributes a few hundredths of a pixel.)
+  EXPECT_LT(errors[errors.size() / 2], 0.1);
+  EXPECT_LT(errors[errors.size() * 95 / 100], 0.25);
+  EXPECT_GT(inside_changed, 10);
+  EXPECT_LE(valid_changed, 0.2 * inside_changed);
+  EXPECT_EQ(tracks.num_valid,
+            static_cast<int>(std::count(tracks.valid.begin(), tracks.valid.end(), 1)));
+}
+
+TEST(FilterMotion, LucasKanadeGuessDoesNotBiasInformativeMatchesAndEdgesAreNotTracked) {
+  const LkOptions options;
+  // Textured image moved by (6, 2) px: from a guess 6 px off, LK still finds the true match, and
+  // the guess search does not pull it anywhere else.
+  cv::Mat prev(200, 400, CV_8U);
+  cv::RNG rng(5);
+  rng.fill(prev, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(prev, prev, cv::Size(0, 0), 1.5);
+  cv::normalize(prev, prev, 0, 255, cv::NORM_MINMAX);
+  cv::Mat cur;
+  cv::warpAffine(prev, cur, cv::Matx23d(1, 0, 6, 0, 1, 2), prev.size(), cv::INTER_LINEAR,
+                 cv::BORDER_REFLECT);
+  std::vector<cv::Point2f> pts, guess, bad_guess;
+  for (int v = 50; v <= 150; v += 25) {
+    for (int u = 80; u <= 320; u += 40) {
+      pts.emplace_back(static_cast<float>(u), static_cast<float>(v));
+      guess.push_back(pts.back());           // "static": no motion expected
+      bad_guess.emplace_back(-1.0f, -1.0f);  // no guess for these
+    }
+  }
+  const auto prev_pyr = BuildLkPyramid(prev, options), cur_pyr = BuildLkPyramid(cur, options);
+  const FlowTracks with_guess = TrackIntoPrevious(prev_pyr, cur_pyr, pts, options, guess);
+  const FlowTracks no_guess = TrackIntoPrevious(prev_pyr, cur_pyr, pts, options, bad_guess);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const cv::Point2f truth = pts[i] - cv::Point2f(6, 2);
+    ASSERT_TRUE(with_guess.valid[i]);
+    ASSERT_TRUE(no_guess.valid[i]);
+    EXPECT_LT(cv::norm(with_guess.prev_uv_px[i] - truth), 0.2);
+    EXPECT_LT(cv::norm(no_guess.prev_uv_px[i] - truth), 0.2);
+    EXPECT_EQ(no_guess.from_guess[i], 0);
+  }
+
+  // A straight edge (no texture along it) is not tracked at all, from zero flow or from a
+  // guess: the aperture problem yields no observation rather than a false motion.
+  cv::Mat edge_prev(200, 400, CV_8U, cv::Scalar(60));
+  edge_prev(cv::Rect(200, 0, 200, 200)).setTo(200);
+  cv::GaussianBlur(edge_prev, edge_prev, cv::Size(0, 0), 1.0);
+  cv::Mat edge_cur;
+  cv::warpAffine(edge_prev, edge_cur, cv::Matx23d(1, 0, 5, 0, 1, 0), edge_prev.size(),
+                 cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  const std::vector<cv::Point2f> on_edge = {{205.0f, 100.0f}};
+  const auto ep = BuildLkPyramid(edge_prev, options), ec = BuildLkPyramid(edge_cur, options);
+  EXPECT_EQ(TrackIntoPrevious(ep, ec, on_edge, options).num_valid, 0);
+  EXPECT_EQ(TrackIntoPrevious(ep, ec, on_edge, options, {{200.0f, 103.0f}}).num_valid, 0);
+  EXPECT_THROW(TrackIntoPrevious(ep, ec, on_edge, options, guess), std::invalid_argument);
+}
+
+TEST(FilterMotion, InvalidOptionsAreRejected) {
+  std::string why;
+  LkOptions lk;
+  lk.window_px = 20;
+  EXPECT_FALSE(lk.IsValid(&why));
+  EXPECT_NE(why.find("window_px"), std::string::npos);
+  EgoMotionOptions ego;
+  ego.min_depth_m = 50.0;
+  EXPECT_FALSE(ego.IsValid(&why));
+  MotionScoreOptions motion;
+  motion.chi2_width = 0.0;
+  EXPECT_FALSE(motion.IsValid(&why));
+  EXPECT_TRUE(LkOptions{}.IsValid(&why));
+  EXPECT_TRUE(EgoMotionOptions{}.IsValid(&why));
+  EXPECT_TRUE(MotionScoreOptions{}.IsValid(&why));
+  const std::vector<cv::Mat> none;
+  EXPECT_THROW(TrackIntoPrevious(none, none, {}, lk), ConfigError);
+  EXPECT_THROW(BuildLkPyramid(cv::Mat(), LkOptions{}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace pcr

@@ -1,0 +1,330 @@
+// The whole DynamicFilter on the synthetic street (filter_test_scene.h): moving points out,
+// parked / static / near points in, ground plane and horizon, sky and border points, a frame
+// whose segmentation misses the moving box, the filter without segmentation, and with the
+// camera motion estimated by PnP instead of given.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <map>
+
+#include "filter_test_scene.h"
+#include "slam/dynamic/dynamic_filter.h"
+#include "slam/geometry/se3.h"
+
+namespace pcr {
+namespace {
+
+using test::PointKind;
+
+constexpr int kNumKinds = 7;
+
+struct KindStats {
+  std::array<int, kNumKinds> total{}, excluded{}, moving{};
+  double Excluded(PointKind k) const {
+    const int t = total[static_cast<int>(k)];
+    return t > 0 ? static_cast<double>(excluded[static_cast<int>(k)]) / t : -1.0;
+  }
+  double Kept(PointKind k) const { return 1.0 - Excluded(k); }
+  int Total(PointKind k) const { return total[static_cast<int>(k)]; }
+};
+
+struct RunOptions {
+  bool with_segmentation = true;
+  bool with_prior = true;
+  bool matched_positions = true;
+  SE3 prior_error = SE3::Identity();  // applied to the true motion: a rough motion model
+};
+
+struct RunResult {
+  std::vector<FilterOutput> outputs;
+  KindStats stats;  // frames >= 1
+};
+
+RunResult RunScene(const std::vector<test::FilterSceneFrame>& frames, const RunOptions& run,
+                   const DynamicFilterOptions& options = {}) {
+  // With a prior, these runs exercise the prior path (it is exact here); PnP is tested apart.
+  DynamicFilterOptions opts = options;
+  if (run.with_prior) opts.motion_source = MotionSourcePolicy::kPriorElsePnp;
+  DynamicFilter filter(opts);
+  RunResult result;
+  for (const test::FilterSceneFrame& f : frames) {
+    FilterInput in;
+    in.frame_index = f.index;
+    in.t_ns = f.index * 100'000'000LL;
+    in.left_image = f.image;
+    in.keypoints = f.keypoints;
+    in.depth_m = f.depth_m;
+    in.point_ids = f.ids;
+    if (run.matched_positions) in.previous_uv_px = f.prev_uv_px;
+    in.rig = test::KittiRig();
+    in.segmentation = run.with_segmentation ? &f.segmentation : nullptr;
+    if (run.with_prior && f.index > 0) in.cur_from_prev = run.prior_error * f.cur_from_prev;
+    FilterOutput out = filter.Process(in);
+    EXPECT_EQ(out.filter.weight.size(), f.keypoints.size());
+    EXPECT_EQ(out.filter.excluded.size(), f.keypoints.size());
+    for (size_t i = 0; i < f.keypoints.size(); ++i) {
+      EXPECT_GT(out.filter.weight[i], 0.0f);
+      EXPECT_LE(out.filter.weight[i], 1.0f);
+      if (f.index == 0) continue;
+      const int k = static_cast<int>(f.kinds[i]);
+      ++result.stats.total[k];
+      if (out.filter.excluded[i]) ++result.stats.excluded[k];
+      if (IsMovingReason(out.points[i].reason)) ++result.stats.moving[k];
+    }
+    result.outputs.push_back(std::move(out));
+  }
+  return result;
+}
+
+void ExpectGoodSeparation(const KindStats& s, const std::string& label) {
+  SCOPED_TRACE(label);
+  EXPECT_GT(s.Total(PointKind::kMoving), 200);
+  EXPECT_GE(s.Excluded(PointKind::kMoving), 0.95);
+  EXPECT_GE(s.Kept(PointKind::kParked), 0.95);
+  EXPECT_GE(s.Kept(PointKind::kStatic), 0.95);
+  EXPECT_GE(s.Kept(PointKind::kGround), 0.95);
+  EXPECT_GE(s.Kept(PointKind::kNearStatic), 0.95);
+  EXPECT_GT(s.Total(PointKind::kNearStatic), 40);
+  EXPECT_EQ(s.Excluded(PointKind::kSky), 1.0);
+  EXPECT_EQ(s.Excluded(PointKind::kBorder), 1.0);
+}
+
+TEST(FilterScene, SeparatesMovingFromParkedAndStaticWithMotionPrior) {
+  const auto frames = test::BuildFilterScene({});
+  const RunResult r = RunScene(frames, {});
+  ExpectGoodSeparation(r.stats, "prior + segmentation");
+  for (size_t k = 1; k < r.outputs.size(); ++k) {
+    const FilterOutput& out = r.outputs[k];
+    EXPECT_EQ(out.motion_source, MotionSource::kPrior);
+    // Every sky and border keypoint carries its reason; moving points their motion reasons.
+    for (size_t i = 0; i < frames[k].kinds.size(); ++i) {
+      const PointKind kind = frames[k].kinds[i];
+      const FilterReason reason = out.points[i].reason;
+      if (kind == PointKind::kSky) {
+        EXPECT_EQ(reason, FilterReason::kSky);
+      }
+      if (kind == PointKind::kBorder) {
+        EXPECT_EQ(reason, FilterReason::kEdge);
+      }
+      if (kind == PointKind::kMoving && out.filter.excluded[i]) {
+        EXPECT_TRUE(IsMovingReason(reason)) << FilterReasonName(reason);
+      }
+    }
+  }
+}
+
+TEST(FilterScene, NearStaticPointWithLargeFlowIsNotFlagged) {
+  const auto frames = test::BuildFilterScene({});
+  const RunResult r = RunScene(frames, {});
+  double max_flow_px = 0.0;
+  int checked = 0;
+  for (size_t k = 1; k < frames.size(); ++k) {
+    for (size_t i = 0; i < frames[k].kinds.size(); ++i) {
+      if (frames[k].kinds[i] != PointKind::kNearStatic || frames[k].prev_uv_px[i].x < 0) continue;
+      const double flow = cv::norm(frames[k].keypoints[i].pt - frames[k].prev_uv_px[i]);
+      max_flow_px = std::max(max_flow_px, flow);
+      EXPECT_FALSE(r.outputs[k].filter.excluded[i]) << "flow " << flow << " px";
+      EXPECT_GT(r.outputs[k].points[i].frame_static_prob, 0.5f);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 40);
+  // The pole flows far faster than the crossing box does (which is ~50 px per frame).
+  EXPECT_GT(max_flow_px, 100.0);
+}
+
+TEST(FilterScene, RecoversGroundPlaneAndHorizon) {
+  const auto frames = test::BuildFilterScene({});
+  const RunResult r = RunScene(frames, {});
+  for (size_t k = 0; k < r.outputs.size(); ++k) {
+    SCOPED_TRACE("frame " + std::to_string(k));
+    const FilterOutput& out = r.outputs[k];
+    ASSERT_TRUE(out.ground.success) << out.ground.failure_reason;
+    ASSERT_TRUE(out.ground_plane.has_value());
+    // The camera only yaws: the ground normal is (0, -1, 0) and the height 1.65 m in every frame.
+    EXPECT_LT(RadToDeg(AngleBetweenRad(out.ground_plane->normal, Eigen::Vector3d(0, -1, 0))), 1.0);
+    EXPECT_NEAR(out.ground_plane->d, 1.65, 0.03);
+    ASSERT_TRUE(out.horizon.valid);
+    EXPECT_FALSE(out.horizon.from_prior);
+    // Horizon of a level camera: the principal row, across the image.
+    const double cy = test::KittiRig().left.cy;
+    EXPECT_NEAR(out.horizon.RowAt(0.0), cy, 8.0);
+    EXPECT_NEAR(out.horizon.RowAt(1240.0), cy, 8.0);
+    // Ground points are down-weighted, not removed.
+    int ground = 0, marked = 0;
+    for (size_t i = 0; i < frames[k].kinds.size(); ++i) {
+      if (frames[k].kinds[i] != PointKind::kGround || frames[k].depth_m[i] <= 0) continue;
+      ++ground;
+      if (out.points[i].ground) {
+        ++marked;
+        EXPECT_FLOAT_EQ(out.points[i].g_ground, 0.7f);
+      }
+    }
+    EXPECT_GE(marked, 0.95 * ground);
+  }
+}
+
+TEST(FilterScene, MovingBoxStaysExcludedWhenItsMaskIsMissing) {
+  test::FilterSceneOptions scene;
+  scene.omit_moving_mask_frame = 3;
+  const auto frames = test::BuildFilterScene(scene);
+  const RunResult r = RunScene(frames, {});
+  ExpectGoodSeparation(r.stats, "mask missing in frame 3");
+  int moving = 0, excluded = 0;
+  for (size_t i = 0; i < frames[3].kinds.size(); ++i) {
+    if (frames[3].kinds[i] != PointKind::kMoving) continue;
+    EXPECT_EQ(r.outputs[3].points[i].s_mask, 1.0f);  // really no mask
+    ++moving;
+    excluded += r.outputs[3].filter.excluded[i] ? 1 : 0;
+  }
+  EXPECT_GT(moving, 40);
+  EXPECT_GE(excluded, 0.95 * moving);
+}
+
+TEST(FilterScene, TemporalVoteCarriesThroughAFrameWithoutMaskAndWithoutTracks) {
+  // Frame 3: no mask for the moving box and none of its previous positions: no evidence at all
+  // in that frame, only what the tracks remember.
+  test::FilterSceneOptions scene;
+  scene.omit_moving_mask_frame = 3;
+  scene.drop_moving_tracks_frame = 3;
+  const auto frames = test::BuildFilterScene(scene);
+  const RunResult r = RunScene(frames, {});
+  int moving = 0, excluded = 0, voted = 0;
+  for (size_t i = 0; i < frames[3].kinds.size(); ++i) {
+    if (frames[3].kinds[i] != PointKind::kMoving) continue;
+    const KeypointDiagnostics& d = r.outputs[3].points[i];
+    EXPECT_EQ(d.test, MotionTest::kNone);
+    ++moving;
+    excluded += r.outputs[3].filter.excluded[i] ? 1 : 0;
+    voted += d.vote_log_odds >= DynamicFilterOptions{}.voting.dynamic_threshold ? 1 : 0;
+  }
+  EXPECT_GT(moving, 40);
+  EXPECT_GE(excluded, 0.95 * moving);
+  EXPECT_GE(voted, 0.9 * moving);
+
+  // Without temporal memory (window 1, a vote that cannot reach its threshold) the same frame
+  // loses the moving box: the carry is what keeps it out.
+  DynamicFilterOptions forgetful;
+  forgetful.voting.window_frames = 1;
+  forgetful.voting.max_evidence = 0.1;
+  forgetful.voting.decay = 0.01;
+  const RunResult f = RunScene(frames, {}, forgetful);
+  int forgetful_excluded = 0;
+  for (size_t i = 0; i < frames[3].kinds.size(); ++i) {
+    if (frames[3].kinds[i] == PointKind::kMoving && f.outputs[3].filter.excluded[i]) {
+      ++forgetful_excluded;
+    }
+  }
+  EXPECT_LT(forgetful_excluded, 0.5 * moving);
+}
+
+TEST(FilterScene, WorksWithoutSegmentation) {
+  const auto frames = test::BuildFilterScene({});
+  RunOptions run;
+  run.with_segmentation = false;
+  const RunResult r = RunScene(frames, run);
+  ExpectGoodSeparation(r.stats, "no segmentation");
+}
+
+TEST(FilterScene, EstimatesCameraMotionByPnpWhenNoPriorIsGiven) {
+  const auto frames = test::BuildFilterScene({});
+  RunOptions run;
+  run.with_prior = false;
+  const RunResult r = RunScene(frames, run);
+  ExpectGoodSeparation(r.stats, "PnP motion");
+  EXPECT_EQ(r.outputs[0].motion_source, MotionSource::kNone);
+  for (size_t k = 1; k < frames.size(); ++k) {
+    SCOPED_TRACE("frame " + std::to_string(k));
+    const FilterOutput& out = r.outputs[k];
+    ASSERT_EQ(out.motion_source, MotionSource::kPnp) << out.motion_note;
+    const SE3 error = frames[k].cur_from_prev.inverse() * out.cur_from_prev;
+    EXPECT_LT(RadToDeg(RotationAngleRad(error.linear())), 0.05);
+    EXPECT_LT(error.translation().norm(), 0.02);
+  }
+}
+
+TEST(FilterScene, DefaultPolicyRefinesARoughPriorByPnp) {
+  // A motion-model prior 8 cm and 0.4 deg off: the default policy (PnP, seeded by the prior)
+  // recovers the motion and the separation; a prior far off makes PnP look wrong and is used.
+  const auto frames = test::BuildFilterScene({});
+  SE3 error = SE3::Identity();
+  error.linear() = ExpSO3(Eigen::Vector3d(0.0, DegToRad(0.4), 0.0));
+  error.translation() = Eigen::Vector3d(0.05, 0.0, 0.06);
+  DynamicFilter filter;  // default options
+  KindStats stats;
+  for (const auto& f : frames) {
+    FilterInput in;
+    in.frame_index = f.index;
+    in.left_image = f.image;
+    in.keypoints = f.keypoints;
+    in.depth_m = f.depth_m;
+    in.point_ids = f.ids;
+    in.previous_uv_px = f.prev_uv_px;
+    in.rig = test::KittiRig();
+    in.segmentation = &f.segmentation;
+    if (f.index > 0) in.cur_from_prev = error * f.cur_from_prev;
+    const FilterOutput out = filter.Process(in);
+    if (f.index == 0) continue;
+    EXPECT_EQ(out.motion_source, MotionSource::kPnp) << out.motion_note;
+    const SE3 e = f.cur_from_prev.inverse() * out.cur_from_prev;
+    EXPECT_LT(e.translation().norm(), 0.02);
+    for (size_t i = 0; i < f.kinds.size(); ++i) {
+      const int k = static_cast<int>(f.kinds[i]);
+      ++stats.total[k];
+      stats.excluded[k] += out.filter.excluded[i] ? 1 : 0;
+    }
+  }
+  ExpectGoodSeparation(stats, "rough prior, PnP");
+
+  SE3 far = SE3::Identity();
+  far.translation() = Eigen::Vector3d(0.0, 0.0, 0.6);
+  DynamicFilter gated;
+  FilterInput in;
+  for (int k = 0; k < 2; ++k) {
+    const auto& f = frames[k];
+    in.frame_index = f.index;
+    in.left_image = f.image;
+    in.keypoints = f.keypoints;
+    in.depth_m = f.depth_m;
+    in.previous_uv_px = f.prev_uv_px;
+    in.rig = test::KittiRig();
+    if (k > 0) in.cur_from_prev = far * f.cur_from_prev;
+    const FilterOutput out = gated.Process(in);
+    if (k == 0) continue;
+    EXPECT_EQ(out.motion_source, MotionSource::kPrior);
+    EXPECT_NE(out.motion_note.find("PnP rejected"), std::string::npos) << out.motion_note;
+  }
+}
+
+TEST(FilterScene, FirstFrameHasNoMotionEvidenceAndExcludesMaskedPointsOnly) {
+  const auto frames = test::BuildFilterScene({});
+  DynamicFilter filter;
+  FilterInput in;
+  in.frame_index = 0;
+  in.left_image = frames[0].image;
+  in.keypoints = frames[0].keypoints;
+  in.depth_m = frames[0].depth_m;
+  in.point_ids = frames[0].ids;
+  in.previous_uv_px = frames[0].prev_uv_px;
+  in.rig = test::KittiRig();
+  in.segmentation = &frames[0].segmentation;
+  const FilterOutput out = filter.Process(in);
+  int static_kept = 0, statics = 0;
+  for (size_t i = 0; i < frames[0].kinds.size(); ++i) {
+    const PointKind kind = frames[0].kinds[i];
+    EXPECT_FALSE(out.points[i].has_motion);
+    if (kind == PointKind::kStatic || kind == PointKind::kGround) {
+      ++statics;
+      static_kept += out.filter.excluded[i] ? 0 : 1;
+    }
+    // Masked points without any motion evidence are excluded for their mask.
+    if ((kind == PointKind::kMoving || kind == PointKind::kParked) && out.points[i].s_mask < 0.2f) {
+      EXPECT_EQ(out.points[i].reason, FilterReason::kMask);
+    }
+  }
+  EXPECT_GE(static_kept, 0.95 * statics);
+}
+
+}  // namespace
+}  // namespace pcr
