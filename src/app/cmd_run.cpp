@@ -14,6 +14,7 @@ void AddRunCommand(CLI::App& app) {
   struct Args {
     std::string sequence, out = "out/run", config, frames, mode = "stereo";
     std::vector<std::string> overrides;
+    DynamicRunOptions dynamic;
   };
   auto args = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand(
@@ -26,11 +27,26 @@ void AddRunCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--frames", args->frames, "frame range A:B (B exclusive)");
   cmd->add_option("--config", args->config, "YAML configuration (see config/*.yaml)");
+  cmd->add_option("--segmenter", args->dynamic.segmenter,
+                  "dynamic-object segmentation: yolo, truth (synthetic sequences) or none")
+      ->check(CLI::IsMember({"yolo", "truth", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--model", args->dynamic.model_path,
+                  "YOLOv8-seg ONNX model for --segmenter yolo");
+  cmd->add_option_function<std::string>(
+         "--filter", [args](const std::string& v) { args->dynamic.filter = v == "on"; },
+         "multi-stage dynamic-point filter before tracking: on or off (default off)")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd->add_flag("--dump-filter", args->dynamic.dump,
+                "write per-keypoint filter decisions to OUT/filter_decisions.txt");
+  cmd->add_option("--truth-miss-rate", args->dynamic.truth_miss_rate,
+                  "--segmenter truth: probability that an instance is missed in a frame");
   cmd->add_option("--set", args->overrides, "override one key: section.key=value (repeatable)");
   cmd->callback([args] {
     const Dataset dataset = OpenDataset(args->sequence);
     std::string config_yaml;
-    const RunConfig config = LoadRunConfig(args->config, args->overrides, &config_yaml);
+    RunConfig config = LoadRunConfig(args->config, args->overrides, &config_yaml);
+    config.dynamic = args->dynamic;
     const SlamMode mode = args->mode == "mono" ? SlamMode::kMonocular : SlamMode::kStereo;
     const FrameRange range = FrameRange::Parse(args->frames, dataset.size());
     spdlog::info("run: {} {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m, out {}",

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "app/dynamic_run.h"
 #include "eval/plot.h"
 #include "eval/report.h"
 #include "io/trajectory_io.h"
@@ -74,6 +75,7 @@ void AddFrameToSummary(const FrameOutput& out, bool stereo, RunSummary* s) {
     s->stages["orb_right"].Add(out.times_ms.orb_right);
     s->stages["stereo"].Add(out.times_ms.stereo);
   }
+  if (out.times_ms.filter > 0) s->stages["filter"].Add(out.times_ms.filter);
   s->stages["tracking"].Add(out.times_ms.tracking);
   if (out.keyframe_inserted) s->stages["local_mapping"].Add(out.times_ms.local_mapping);
   s->stages["total"].Add(out.times_ms.total);
@@ -126,13 +128,16 @@ RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, SlamMode mod
   const auto start = std::chrono::steady_clock::now();
 
   SlamSystem slam(EffectiveRig(dataset, config.camera), config.slam, mode);
+  DynamicRun dynamic(dataset, config.dynamic, config.slam.orb.scale_factor);
+  if (dynamic.active()) spdlog::info("dynamic points: {}", dynamic.Describe());
   std::vector<int64_t> indices;
   for (size_t i = range.first; i < range.end; ++i) {
     FrameOutput out;
     try {
       const cv::Mat left = dataset.LoadLeft(i);
       const cv::Mat right = stereo ? dataset.LoadRight(i) : cv::Mat();
-      out = slam.ProcessFrame(static_cast<int64_t>(i), dataset.t_ns[i], left, right);
+      out = slam.ProcessFrame(static_cast<int64_t>(i), dataset.t_ns[i], left, right,
+                              dynamic.ForFrame(i, left, &summary));
     } catch (const std::exception& e) {
       summary.error = e.what();
       spdlog::error("frame {}: {} (keeping the {} frames done)", i, e.what(), indices.size());
@@ -182,6 +187,18 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   j["fps"] = s.wall_s > 0 ? static_cast<double>(s.frames_in) / s.wall_s : 0.0;
   for (const auto& [name, series] : s.stages) j["stages"][name] = TimingJson(series.Summarize());
   if (!s.error.empty()) j["error"] = s.error;
+  if (s.filtered) {
+    j["filter"]["reasons"] = s.filter_reasons;
+    if (s.filter_confusion) j["filter"]["confusion"] = eval::ToJson(*s.filter_confusion);
+    if (s.parked_points > 0)
+      j["filter"]["parked_points"] = {{"total", s.parked_points}, {"kept", s.parked_points_kept}};
+  }
+  if (!s.filter_dump.empty()) {
+    std::ofstream dump(out_dir + "/filter_decisions.txt");
+    dump << "# frame keypoint x_px y_px excluded reason score\n";
+    for (const std::string& line : s.filter_dump) dump << line << "\n";
+    if (!dump) throw InputError(out_dir + "/filter_decisions.txt", 0, "cannot write");
+  }
   if (s.evaluation) {
     const eval::EvalResult& e = *s.evaluation;
     j["ate_m"] = {{"rmse", e.ape.trans_m.rmse},
@@ -217,6 +234,17 @@ std::string FormatRunSummary(const RunSummary& s) {
     const TimingSummary t = series.Summarize();
     o << fmt::format("{:<14} {:>6} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f}\n", name, t.count, t.mean_ms,
                      t.p50_ms, t.p95_ms, t.p99_ms);
+  }
+  if (s.filtered) {
+    o << "dynamic filter decisions:";
+    for (const auto& [reason, n] : s.filter_reasons) o << " " << reason << " " << n;
+    o << "\n";
+    if (s.filter_confusion)
+      o << eval::FormatConfusionMatrix(*s.filter_confusion,
+                                       "moving-object keypoints vs rendered ground truth");
+    if (s.parked_points > 0)
+      o << fmt::format("parked-object keypoints kept: {} of {} ({:.1f}%)\n", s.parked_points_kept,
+                       s.parked_points, 100.0 * s.parked_points_kept / s.parked_points);
   }
   if (s.evaluation) o << eval::FormatReport(*s.evaluation, s.eval_options);
   if (!s.error.empty()) o << "run stopped early: " << s.error << "\n";

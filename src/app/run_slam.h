@@ -6,6 +6,7 @@
 #include <string>
 
 #include "app/slam_config.h"
+#include "eval/confusion.h"
 #include "eval/evaluation.h"
 #include "io/dataset.h"
 #include "slam/common/timing.h"
@@ -35,6 +36,13 @@ struct RunSummary {
   StageTimings stages;  // per-stage milliseconds, "total" for the whole frame
   std::optional<eval::EvalResult> evaluation;
   eval::EvalOptions eval_options;
+  // Dynamic filter (when on): per-reason counts, stage times, and on synthetic sequences the
+  // confusion matrix of "excluded as moving" against the rendered moving-object pixels.
+  bool filtered = false;
+  std::map<std::string, int64_t> filter_reasons;
+  std::optional<eval::ConfusionMatrix> filter_confusion;
+  int64_t parked_points = 0, parked_points_kept = 0;  // keypoints on parked objects
+  std::vector<std::string> filter_dump;               // "frame keypoint x y excluded reason score"
   std::string error;  // non-empty when the run stopped early (outputs cover the frames done)
 };
 

@@ -16,10 +16,20 @@ struct CameraOverride {
   bool IsValid(std::string* why) const;
 };
 
+// Dynamic-point filtering of a run (command-line options, not YAML).
+struct DynamicRunOptions {
+  std::string segmenter = "none";  // none | yolo | truth (synthetic sequences)
+  std::string model_path;          // YOLOv8-seg ONNX for --segmenter yolo
+  bool filter = false;             // run the multi-stage filter (Eq. 2) before tracking
+  bool dump = false;               // write per-keypoint decisions (filter_decisions.txt)
+  double truth_miss_rate = 0.0;    // --segmenter truth: emulated detector misses
+};
+
 struct RunConfig {
   SlamOptions slam;
   CameraOverride camera;
   std::string subpixel_fit = "equiangular";  // stereo.subpixel_fit: parabola | equiangular
+  DynamicRunOptions dynamic;
 };
 
 // Registers every configurable field of `config` in `schema`.

@@ -183,6 +183,15 @@ MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingRe
 
 FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
                                      const cv::Mat& right, const FrameFilterInput* filter) {
+  if (!filter) return ProcessFrame(frame_index, t_ns, left, right, KeypointFilterProvider{});
+  return ProcessFrame(frame_index, t_ns, left, right,
+                      [filter](const OrbFeatures& features, const StereoMatches&) {
+                        return SampleFilter(*filter, features.keypoints);
+                      });
+}
+
+FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
+                                     const cv::Mat& right, const KeypointFilterProvider& provider) {
   const auto start = std::chrono::steady_clock::now();
   FrameOutput out;
   out.frame_index = frame_index;
@@ -201,8 +210,12 @@ FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv
     out.times_ms.stereo = MsSince(t);
   }
 
-  const KeypointFilter keypoint_filter =
-      filter ? SampleFilter(*filter, left_features.keypoints) : KeypointFilter{};
+  KeypointFilter keypoint_filter;
+  if (provider) {
+    t = std::chrono::steady_clock::now();
+    keypoint_filter = provider(left_features, stereo);
+    out.times_ms.filter = MsSince(t);
+  }
   const FramePtr frame = BuildFrame(t_ns, left_features, stereo, keypoint_filter);
   out.num_keypoints = frame->size();
   out.num_stereo = frame->num_stereo();

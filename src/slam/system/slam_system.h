@@ -14,6 +14,7 @@
 //
 // Deterministic: the same inputs give bit-identical trajectories.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
@@ -51,7 +52,7 @@ struct FrameFilterInput {
 };
 
 struct StageTimesMs {
-  double orb_left = 0, orb_right = 0, stereo = 0, tracking = 0, local_mapping = 0;
+  double orb_left = 0, orb_right = 0, stereo = 0, filter = 0, tracking = 0, local_mapping = 0;
   double total = 0;
 };
 
@@ -85,6 +86,13 @@ class SlamSystem {
   // empty). filter may be null.
   FrameOutput ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
                            const cv::Mat& right, const FrameFilterInput* filter = nullptr);
+  // Per-keypoint dynamic-filter decisions computed from the frame's left features and stereo
+  // matches (e.g. by pcr::DynamicFilter), called between stereo matching and tracking.
+  using KeypointFilterProvider =
+      std::function<KeypointFilter(const OrbFeatures& left, const StereoMatches& stereo)>;
+  // All stages, with the filter from `provider` (timed as times_ms.filter).
+  FrameOutput ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
+                           const cv::Mat& right, const KeypointFilterProvider& provider);
 
   // --- Stages ---
   OrbFeatures ExtractLeft(const cv::Mat& left) const { return extractor_.Extract(left); }

@@ -1,0 +1,116 @@
+#include "app/dynamic_run.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+
+#include "app/truth_segmenter.h"
+#include "slam/common/error.h"
+#include "slam/dynamic/yolo_segmenter.h"
+
+namespace pcr::app {
+
+DynamicRun::DynamicRun(const Dataset& dataset, const DynamicRunOptions& options,
+                       double scale_factor)
+    : dataset_(dataset), options_(options), scale_factor_(scale_factor) {
+  if (options_.segmenter == "yolo") {
+    if (options_.model_path.empty())
+      throw ConfigError("--segmenter yolo needs --model FILE (a YOLOv8-seg ONNX export)");
+    YoloOptions yolo;
+    yolo.model_path = options_.model_path;
+    segmenter_ = std::make_unique<YoloSegmenter>(yolo);
+  } else if (options_.segmenter == "truth") {
+    TruthSegmenterOptions truth;
+    truth.miss_rate = options_.truth_miss_rate;
+    auto seg = std::make_unique<TruthSegmenter>(dataset.root, truth);
+    truth_ = seg.get();
+    segmenter_ = std::move(seg);
+  } else if (options_.segmenter != "none") {
+    throw ConfigError("--segmenter must be yolo, truth or none, not '" + options_.segmenter + "'");
+  }
+  if (segmenter_ && !options_.filter)
+    spdlog::warn("--segmenter {} without --filter on: segmentation is not used",
+                 options_.segmenter);
+  if (options_.filter) filter_.emplace(DynamicFilterOptions{});
+  const std::string table = dataset.root + "/instances.txt";
+  if (std::filesystem::is_regular_file(table) &&
+      std::filesystem::is_directory(dataset.root + "/instance_0"))
+    instances_ = sim::InstanceTable::Read(table);
+}
+
+DynamicRun::~DynamicRun() = default;
+
+std::string DynamicRun::Describe() const {
+  if (!filter_) return "filter off";
+  return "filter on, segmenter " + options_.segmenter +
+         (instances_ ? ", scored against the synthetic instance images" : "");
+}
+
+SlamSystem::KeypointFilterProvider DynamicRun::ForFrame(size_t i, const cv::Mat& left,
+                                                        RunSummary* summary) {
+  if (!filter_) return {};
+  return [this, i, left, summary](const OrbFeatures& features, const StereoMatches& stereo) {
+    Segmentation segmentation;
+    if (segmenter_) {
+      if (truth_) truth_->SetFrame(i);
+      segmentation =
+          segmenter_->Segment(dataset_.has_color() && !truth_ ? dataset_.LoadLeftColor(i) : left);
+    }
+    FilterInput in;
+    in.frame_index = static_cast<int64_t>(i);
+    in.t_ns = dataset_.t_ns[i];
+    in.left_image = left;
+    in.keypoints = features.keypoints;
+    in.depth_m = stereo.depth_m;
+    in.rig = dataset_.rig;
+    in.segmentation = segmenter_ ? &segmentation : nullptr;
+    in.scale_factor = scale_factor_;
+    const FilterOutput out = filter_->Process(in);
+
+    summary->filtered = true;
+    for (int r = 0; r < kNumFilterReasons; ++r)
+      if (out.reason_counts[r] > 0)
+        summary->filter_reasons[FilterReasonName(static_cast<FilterReason>(r))] +=
+            out.reason_counts[r];
+    summary->stages["filter_flow"].Add(out.timing.flow_ms);
+    summary->stages["filter_ransac"].Add(out.timing.ransac_ms);
+    summary->stages["filter_scoring"].Add(out.timing.scoring_ms);
+
+    cv::Mat ids;
+    if (instances_) {
+      char name[32];
+      std::snprintf(name, sizeof(name), "/instance_0/%06zu.png", i);
+      ids = LoadImageChecked(dataset_.root + name, cv::IMREAD_UNCHANGED);
+      if (!summary->filter_confusion) summary->filter_confusion.emplace();
+    }
+    for (size_t k = 0; k < features.keypoints.size(); ++k) {
+      const cv::Point2f& p = features.keypoints[k].pt;
+      const bool excluded = out.filter.excluded[k] != 0;
+      if (!ids.empty()) {
+        const int u = std::clamp(static_cast<int>(std::lround(p.x)), 0, ids.cols - 1);
+        const int v = std::clamp(static_cast<int>(std::lround(p.y)), 0, ids.rows - 1);
+        const uint16_t id = ids.at<uint16_t>(v, u);
+        const bool moving = instances_->IsMoving(id);
+        // Predicted dynamic: excluded as moving or as a dynamic-class mask (sky, border and
+        // ground exclusions are not dynamic-object predictions).
+        const FilterReason reason = out.points[k].reason;
+        const bool predicted =
+            excluded && (IsMovingReason(reason) || reason == FilterReason::kMask);
+        summary->filter_confusion->Add(predicted, moving);
+        if (instances_->IsObject(id) && !moving) {
+          ++summary->parked_points;
+          summary->parked_points_kept += excluded ? 0 : 1;
+        }
+      }
+      if (options_.dump)
+        summary->filter_dump.push_back(
+            fmt::format("{} {} {:.2f} {:.2f} {} {} {:.4f}", i, k, p.x, p.y, excluded ? 1 : 0,
+                        FilterReasonName(out.points[k].reason), out.points[k].score));
+    }
+    return KeypointFilter{out.filter.weight, out.filter.excluded};
+  };
+}
+
+}  // namespace pcr::app

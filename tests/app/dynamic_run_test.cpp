@@ -1,0 +1,81 @@
+#include "app/dynamic_run.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "app/run_slam.h"
+#include "sim/sequence_writer.h"
+#include "slam/common/error.h"
+#include "support/data_paths.h"
+
+namespace pcr::app {
+namespace {
+
+// 20 frames of the synthetic street with movers and parked cars.
+const std::string& TrafficSequence() {
+  static const std::string dir = [] {
+    sim::SynthOptions o;
+    o.frames = 20;
+    o.num_movers = 8;
+    o.num_parked = 8;
+    o.seed = 4;
+    return sim::WriteSequence(o, test::MakeTempDir("pcr_dynrun")).sequence_dir;
+  }();
+  return dir;
+}
+
+TEST(DynamicRun, FilterExcludesMovingObjectPointsFarMoreThanStaticOnes) {
+  const Dataset dataset = OpenDataset(TrafficSequence());
+  RunConfig config;
+  config.dynamic.segmenter = "truth";
+  config.dynamic.filter = true;
+  config.dynamic.dump = true;
+  const RunSummary s = RunSlam(dataset, config, FrameRange{0, dataset.size()});
+  EXPECT_EQ(s.frames_lost, 0u);
+  EXPECT_EQ(s.frames_tracked, dataset.size());
+  ASSERT_TRUE(s.filtered);
+  ASSERT_TRUE(s.filter_confusion.has_value());
+  const eval::ConfusionMatrix& c = *s.filter_confusion;
+  const double moving_flag_rate = static_cast<double>(c.true_positive) /
+                                  std::max<int64_t>(1, c.true_positive + c.false_negative);
+  const double static_flag_rate = static_cast<double>(c.false_positive) /
+                                  std::max<int64_t>(1, c.false_positive + c.true_negative);
+  EXPECT_GT(c.true_positive + c.false_negative, 100) << "scene has too few moving-object points";
+  // Measured: 84% of moving-object points flagged against 8.7% of the others (parked cars
+  // included). The targets (precision 0.97, recall 0.90) are checked by benchmarks.
+  EXPECT_GT(moving_flag_rate, 0.6);
+  EXPECT_GT(moving_flag_rate, 5.0 * static_flag_rate)
+      << "moving " << moving_flag_rate << " static " << static_flag_rate;
+  EXPECT_GT(s.parked_points, 0);
+  EXPECT_GT(s.stages.count("filter"), 0u);
+  EXPECT_EQ(s.filter_dump.size(), static_cast<size_t>(c.Total()));
+
+  const std::string out = test::MakeTempDir("pcr_dynrun_out");
+  WriteRunOutputs(out, s, "");
+  std::ifstream stats(out + "/stats.json");
+  const nlohmann::json j = nlohmann::json::parse(stats);
+  EXPECT_TRUE(j["filter"].contains("confusion"));
+  EXPECT_TRUE(std::filesystem::exists(out + "/filter_decisions.txt"));
+}
+
+TEST(DynamicRun, BadSegmenterSetupsAreClearErrors) {
+  const Dataset dataset = OpenDataset(TrafficSequence());
+  DynamicRunOptions o;
+  o.filter = true;
+  o.segmenter = "yolo";  // no --model
+  EXPECT_THROW(DynamicRun(dataset, o, 1.2), ConfigError);
+  o.model_path = "/nonexistent/model.onnx";
+  EXPECT_THROW(DynamicRun(dataset, o, 1.2), InputError);
+  o.segmenter = "magic";
+  EXPECT_THROW(DynamicRun(dataset, o, 1.2), ConfigError);
+  // The truth segmenter needs a synthetic sequence.
+  const Dataset kitti = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
+  o.segmenter = "truth";
+  EXPECT_THROW(DynamicRun(kitti, o, 1.2), InputError);
+}
+
+}  // namespace
+}  // namespace pcr::app
