@@ -29,6 +29,7 @@ struct PipelineArgs {
   std::string sequence, out = "out/pipeline", config, frames;
   std::vector<std::string> overrides;
   std::string policy = "pipelined", adaptive = "off", segmenter = "none", model, model_high;
+  std::string filter = "off";  // on: the multi-stage DynamicFilter scores keypoints
   double rate = 1.0, mask_deadline_ms = 10, delay_ms = 0;
   int threads = 2, max_in_flight = 4, waiting = 1;
 };
@@ -102,6 +103,7 @@ nlohmann::json OptionsJson(const PipelineArgs& a) {
           {"mask_deadline_ms", a.mask_deadline_ms},
           {"adaptive", a.adaptive},
           {"segmenter", a.segmenter},
+          {"filter", a.filter},
           {"model", a.model},
           {"model_high", a.model_high},
           {"delay_ms", a.delay_ms}};
@@ -148,8 +150,11 @@ void RunPipelineCommand(const PipelineArgs& args) {
                     fmt::format("tracked {} kf {} pts {}", out.num_tracked, out.num_keyframes,
                                 out.num_map_points));
   };
+  std::unique_ptr<nodes::DynamicFilterScorer> scorer;
+  if (args.filter == "on")
+    scorer = std::make_unique<nodes::DynamicFilterScorer>(source.rig, config.slam.orb.scale_factor);
   const graph::PipelineResult result =
-      graph::RunPipeline(source, config.slam, run_options, segmenters);
+      graph::RunPipeline(source, config.slam, run_options, segmenters, scorer.get());
   progress.Finish();
 
   const RunSummary summary = ToRunSummary(dataset, range, result);
@@ -204,6 +209,10 @@ void AddPipelineCommand(CLI::App& app) {
                   "realtime: how long tracking waits for a late mask before using the last one")
       ->capture_default_str();
   cmd->add_option("--adaptive", args->adaptive, "adaptive quality control (Eq. 9): on or off")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  cmd->add_option("--filter", args->filter,
+                  "on: the multi-stage dynamic-point filter scores keypoints (else masks alone)")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   cmd->add_option("--segmenter", args->segmenter, "yolo or none")

@@ -101,4 +101,23 @@ FilteredPtr FilterNode::operator()(const StereoPtr& stereo, const SegmentationPt
   return msg;
 }
 
+DynamicFilterScorer::DynamicFilterScorer(const StereoRig& rig, double scale_factor,
+                                         const DynamicFilterOptions& options)
+    : rig_(rig), scale_factor_(scale_factor), filter_(options) {}
+
+KeypointFilter DynamicFilterScorer::Score(const ScoringInput& input) {
+  FilterInput f;
+  f.frame_index = input.ticket.frame_index;
+  f.t_ns = input.ticket.t_ns;
+  f.left_image = input.images.left;
+  f.keypoints = input.left.keypoints;
+  f.depth_m = input.stereo.depth_m;
+  f.rig = rig_;
+  f.scale_factor = scale_factor_;
+  f.segmentation =
+      input.mask.status == MaskStatus::kSkipped ? nullptr : input.mask.segmentation.get();
+  FilterOutput out = filter_.Process(f);
+  return KeypointFilter{std::move(out.filter.weight), std::move(out.filter.excluded)};
+}
+
 }  // namespace pcr::nodes

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "nodes/messages.h"
+#include "slam/dynamic/dynamic_filter.h"
 
 namespace pcr::nodes {
 
@@ -26,6 +27,21 @@ class FrameScorer {
   // Per left keypoint: excluded flags and static-confidence weights (empty vectors: none).
   virtual KeypointFilter Score(const ScoringInput& input) = 0;
   virtual std::string Name() const = 0;
+};
+
+// The multi-stage dynamic-point filter (pcr::DynamicFilter: motion, ground, sky/edge, temporal
+// votes, mask with depth check) as the pipeline's scorer. Keeps the filter's state across frames.
+class DynamicFilterScorer final : public FrameScorer {
+ public:
+  DynamicFilterScorer(const StereoRig& rig, double scale_factor,
+                      const DynamicFilterOptions& options = {});
+  KeypointFilter Score(const ScoringInput& input) override;
+  std::string Name() const override { return "dynamic-filter"; }
+
+ private:
+  StereoRig rig_;
+  double scale_factor_;
+  DynamicFilter filter_;
 };
 
 struct MaskScorerOptions {

@@ -391,3 +391,26 @@ TEST(PipelineTest, RejectsInvalidOptions) {
 
 }  // namespace
 }  // namespace pcr::graph
+
+namespace pcr::graph {
+namespace {
+
+// The multi-stage dynamic filter as the scorer: stateful across frames, so it must see the
+// frames in order under every policy; sequential and pipelined runs stay bit-identical.
+TEST(PipelineTest, DynamicFilterScorerKeepsPoliciesIdentical) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 10);
+  const SlamOptions slam_options;
+  nodes::DynamicFilterScorer seq_scorer(clip.rig, slam_options.orb.scale_factor);
+  nodes::DynamicFilterScorer pipe_scorer(clip.rig, slam_options.orb.scale_factor);
+  const PipelineResult sequential =
+      RunPipeline(clip, slam_options, Options(Policy::kSequential), {}, &seq_scorer);
+  const PipelineResult pipelined =
+      RunPipeline(clip, slam_options, Options(Policy::kPipelined, 4), {}, &pipe_scorer);
+  ASSERT_TRUE(sequential.error.empty()) << sequential.error;
+  ASSERT_TRUE(pipelined.error.empty()) << pipelined.error;
+  EXPECT_EQ(sequential.tracked.size(), 10u);
+  ExpectSameTrajectory(sequential.tracked, pipelined.tracked);
+}
+
+}  // namespace
+}  // namespace pcr::graph
