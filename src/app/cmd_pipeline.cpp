@@ -34,22 +34,11 @@ struct PipelineArgs {
   int threads = 2, max_in_flight = 4, waiting = 1;
 };
 
-StereoRig RigWithOverride(const Dataset& dataset, const CameraOverride& camera) {
-  StereoRig rig = dataset.rig;
-  if (!camera.Active()) return rig;
-  rig.left.fx = camera.fx;
-  rig.left.fy = camera.fy;
-  rig.left.cx = camera.cx;
-  rig.left.cy = camera.cy;
-  if (camera.baseline_m > 0) rig.baseline_m = camera.baseline_m;
-  return rig;
-}
-
 nodes::FrameSource SourceFromDataset(const Dataset& dataset, const RunConfig& config,
                                      FrameRange range) {
   nodes::FrameSource source;
   source.name = dataset.name;
-  source.rig = RigWithOverride(dataset, config.camera);
+  source.rig = EffectiveRig(dataset, config.camera);
   for (size_t i = range.first; i < range.end; ++i) {
     source.frame_indices.push_back(static_cast<int64_t>(i));
     source.t_ns.push_back(dataset.t_ns[i]);

@@ -17,6 +17,13 @@
 namespace pcr::app {
 namespace {
 
+nlohmann::json TimingJson(const TimingSummary& s) {
+  return {{"count", s.count},   {"mean_ms", s.mean_ms}, {"p50_ms", s.p50_ms},
+          {"p95_ms", s.p95_ms}, {"p99_ms", s.p99_ms},   {"max_ms", s.max_ms}};
+}
+
+}  // namespace
+
 StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera) {
   StereoRig rig = dataset.rig;
   if (!camera.Active()) return rig;
@@ -31,13 +38,6 @@ StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera) {
   if (camera.baseline_m > 0) rig.baseline_m = camera.baseline_m;
   return rig;
 }
-
-nlohmann::json TimingJson(const TimingSummary& s) {
-  return {{"count", s.count},   {"mean_ms", s.mean_ms}, {"p50_ms", s.p50_ms},
-          {"p95_ms", s.p95_ms}, {"p99_ms", s.p99_ms},   {"max_ms", s.max_ms}};
-}
-
-}  // namespace
 
 FrameRange FrameRange::Parse(const std::string& text, size_t size) {
   FrameRange r{0, size};

@@ -46,6 +46,10 @@ struct RunSummary {
   std::string error;  // non-empty when the run stopped early (outputs cover the frames done)
 };
 
+// The dataset's rig with the configuration's camera override applied (warns when it differs from
+// the calibration by more than 1%).
+StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera);
+
 // Counts one processed frame (status, stage times, map size) into the summary.
 void AddFrameToSummary(const FrameOutput& out, bool stereo, RunSummary* summary);
 

@@ -23,14 +23,7 @@ TrackedPtr TrackingNode::operator()(const FilteredPtr& filtered) {
   out.t_ns = filtered->ticket.t_ns;
   out.num_keypoints = msg->frame->size();
   out.num_stereo = msg->frame->num_stereo();
-  out.status = tracking.status;
-  out.method = tracking.method;
-  out.num_tracked = tracking.num_tracked;
-  out.num_matches_initial = tracking.num_matches_initial;
-  out.num_inliers_initial = tracking.num_inliers_initial;
-  out.num_local_projected = tracking.num_local_projected;
-  out.num_local_matches = tracking.num_local_matches;
-  out.world_from_cam = tracking.cam_from_world.inverse();
+  FillTrackingOutput(tracking, &out);
   out.times_ms.orb_left = stereo.left->extract_ms;
   out.times_ms.orb_right = stereo.orb_right_ms;
   out.times_ms.stereo = stereo.match_ms;

@@ -181,6 +181,17 @@ MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingRe
   return result;
 }
 
+void FillTrackingOutput(const TrackingResult& tracking, FrameOutput* out) {
+  out->status = tracking.status;
+  out->method = tracking.method;
+  out->num_tracked = tracking.num_tracked;
+  out->num_matches_initial = tracking.num_matches_initial;
+  out->num_inliers_initial = tracking.num_inliers_initial;
+  out->num_local_projected = tracking.num_local_projected;
+  out->num_local_matches = tracking.num_local_matches;
+  out->world_from_cam = tracking.cam_from_world.inverse();
+}
+
 FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
                                      const cv::Mat& right, const FrameFilterInput* filter) {
   if (!filter) return ProcessFrame(frame_index, t_ns, left, right, KeypointFilterProvider{});
@@ -223,14 +234,7 @@ FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv
   t = std::chrono::steady_clock::now();
   const TrackingResult tracking = Track(frame, frame_index);
   out.times_ms.tracking = MsSince(t);
-  out.status = tracking.status;
-  out.method = tracking.method;
-  out.num_tracked = tracking.num_tracked;
-  out.num_matches_initial = tracking.num_matches_initial;
-  out.num_inliers_initial = tracking.num_inliers_initial;
-  out.num_local_projected = tracking.num_local_projected;
-  out.num_local_matches = tracking.num_local_matches;
-  out.world_from_cam = tracking.cam_from_world.inverse();
+  FillTrackingOutput(tracking, &out);
 
   t = std::chrono::steady_clock::now();
   const KeyframeDecision decision = DecideKeyframe(tracking);

@@ -76,6 +76,9 @@ struct FrameOutput {
   StageTimesMs times_ms;
 };
 
+// Copies the tracking result (status, method, counts, pose) into out.
+void FillTrackingOutput(const TrackingResult& tracking, FrameOutput* out);
+
 class SlamSystem {
  public:
   // Throws ConfigError when the rig or options are invalid; the rig must carry the image size
