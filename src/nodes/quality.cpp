@@ -3,17 +3,9 @@
 #include <cmath>
 
 #include "slam/common/error.h"
+#include "slam/common/validation.h"
 
 namespace pcr::nodes {
-namespace {
-
-bool Fail(std::string* why, const std::string& message) {
-  if (why) *why = message;
-  return false;
-}
-
-}  // namespace
-
 const char* ToString(QualityLevel level) {
   switch (level) {
     case QualityLevel::kLow:

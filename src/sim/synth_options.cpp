@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "slam/common/error.h"
+#include "slam/common/validation.h"
 
 namespace pcr::sim {
 
@@ -14,13 +15,6 @@ RouteKind ParseRoute(const std::string& name) {
   if (name == "loop") return RouteKind::kLoop;
   throw ConfigError("unknown route '" + name + "' (expected straight or loop)");
 }
-
-namespace {
-bool Fail(std::string* why, const std::string& message) {
-  if (why) *why = message;
-  return false;
-}
-}  // namespace
 
 bool SynthOptions::IsValid(std::string* why) const {
   if (frames < 1 || frames > 1000000) return Fail(why, "frames must be in [1, 1000000]");

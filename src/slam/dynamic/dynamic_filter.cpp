@@ -7,17 +7,13 @@
 
 #include "slam/common/error.h"
 #include "slam/common/timing.h"
+#include "slam/common/validation.h"
 #include "slam/geometry/se3.h"
 
 namespace pcr {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-bool Fail(std::string* why, const std::string& message) {
-  if (why) *why = message;
-  return false;
-}
 
 // Bilinear sample of a CV_32F map at a camera-convention pixel position, clamped to the image.
 float SampleBilinear(const cv::Mat& map, float u, float v) {

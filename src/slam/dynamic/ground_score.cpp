@@ -6,18 +6,10 @@
 #include <stdexcept>
 
 #include "slam/common/error.h"
+#include "slam/common/validation.h"
 #include "slam/geometry/se3.h"
 
 namespace pcr {
-namespace {
-
-bool Fail(std::string* why, const char* message) {
-  if (why) *why = message;
-  return false;
-}
-
-}  // namespace
-
 bool GroundOptions::IsValid(std::string* why) const {
   if (!(min_height_m > 0.0 && max_height_m > min_height_m)) {
     return Fail(why, "height window must satisfy 0 < min_height_m < max_height_m");

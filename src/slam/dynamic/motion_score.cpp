@@ -9,15 +9,11 @@
 #include <stdexcept>
 
 #include "slam/common/error.h"
+#include "slam/common/validation.h"
 #include "slam/geometry/se3.h"
 
 namespace pcr {
 namespace {
-
-bool Fail(std::string* why, const char* message) {
-  if (why) *why = message;
-  return false;
-}
 
 // d(pixel)/d(point) of the pinhole projection at p (p.z() > 0).
 Eigen::Matrix<double, 2, 3> ProjectionJacobian(const PinholeCamera& camera,

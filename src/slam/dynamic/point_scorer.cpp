@@ -5,13 +5,10 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "slam/common/validation.h"
+
 namespace pcr {
 namespace {
-
-bool Fail(std::string* why, const char* message) {
-  if (why) *why = message;
-  return false;
-}
 
 double Median(std::vector<double> values) {
   if (values.empty()) return 0.0;

@@ -3,15 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "slam/common/validation.h"
+
 namespace pcr {
-namespace {
-
-bool Fail(std::string* why, const char* message) {
-  if (why) *why = message;
-  return false;
-}
-
-}  // namespace
 
 bool EdgeOptions::IsValid(std::string* why) const {
   if (!(exclude_within_px >= 0.0)) return Fail(why, "exclude_within_px must be >= 0");

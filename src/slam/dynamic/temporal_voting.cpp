@@ -5,17 +5,9 @@
 #include <stdexcept>
 
 #include "slam/common/error.h"
+#include "slam/common/validation.h"
 
 namespace pcr {
-namespace {
-
-bool Fail(std::string* why, const char* message) {
-  if (why) *why = message;
-  return false;
-}
-
-}  // namespace
-
 bool TemporalVotingOptions::IsValid(std::string* why) const {
   if (window_frames < 1 || window_frames > kMaxTemporalWindow) {
     return Fail(why, "window_frames must be in [1, kMaxTemporalWindow]");
