@@ -185,6 +185,18 @@ int Tracker::OptimizeAndPrune(const Frame& frame, SE3* pose, Matches* m,
   return inliers;
 }
 
+void Tracker::StartFromInitialisation(const FramePtr& frame, const SE3& cam_from_world) {
+  status_ = TrackingStatus::kOk;
+  last_.frame = frame;
+  last_.cam_from_world = cam_from_world;
+  last_.reference = KeyframeId(frame->id());
+  last_.cam_from_reference = SE3::Identity();
+  last_.points.assign(frame->size(), MapPointId());
+  last_.is_keyframe = false;
+  reference_ = last_.reference;
+  last_keyframe_t_ns_ = frame->t_ns();
+}
+
 SE3 Tracker::PredictedMotion(int64_t t_ns) const {
   const int64_t dt_ns = last_.frame ? t_ns - last_.frame->t_ns() : 0;
   if (velocity_dt_ns_ <= 0 || dt_ns <= 0) return velocity_;
@@ -488,15 +500,7 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
         result.map_delta = std::move(*init);
         result.reference_keyframe = KeyframeId(frame.id());
         result.num_tracked = static_cast<int>(result.map_delta.new_points.size());
-        status_ = TrackingStatus::kOk;
-        last_.frame = frame_ptr;
-        last_.cam_from_world = SE3::Identity();
-        last_.reference = KeyframeId(frame.id());
-        last_.cam_from_reference = SE3::Identity();
-        last_.points.assign(frame.size(), MapPointId());
-        last_.is_keyframe = false;
-        reference_ = last_.reference;
-        last_keyframe_t_ns_ = frame.t_ns();
+        StartFromInitialisation(frame_ptr, SE3::Identity());
         return result;
       }
     } else {
@@ -510,15 +514,7 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
         result.map_delta = std::move(init->second_keyframe);
         result.reference_keyframe = KeyframeId(frame.id());
         result.num_tracked = init->num_points;
-        status_ = TrackingStatus::kOk;
-        last_.frame = frame_ptr;
-        last_.cam_from_world = init->cam_from_world;
-        last_.reference = KeyframeId(frame.id());
-        last_.cam_from_reference = SE3::Identity();
-        last_.points.assign(frame.size(), MapPointId());
-        last_.is_keyframe = false;
-        reference_ = last_.reference;
-        last_keyframe_t_ns_ = frame.t_ns();
+        StartFromInitialisation(frame_ptr, init->cam_from_world);
         return result;
       }
     }

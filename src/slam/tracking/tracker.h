@@ -160,6 +160,9 @@ class Tracker {
   // Camera motion from the last frame to a frame at t_ns: velocity_ scaled by elapsed time, so
   // frames dropped by a real-time replay do not break the motion model.
   SE3 PredictedMotion(int64_t t_ns) const;
+  // Tracking state after a (stereo or monocular) initialisation whose reference keyframe is
+  // `frame`, posed at cam_from_world.
+  void StartFromInitialisation(const FramePtr& frame, const SE3& cam_from_world);
   KeyframeId reference_;
   int64_t last_keyframe_t_ns_ = 0;
   int64_t frames_since_relocalisation_ = 1 << 30;
