@@ -32,6 +32,10 @@ void AddSynthCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--parked", args->options.num_parked, "Parked cars")->capture_default_str();
   cmd->add_option("--speed", args->options.speed_mps, "Ego speed, m/s")->capture_default_str();
+  cmd->add_option(
+         "--lead-gap", args->options.lead_gap_m,
+         "Heavy traffic: a lead car this many metres ahead at about the ego speed (0: off)")
+      ->capture_default_str();
   cmd->add_option("--route", args->route, "straight or loop")
       ->check(CLI::IsMember({"straight", "loop"}))
       ->capture_default_str();

@@ -88,6 +88,7 @@ SlamSystem::KeypointFilterProvider DynamicRun::ForFrame(size_t i, const cv::Mat&
     for (size_t k = 0; k < features.keypoints.size(); ++k) {
       const cv::Point2f& p = features.keypoints[k].pt;
       const bool excluded = out.filter.excluded[k] != 0;
+      std::string truth = "-";
       if (!ids.empty()) {
         const int u = std::clamp(static_cast<int>(std::lround(p.x)), 0, ids.cols - 1);
         const int v = std::clamp(static_cast<int>(std::lround(p.y)), 0, ids.rows - 1);
@@ -99,15 +100,22 @@ SlamSystem::KeypointFilterProvider DynamicRun::ForFrame(size_t i, const cv::Mat&
         const bool predicted =
             excluded && (IsMovingReason(reason) || reason == FilterReason::kMask);
         summary->filter_confusion->Add(predicted, moving);
+        truth = moving ? "moving" : (instances_->IsObject(id) ? "parked" : "static");
+        if (instances_->IsObject(id)) truth += ":" + std::to_string(id);
         if (instances_->IsObject(id) && !moving) {
           ++summary->parked_points;
           summary->parked_points_kept += excluded ? 0 : 1;
         }
       }
       if (options_.dump)
-        summary->filter_dump.push_back(
-            fmt::format("{} {} {:.2f} {:.2f} {} {} {:.4f}", i, k, p.x, p.y, excluded ? 1 : 0,
-                        FilterReasonName(out.points[k].reason), out.points[k].score));
+        summary->filter_dump.push_back(fmt::format(
+            "{} {} {:.2f} {:.2f} {} {} {:.4f} {} {:.3f} {} {:.3f} {:.3f} {:.2f} {} {} {:.3f} "
+            "{:.2f}",
+            i, k, p.x, p.y, excluded ? 1 : 0, FilterReasonName(out.points[k].reason),
+            out.points[k].score, truth, out.points[k].s_mask, out.points[k].has_motion ? 1 : 0,
+            out.points[k].m_motion, out.points[k].observability, out.points[k].residual_px,
+            out.points[k].instance, out.points[k].mask_depth_outlier ? 1 : 0,
+            out.points[k].frame_static_prob, out.points[k].chi2));
     }
     return KeypointFilter{out.filter.weight, out.filter.excluded};
   };

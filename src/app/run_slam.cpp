@@ -195,7 +195,9 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   }
   if (!s.filter_dump.empty()) {
     std::ofstream dump(out_dir + "/filter_decisions.txt");
-    dump << "# frame keypoint x_px y_px excluded reason score\n";
+    dump << "# frame keypoint x_px y_px excluded reason score truth(moving|parked|static|-) s_mask "
+            "has_motion m_motion observability residual_px instance mask_depth_outlier "
+            "frame_static_prob chi2\n";
     for (const std::string& line : s.filter_dump) dump << line << "\n";
     if (!dump) throw InputError(out_dir + "/filter_decisions.txt", 0, "cannot write");
   }

@@ -377,6 +377,26 @@ std::vector<BoxPrim> MakeCar(Rng& rng, uint16_t id) {
   return parts;
 }
 
+// A delivery van (a "car" to a detector): one tall body box with a short cabin in front.
+std::vector<BoxPrim> MakeVan(Rng& rng, uint16_t id) {
+  const double len = rng.Uniform(5.0, 5.6), wid = rng.Uniform(1.95, 2.1);
+  const double height = rng.Uniform(2.3, 2.6);
+  const float tone = static_cast<float>(CarTone(rng));
+  const double body_lo = 0.35;
+  std::vector<BoxPrim> parts;
+  parts.push_back(Part(Material::kCarBody, {0, -0.5 * (body_lo + height), -0.1 * len},
+                       {0.5 * wid, 0.5 * (height - body_lo), 0.4 * len}, tone, rng.U32(), id));
+  const double cabin_h = 0.75 * (height - body_lo);
+  parts.push_back(Part(Material::kCarCabin, {0, -(body_lo + 0.5 * cabin_h), 0.4 * len},
+                       {0.5 * wid - 0.05, 0.5 * cabin_h, 0.1 * len}, tone, rng.U32(), id));
+  const double r = 0.35;
+  for (int sx = -1; sx <= 1; sx += 2)
+    for (int sz = -1; sz <= 1; sz += 2)
+      parts.push_back(Part(Material::kWheel, {sx * (0.5 * wid - 0.08), -r, sz * (0.5 * len - 0.9)},
+                           {0.12, r, r}, 0.07f, rng.U32(), id));
+  return parts;
+}
+
 void AddPerson(Rng& rng, uint16_t id, double hip_m, double z_lean, std::vector<BoxPrim>* parts,
                bool riding) {
   const double height = rng.Uniform(1.6, 1.9);
@@ -543,13 +563,20 @@ uint16_t AddMover(BuildContext& ctx, MoverType type, int index_of_type, Rng& rng
     case MoverType::kCarAhead: {
       motion.kind = Motion::Kind::kFollowPath;
       motion.path = scene.ego_path;
+      const bool lead = opt.lead_gap_m > 0 && index_of_type == 0;
       for (int attempt = 0; attempt < kAttempts; ++attempt) {
-        motion.speed_mps = v + rng.Uniform(0.4, 1.5);
-        motion.s0_m = scene.ego_s0_m + 14.0 + 12.0 * index_of_type + rng.Uniform(0, 8 + attempt);
+        if (lead) {  // a queue: close ahead, a little slower or faster than the ego
+          motion.speed_mps = v + rng.Uniform(0.0, 0.3);
+          motion.s0_m = scene.ego_s0_m + opt.lead_gap_m + rng.Uniform(0, 2);
+        } else {
+          motion.speed_mps = v + rng.Uniform(0.4, 1.5);
+          motion.s0_m = scene.ego_s0_m + 14.0 + 12.0 * index_of_type + rng.Uniform(0, 8 + attempt);
+        }
         if (LaneIsFree(ctx, 0, motion)) break;
       }
-      ctx.lane_users.push_back({0, 0.0, motion, 2.4, 0.95});
-      make_instance(ObjectClass::kCar, MakeCar(rng, next_id), motion.speed_mps);
+      ctx.lane_users.push_back({0, 0.0, motion, lead ? 2.8 : 2.4, lead ? 1.05 : 0.95});
+      make_instance(ObjectClass::kCar, lead ? MakeVan(rng, next_id) : MakeCar(rng, next_id),
+                    motion.speed_mps);
       break;
     }
     case MoverType::kCarOncoming:

@@ -56,12 +56,13 @@ std::string OptionsText(const SynthOptions& o) {
   std::ostringstream s;
   s.precision(10);
   s << "frames: " << o.frames << "\nseed: " << o.seed << "\nnum_movers: " << o.num_movers
-    << "\nnum_parked: " << o.num_parked << "\nspeed_mps: " << o.speed_mps
-    << "\nroute: " << RouteName(o.route) << "\nwidth_px: " << o.width_px
-    << "\nheight_px: " << o.height_px << "\nfx: " << o.fx << "\nfy: " << o.fy << "\ncx: " << o.cx
-    << "\ncy: " << o.cy << "\nbaseline_m: " << o.baseline_m << "\nrate_hz: " << o.rate_hz
-    << "\ncamera_height_m: " << o.camera_height_m << "\nbounce_scale: " << o.bounce_scale
-    << "\nnoise_sigma: " << o.noise_sigma << "\nsequence: " << o.sequence << "\n";
+    << "\nnum_parked: " << o.num_parked << "\nlead_gap_m: " << o.lead_gap_m
+    << "\nspeed_mps: " << o.speed_mps << "\nroute: " << RouteName(o.route)
+    << "\nwidth_px: " << o.width_px << "\nheight_px: " << o.height_px << "\nfx: " << o.fx
+    << "\nfy: " << o.fy << "\ncx: " << o.cx << "\ncy: " << o.cy << "\nbaseline_m: " << o.baseline_m
+    << "\nrate_hz: " << o.rate_hz << "\ncamera_height_m: " << o.camera_height_m
+    << "\nbounce_scale: " << o.bounce_scale << "\nnoise_sigma: " << o.noise_sigma
+    << "\nsequence: " << o.sequence << "\n";
   return s.str();
 }
 

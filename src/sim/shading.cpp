@@ -236,7 +236,13 @@ double ShadeSidewalk(const BoxPrim& box, int face, double a, double b, double wa
 double ShadeCarBody(const BoxPrim& box, int face, double a, double b, double wa, double wb) {
   const uint32_t seed = box.seed;
   const double w = std::max(wa, wb);
-  double v = box.tone + 0.025 * Fbm(a, b, w, seed, 1.0, 4, 0.5);
+  // Paint mirrors its surroundings (mottled reflections) and collects dirt and stickers: real
+  // cars give a detector corners, not flat boxes.
+  double v = box.tone + 0.025 * Fbm(a, b, w, seed, 1.0, 4, 0.5) +
+             0.16 * (Fbm(a, b, w, seed + 31, 0.3, 3, 0.5) - 0.5);
+  double dirt_tone = 0;
+  const double dirt = Decal(a, b, wa, wb, 0.35, 0.25, 0.4, seed + 33, &dirt_tone);
+  v = Mix(v, 0.12 + 0.76 * dirt_tone, 0.8 * dirt);
   const double len = 2 * box.half_m.z(), wid = 2 * box.half_m.x(), hgt = 2 * box.half_m.y();
   if (face == 0 || face == 1) {
     const double seams = Pulse(a, wa, 0.36 * len, 0.36 * len + 0.015) +
@@ -273,7 +279,7 @@ double ShadeCabin(const BoxPrim& box, int face, double a, double b, double wa, d
   const double glass_m = Rect(a, b, wa, wb, 0.1, len - 0.1, 0.06, hgt - 0.07);
   const double pillar =
       (face == 0 || face == 1) ? Pulse(a, wa, 0.5 * len - 0.05, 0.5 * len + 0.05) : 0.0;
-  const double glass = 0.1 + 0.07 * Fbm(a, b, w, seed + 1, 0.9, 3, 0.5) +
+  const double glass = 0.08 + 0.3 * Fbm(a, b, w, seed + 1, 0.35, 3, 0.5) +
                        0.1 * Pulse(b, wb, hgt - 0.2, hgt - 0.12);  // reflection band
   double v = box.tone + 0.02 * Fbm(a, b, w, seed, 1.0, 3, 0.5);
   return Mix(v, glass, glass_m * (1.0 - pillar));

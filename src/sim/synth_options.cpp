@@ -21,6 +21,9 @@ bool SynthOptions::IsValid(std::string* why) const {
   if (num_movers < 0 || num_movers > 500) return Fail(why, "num_movers must be in [0, 500]");
   if (num_parked < 0 || num_parked > 2000) return Fail(why, "num_parked must be in [0, 2000]");
   if (!(speed_mps >= 0 && speed_mps <= 40)) return Fail(why, "speed_mps must be in [0, 40]");
+  if (!(lead_gap_m == 0 || (lead_gap_m >= 5 && lead_gap_m <= 100))) {
+    return Fail(why, "lead_gap_m must be 0 or in [5, 100]");
+  }
   if (width_px < 16 || width_px > 8192 || height_px < 16 || height_px > 8192)
     return Fail(why, "image size must be in [16, 8192] pixels");
   if (!(fx > 0 && fy > 0 && std::isfinite(fx) && std::isfinite(fy)))

@@ -25,6 +25,9 @@ struct SynthOptions {
   int num_parked = 8;      // parked cars (instances with moving = 0)
   double speed_mps = 8.0;  // ego speed along its lane
   RouteKind route = RouteKind::kStraight;
+  // Heavy traffic: > 0 puts the first car ahead lead_gap_m (+0..2 m) in front of the ego at
+  // nearly the ego's speed (a close lead car, as in a queue); 0 keeps the default drifting one.
+  double lead_gap_m = 0.0;
 
   int width_px = 1241;
   int height_px = 376;

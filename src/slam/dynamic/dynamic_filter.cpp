@@ -73,8 +73,10 @@ bool DynamicFilterOptions::IsValid(std::string* why) const {
       !check(motion.IsValid(&sub), "motion") || !check(ground.IsValid(&sub), "ground") ||
       !check(edge.IsValid(&sub), "edge") || !check(sky.IsValid(&sub), "sky") ||
       !check(voting.IsValid(&sub), "voting") || !check(scoring.IsValid(&sub), "scoring") ||
-      !check(instances.IsValid(&sub), "instances") || !check(cluster.IsValid(&sub), "cluster") ||
-      !check(mask_depth.IsValid(&sub), "mask_depth") || !check(classes.IsValid(&sub), "classes")) {
+      !check(instances.IsValid(&sub), "instances") ||
+      !check(instance_memory.IsValid(&sub), "instance_memory") ||
+      !check(cluster.IsValid(&sub), "cluster") || !check(mask_depth.IsValid(&sub), "mask_depth") ||
+      !check(classes.IsValid(&sub), "classes")) {
     return false;
   }
   if (!(keypoint_sigma_px > 0.0 && lk_sigma_px > 0.0)) {
@@ -91,6 +93,10 @@ bool DynamicFilterOptions::IsValid(std::string* why) const {
   }
   if (!(stale_mask_scale >= 0.0f && stale_mask_scale <= 1.0f)) {
     return Fail(why, "stale_mask_scale must be in [0, 1]");
+  }
+  if (long_baseline_frames < 0 || long_baseline_frames > kMaxLongBaseline) {
+    return Fail(why,
+                "long_baseline_frames must be in [0, " + std::to_string(kMaxLongBaseline) + "]");
   }
   return true;
 }
@@ -111,6 +117,10 @@ void DynamicFilter::Reset() {
   previous_uv_.clear();
   previous_track_ids_.clear();
   previous_states_.clear();
+  previous_history_.clear();
+  previous_history_count_.clear();
+  previous_from_past_.clear();
+  instance_memory_.clear();
   last_plane_.reset();
   last_plane_frame_ = -1;
   last_motion_.reset();
@@ -176,13 +186,18 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   std::vector<uint16_t> instance(n, 0);  // dynamic-class instances only
   std::vector<uint8_t> sky_instance(n, 0);
   std::vector<uint8_t> mask_outlier(n, 0);
+  std::vector<uint8_t> margin(n, 0);
+  std::vector<double> instance_speed_mps(1, 0.0);  // per instance: reference speed, 0: default
   int num_instances = 0;
   if (seg) {
     num_instances = static_cast<int>(seg->instances.size());
     std::vector<uint8_t> is_dynamic(num_instances + 1, 0), is_sky(num_instances + 1, 0);
     for (int k = 1; k <= num_instances; ++k) {
       const std::string& name = seg->instances[k - 1].class_name;
-      is_dynamic[k] = options_.classes.Find(name) != nullptr;
+      const DynamicClass* dynamic_class = options_.classes.Find(name);
+      is_dynamic[k] = dynamic_class != nullptr;
+      instance_speed_mps.push_back(
+          dynamic_class ? options_.classes.Params(dynamic_class->policy).reference_speed_mps : 0.0);
       is_sky[k] = std::find(options_.sky.class_names.begin(), options_.sky.class_names.end(),
                             name) != options_.sky.class_names.end();
     }
@@ -211,8 +226,10 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
         ResolveMaskMembership(cur_uv, depth, instance, confidence, boxes, options_.mask_depth);
     instance = std::move(membership.instance);
     mask_outlier = std::move(membership.depth_outlier);
+    margin = std::move(membership.margin);
     for (size_t i = 0; i < n; ++i) {
       if (mask_outlier[i]) confidence[i] = 0.0f;
+      if (margin[i] == 2) confidence[i] *= options_.mask_depth.unresolved_margin_scale;
     }
   }
   out.timing.mask_ms = MsSince(stage);
@@ -342,6 +359,35 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   }
   out.timing.pose_ms = MsSince(stage);
 
+  // Long-baseline tracks: each tracked keypoint's positions 1..K frames back (K =
+  // long_baseline_frames), from LK into the previous frame and, before that, the history of the
+  // previous keypoint it continues (shifted by the continuation offset), and the chained camera
+  // motion current <- those frames.
+  const int max_history = options_.long_baseline_frames >= 2 ? options_.long_baseline_frames : 0;
+  std::vector<std::array<cv::Point2f, kMaxLongBaseline>> history(max_history > 0 ? n : 0);
+  std::vector<uint8_t> history_count(n, 0);
+  std::vector<SE3> cur_from_past;  // index m: current <- m + 1 frames back
+  if (max_history > 0 && out.motion_source != MotionSource::kNone) {
+    cur_from_past.push_back(out.cur_from_prev);
+    for (const SE3& prev_from_past : previous_from_past_) {
+      if (static_cast<int>(cur_from_past.size()) >= max_history) break;
+      cur_from_past.push_back(out.cur_from_prev * prev_from_past);
+    }
+    for (size_t i = 0; i < n; ++i) {
+      if (!observed[i]) continue;
+      history[i][0] = prev_uv[i];
+      int count = 1;
+      const int j = continues[i];
+      if (j >= 0 && static_cast<size_t>(j) < previous_history_count_.size()) {
+        const cv::Point2f offset = prev_uv[i] - previous_uv_[j];
+        const int older = std::min<int>(previous_history_count_[j], max_history - 1);
+        for (int m = 0; m < older; ++m) history[i][m + 1] = previous_history_[j][m] + offset;
+        count += older;
+      }
+      history_count[i] = static_cast<uint8_t>(std::min<int>(count, cur_from_past.size()));
+    }
+  }
+
   // 4. Ground plane and horizon.
   stage = Clock::now();
   std::vector<Eigen::Vector3d> points(n, Eigen::Vector3d::Zero());
@@ -376,6 +422,18 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   }
   out.timing.ransac_ms = MsSince(stage);
 
+  // The road beside a car's wheels is at the car's depth: a margin point on the ground plane is
+  // road, not the car.
+  if (out.ground_plane) {
+    for (size_t i = 0; i < n; ++i) {
+      if (margin[i] == 1 && has_depth[i] &&
+          IsGroundPoint(*out.ground_plane, points[i], bf, options_.ground)) {
+        confidence[i] *= options_.mask_depth.ground_margin_scale;
+        if (confidence[i] < options_.mask_depth.margin_min_confidence) instance[i] = 0;
+      }
+    }
+  }
+
   // 5. Scoring.
   stage = Clock::now();
   double dt_s = options_.default_frame_dt_s;
@@ -408,9 +466,28 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
         noise.prev_sigma_px = options_.lk_sigma_px;
       }
       noise.disparity_sigma_px = options_.motion.disparity_sigma_px * scale[i];
+      const double class_speed_mps = instance[i] > 0 && instance[i] < instance_speed_mps.size()
+                                         ? instance_speed_mps[instance[i]]
+                                         : 0.0;
+      const double object_step_m = class_speed_mps > 0.0 ? class_speed_mps * dt_s : displacement_m;
       pm = ScorePointMotion(camera, bf, Eigen::Vector2d(cur_uv[i].x, cur_uv[i].y), depth[i],
                             Eigen::Vector2d(prev_uv[i].x, prev_uv[i].y), prev_from_cur, pose_sigma,
-                            noise, displacement_m, travel_dir, options_.motion);
+                            noise, object_step_m, travel_dir, options_.motion);
+      const int k = history_count[i];
+      if (k >= 2 && depth[i] > 0.0f && !matched_mode) {
+        // The same test k frames back: displacement x k, tracking and pose noise x sqrt(k).
+        const double root_k = std::sqrt(static_cast<double>(k));
+        PointNoise long_noise = noise;
+        long_noise.prev_sigma_px = noise.prev_sigma_px * root_k;
+        const PoseSigma long_sigma{pose_sigma.rotation_rad * root_k,
+                                   pose_sigma.translation_m * root_k};
+        const cv::Point2f past = history[i][k - 1];
+        const PointMotion long_pm = ScorePointMotion(
+            camera, bf, Eigen::Vector2d(cur_uv[i].x, cur_uv[i].y), depth[i],
+            Eigen::Vector2d(past.x, past.y), cur_from_past[k - 1].inverse(), long_sigma, long_noise,
+            object_step_m * k, travel_dir, options_.motion);
+        if (long_pm.valid() && long_pm.observability > pm.observability) pm = long_pm;
+      }
     }
     d.test = pm.test;
     if (pm.valid()) {
@@ -444,16 +521,37 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   // Instance-level motion: unobserved points of a confirmed static (parked) or moving instance
   // take the instance's verdict.
   if (num_instances > 0) {
-    const std::vector<InstanceMotion> summary = SummarizeInstances(
+    std::vector<InstanceMotion> summary = SummarizeInstances(
         instance, num_instances, has_motion, static_prob, observability, options_.instances);
+    std::vector<cv::Rect2f> boxes(num_instances);
+    std::vector<std::string> class_names(num_instances);
+    for (int k = 1; k <= num_instances; ++k) {
+      if (instance_speed_mps.size() > static_cast<size_t>(k) &&
+          options_.classes.Find(seg->instances[k - 1].class_name)) {
+        boxes[k - 1] = seg->instances[k - 1].box_px;
+        class_names[k - 1] = seg->instances[k - 1].class_name;
+      }
+    }
+    out.num_recalled_instances = RecallInstanceVerdicts(
+        boxes, class_names, frame, options_.instance_memory, &summary, &instance_memory_);
     for (size_t i = 0; i < n; ++i) {
       if (instance[i] == 0) continue;
       const InstanceMotion& m = summary[instance[i]];
       if (m.state == InstanceState::kUnknown) continue;
-      if (!has_motion[i]) {
+      // Unobserved points, and points whose own test could not have seen a motion (no depth, far
+      // ahead), take the instance's verdict.
+      const bool own_blind =
+          observability[i] < options_.instances.static_min_observability &&
+          (m.state == InstanceState::kMoving ? static_prob[i] >= options_.instances.moving_below
+                                             : true);
+      if (!has_motion[i] || own_blind) {
         has_motion[i] = 1;
-        static_prob[i] = static_cast<float>(m.median_static_prob);
-        observability[i] = static_cast<float>(m.median_observability);
+        static_prob[i] = static_cast<float>(
+            m.state == InstanceState::kMoving
+                ? std::min<double>(m.median_static_prob, options_.instances.moving_below * 0.5)
+                : m.median_static_prob);
+        observability[i] =
+            static_cast<float>(m.state == InstanceState::kMoving ? 1.0 : m.median_observability);
       } else if (m.state == InstanceState::kStatic) {
         // A point of a confirmed static instance whose own test saw no motion shares the
         // instance's confirmation (e.g. a point without depth: epipolar test only).
@@ -532,6 +630,9 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   previous_uv_ = std::move(cur_uv);
   previous_track_ids_ = std::move(track_ids);
   previous_states_ = std::move(states);
+  previous_history_ = std::move(history);
+  previous_history_count_ = std::move(history_count);
+  previous_from_past_ = std::move(cur_from_past);
   out.timing.total_ms = MsSince(start);
   return out;
 }

@@ -59,6 +59,8 @@ enum class MotionSourcePolicy : uint8_t {
 enum class MotionSource : uint8_t { kNone, kPrior, kPnp };
 const char* MotionSourceName(MotionSource source);
 
+inline constexpr int kMaxLongBaseline = 8;
+
 struct DynamicFilterOptions {
   LkOptions lk;
   EgoMotionOptions ego_motion;
@@ -69,6 +71,7 @@ struct DynamicFilterOptions {
   TemporalVotingOptions voting;
   ScoringOptions scoring;
   InstanceMotionOptions instances;
+  InstanceMemoryOptions instance_memory;
   ClusterOptions cluster;
   MaskDepthOptions mask_depth;
   DynamicClassPolicy classes;  // instances of these classes are dynamic-class instances
@@ -86,6 +89,12 @@ struct DynamicFilterOptions {
   double default_frame_dt_s = 0.1;          // when timestamps do not give one (KITTI: 10 Hz)
   int max_plane_age_frames = 5;   // re-use the last ground plane this long when RANSAC fails
   float stale_mask_scale = 0.5f;  // dynamic confidence factor of a stale segmentation
+  // Long-baseline motion test: a keypoint with depth whose LK track reaches back k frames
+  // (2 <= k <= long_baseline_frames) is also tested against its position k frames ago under the
+  // chained camera motion. An object's displacement grows with k, the tracking noise with sqrt(k):
+  // slow walkers and cars far ahead become visible, and parked cars get confirmed. The more
+  // observable of the two tests is used. 0 or 1: off.
+  int long_baseline_frames = 5;
   bool IsValid(std::string* why) const;
 };
 
@@ -159,6 +168,8 @@ struct FilterOutput {
   std::string motion_note;  // why PnP failed or was rejected, when it was
   int num_tracked = 0;      // keypoints with a previous-image position
   int num_continued = 0;    // keypoints continuing an LK track of the previous frame
+  int num_recalled_instances =
+      0;  // instances that took a remembered verdict (InstanceMemoryOptions)
   std::array<int, kNumFilterReasons> reason_counts{};
   int num_excluded = 0;
   int num_moving = 0;  // excluded for IsMovingReason reasons
@@ -187,6 +198,13 @@ class DynamicFilter {
   std::vector<cv::Point2f> previous_uv_;
   std::vector<int64_t> previous_track_ids_;
   std::vector<TrackState> previous_states_;  // temporal state per previous keypoint
+  // Long-baseline test: per previous keypoint, its positions 1..history_count frames before
+  // the previous frame (index 0: one frame before it), and the camera motions previous -> the
+  // frames before it (index m: previous_from_past m + 1 frames back).
+  std::vector<std::array<cv::Point2f, kMaxLongBaseline>> previous_history_;
+  std::vector<uint8_t> previous_history_count_;
+  std::vector<SE3> previous_from_past_;
+  std::vector<RememberedInstance> instance_memory_;
   int64_t next_track_id_ = 0;
   std::optional<SE3> last_motion_;  // cur_from_prev of the last frame, when it had one
   std::optional<Plane> last_plane_;

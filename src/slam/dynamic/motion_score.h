@@ -121,10 +121,10 @@ struct MotionScoreOptions {
   // trusted less than PnP on this frame's own correspondences. A caller whose prior is exact
   // (ground truth, the tracker's result) may lower prior_pose.
   PoseSigma prior_pose{0.003, 0.05};
-  PoseSigma pnp_pose{0.0015, 0.02};
+  PoseSigma pnp_pose{0.0015, 0.008};
   // P(static) = 1 / (1 + exp((chi2 - mid) / width)): 0.5 at the chi-square 99% quantile.
   double chi2_mid_2dof = 9.21;  // depth or rotation-only test (2 dof)
-  double chi2_mid_1dof = 6.63;  // epipolar test (1 dof)
+  double chi2_mid_1dof = 14.0;  // epipolar test (1 dof): LK slides along edges and stripes
   double chi2_width = 2.0;
   // Observability: how far (pixels) a point of an object moving at reference_speed_mps along
   // the camera's direction of travel (the usual direction of traffic, and the direction hardest

@@ -95,12 +95,84 @@ bool InstanceMotionOptions::IsValid(std::string* why) const {
   return true;
 }
 
+bool InstanceMemoryOptions::IsValid(std::string* why) const {
+  if (!(min_iou > 0.0 && min_iou <= 1.0)) return Fail(why, "min_iou in (0, 1]");
+  if (max_age_frames < 1) return Fail(why, "max_age_frames must be >= 1");
+  return true;
+}
+
+int RecallInstanceVerdicts(std::span<const cv::Rect2f> boxes,
+                           std::span<const std::string> class_names, int64_t frame_index,
+                           const InstanceMemoryOptions& options,
+                           std::vector<InstanceMotion>* summary,
+                           std::vector<RememberedInstance>* memory) {
+  if (class_names.size() != boxes.size() || summary->size() != boxes.size() + 1) {
+    throw std::invalid_argument("RecallInstanceVerdicts: inputs of different sizes");
+  }
+  std::erase_if(*memory, [&](const RememberedInstance& r) {
+    return frame_index - r.frame_index > options.max_age_frames || frame_index <= r.frame_index;
+  });
+  if (!options.enabled) {
+    memory->clear();
+    return 0;
+  }
+  auto iou = [](const cv::Rect2f& a, const cv::Rect2f& b) {
+    const float inter = (a & b).area();
+    const float uni = a.area() + b.area() - inter;
+    return uni > 0.0f ? static_cast<double>(inter / uni) : 0.0;
+  };
+  // Each remembered entry matches at most one current instance (its best overlap).
+  std::vector<int> best_of(boxes.size() + 1, -1);
+  std::vector<double> best_iou(boxes.size() + 1, 0.0);
+  std::vector<int> taken(memory->size(), 0);
+  for (size_t k = 1; k <= boxes.size(); ++k) {
+    const cv::Rect2f& box = boxes[k - 1];
+    if (box.area() <= 0.0f) continue;
+    for (size_t r = 0; r < memory->size(); ++r) {
+      const RememberedInstance& m = (*memory)[r];
+      if (m.class_name != class_names[k - 1]) continue;
+      const double o = iou(box, m.box_px);
+      if (o >= options.min_iou && o > best_iou[k]) {
+        best_iou[k] = o;
+        best_of[k] = static_cast<int>(r);
+      }
+    }
+  }
+  int adopted = 0;
+  for (size_t k = 1; k <= boxes.size(); ++k) {
+    if (best_of[k] < 0) continue;
+    taken[best_of[k]] = 1;
+    InstanceMotion& m = (*summary)[k];
+    if (m.state != InstanceState::kUnknown) continue;
+    const InstanceMotion& old = (*memory)[best_of[k]].motion;
+    m.state = old.state;
+    m.median_static_prob = old.median_static_prob;
+    m.median_observability = old.median_observability;
+    ++adopted;
+  }
+  std::vector<RememberedInstance> next;
+  for (size_t r = 0; r < memory->size(); ++r) {
+    if (!taken[r]) next.push_back((*memory)[r]);
+  }
+  for (size_t k = 1; k <= boxes.size(); ++k) {
+    const InstanceMotion& m = (*summary)[k];
+    if (boxes[k - 1].area() <= 0.0f || m.state == InstanceState::kUnknown) continue;
+    next.push_back({boxes[k - 1], class_names[k - 1], m, frame_index});
+  }
+  *memory = std::move(next);
+  return adopted;
+}
+
 bool MaskDepthOptions::IsValid(std::string* why) const {
   if (!(gate_rel >= 0.0 && gate_min_m > 0.0)) return Fail(why, "gate_rel >= 0, gate_min_m > 0");
   if (min_points < 1) return Fail(why, "min_points must be >= 1");
   if (!(box_margin_px >= 0.0)) return Fail(why, "box_margin_px must be >= 0");
   if (!(margin_min_confidence > 0.0f && margin_min_confidence <= 1.0f)) {
     return Fail(why, "margin_min_confidence must be in (0, 1]");
+  }
+  if (!(unresolved_margin_scale >= 0.0f && unresolved_margin_scale <= 1.0f &&
+        ground_margin_scale >= 0.0f && ground_margin_scale <= 1.0f)) {
+    return Fail(why, "margin scales must be in [0, 1]");
   }
   return true;
 }
@@ -118,6 +190,7 @@ MaskMembership ResolveMaskMembership(std::span<const cv::Point2f> uv_px,
   MaskMembership out;
   out.instance.assign(instance.begin(), instance.end());
   out.depth_outlier.assign(n, 0);
+  out.margin.assign(n, 0);
   if (!options.enabled || n == 0) return out;
   const size_t num = boxes.size();
   std::vector<std::vector<double>> depths(num + 1);
@@ -161,10 +234,11 @@ MaskMembership ResolveMaskMembership(std::span<const cv::Point2f> uv_px,
     }
     if (best > 0) {
       out.instance[i] = static_cast<uint16_t>(best);
+      out.margin[i] = 1;
     } else if (any_depth_model) {
       out.depth_outlier[i] = 1;
     } else if (first > 0) {
-      out.instance[i] = static_cast<uint16_t>(first);
+      out.margin[i] = 2;
     }
   }
   return out;
@@ -202,6 +276,9 @@ FilterReason DecidePoint(const PointTerms& terms, double score, const ScoringOpt
   if (terms.hard_edge) return FilterReason::kEdge;
   if (terms.sky) return FilterReason::kSky;
   if (remove_ground && terms.ground) return FilterReason::kGround;
+  // Inside a dynamic mask with nothing to say it is static (no motion test, no instance verdict):
+  // the mask decides, whatever the other (static-looking) terms say.
+  if (!terms.has_motion && terms.s_mask < options.mask_evidence_below) return FilterReason::kMask;
   if (score >= options.exclude_below) return FilterReason::kKept;
   const bool motion = terms.has_motion && terms.m_motion < options.motion_evidence_below;
   const bool mask = terms.s_mask < options.mask_evidence_below;

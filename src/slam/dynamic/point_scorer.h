@@ -105,6 +105,33 @@ std::vector<InstanceMotion> SummarizeInstances(std::span<const uint16_t> instanc
                                                std::span<const float> observability,
                                                const InstanceMotionOptions& options);
 
+// Instance memory: an instance without a verdict of its own this frame (occluded last frame, no
+// tracks yet, too far to test) takes the verdict of the remembered instance of its class whose
+// box overlaps its own most (IoU >= min_iou), remembered at most max_age_frames ago.
+struct InstanceMemoryOptions {
+  bool enabled = true;
+  double min_iou = 0.3;
+  int max_age_frames = 10;
+  bool IsValid(std::string* why) const;
+};
+
+struct RememberedInstance {
+  cv::Rect2f box_px;
+  std::string class_name;
+  InstanceMotion motion;  // the verdict (state != kUnknown) and its medians
+  int64_t frame_index = 0;
+};
+
+// summary: SummarizeInstances' result (index k for instance k = 1..boxes.size()); boxes[k - 1] and
+// class_names[k - 1] of instance k (an empty box: not a dynamic-class instance). Adopts
+// remembered verdicts into the unknown entries of summary, then updates memory with this frame's
+// verdicts and forgets the entries older than max_age_frames. Returns the number adopted.
+int RecallInstanceVerdicts(std::span<const cv::Rect2f> boxes,
+                           std::span<const std::string> class_names, int64_t frame_index,
+                           const InstanceMemoryOptions& options,
+                           std::vector<InstanceMotion>* summary,
+                           std::vector<RememberedInstance>* memory);
+
 // Mask depth consistency: a keypoint inside a dynamic-class mask, or in the dilated margin around
 // one, whose stereo depth is far (either way) from that instance's median depth is background
 // seen through the mask or an occluder in front of it: its mask does not apply.
@@ -115,12 +142,20 @@ struct MaskDepthOptions {
   int min_points = 5;                  // instance points with depth needed for a median
   double box_margin_px = 15.0;         // margin points: within the instance box grown by this ...
   float margin_min_confidence = 0.2f;  // ... and at least this dynamic confidence
+  // Dynamic confidence kept by an unresolved margin point (no depth to tell object from
+  // background), and by a depth-joined margin point that lies on the ground plane (the road
+  // beside a car's wheels is at the car's depth).
+  float unresolved_margin_scale = 0.5f;
+  float ground_margin_scale = 0.0f;
   bool IsValid(std::string* why) const;
 };
 
 struct MaskMembership {
   std::vector<uint16_t> instance;      // per keypoint: dynamic-class instance id, 0: none
   std::vector<uint8_t> depth_outlier;  // per keypoint: the mask does not apply (depth)
+  // Per keypoint: 1 = in the dilated margin and joined an instance by its depth; 2 = in the
+  // margin, unresolved (no depth to decide with); 0 = not a margin point.
+  std::vector<uint8_t> margin;
 };
 
 // Instance membership of the keypoints under MaskDepthOptions. instance[i]: the dynamic-class
@@ -128,9 +163,9 @@ struct MaskMembership {
 // the dilated margin too); boxes[k - 1]: box of instance k (an empty box for instances that are not
 // of a dynamic class). A keypoint on an instance whose depth is inconsistent with it becomes an
 // outlier (instance 0); a margin keypoint (confidence >= margin_min_confidence, no instance) joins
-// the instance whose grown box holds it and whose depth it matches (the nearest median depth), or
-// the first such box when it has no depth, and is an outlier when it has a depth that matches none
-// of them. Spans of one size (boxes aside), else std::invalid_argument.
+// the instance whose grown box holds it and whose depth it matches (the nearest median depth)
+// (margin 1), stays unresolved without depth (margin 2: no instance), and is an outlier when it has
+// a depth that matches none of them. Spans of one size (boxes aside), else std::invalid_argument.
 MaskMembership ResolveMaskMembership(std::span<const cv::Point2f> uv_px,
                                      std::span<const float> depth_m,
                                      std::span<const uint16_t> instance,

@@ -58,6 +58,9 @@ struct DynamicClass {
 struct DynamicPolicyParams {
   double dilation_scale = 1.0;   // multiplies the segmenter's dilation radius (pixels), >= 0
   float confidence_scale = 1.0;  // multiplies the detector confidence, in (0, 1]
+  // Speed the motion test must be able to see before it may call an object of this class static
+  // (observability, see MotionScoreOptions::reference_speed_mps); 0: the filter's default.
+  double reference_speed_mps = 0.0;
 };
 
 inline std::vector<DynamicClass> DefaultDynamicClasses() {
@@ -74,9 +77,10 @@ inline std::vector<DynamicClass> DefaultDynamicClasses() {
 struct DynamicClassPolicy {
   std::vector<DynamicClass> classes = DefaultDynamicClasses();
   // Aggressive: a wider margin (motion blur, mask edges lagging a fast object) at full confidence.
-  DynamicPolicyParams aggressive{1.4, 1.0f};
-  // Conservative: a tighter margin and a reduced confidence.
-  DynamicPolicyParams conservative{0.6, 0.8f};
+  DynamicPolicyParams aggressive{1.4, 1.0f, 0.0};
+  // Conservative: a tighter margin and a reduced confidence; a person or an animal is called
+  // static only where the test would see a walking pace.
+  DynamicPolicyParams conservative{0.6, 0.8f, 1.2};
 
   // The class entry with this name, or nullptr when the class is static.
   const DynamicClass* Find(const std::string& name) const {
@@ -109,6 +113,10 @@ struct DynamicClassPolicy {
       if (!(p->confidence_scale > 0.0f && p->confidence_scale <= 1.0f)) {
         return fail(std::string("DynamicClassPolicy: ") + which +
                     ".confidence_scale must be in (0, 1]");
+      }
+      if (!(p->reference_speed_mps >= 0.0 && p->reference_speed_mps <= 100.0)) {
+        return fail(std::string("DynamicClassPolicy: ") + which +
+                    ".reference_speed_mps must be in [0, 100]");
       }
     }
     return true;

@@ -111,7 +111,7 @@ TEST(FilterScorer, MaskMembershipByDepth) {
   add(150.0f, 130.0f, 4.0f, 1, 0.9f);   // 9: occluder in front
   add(95.0f, 150.0f, 15.5f, 0, 0.6f);   // 10: margin, at the car's depth: joins
   add(95.0f, 160.0f, 45.0f, 0, 0.6f);   // 11: margin, background: mask dropped
-  add(95.0f, 170.0f, -1.0f, 0, 0.6f);   // 12: margin, no depth: joins
+  add(95.0f, 170.0f, -1.0f, 0, 0.6f);   // 12: margin, no depth: unresolved
   add(95.0f, 180.0f, 15.0f, 0, 0.05f);  // 13: faint smoothing tail: not a member
   add(300.0f, 150.0f, 15.0f, 0, 0.6f);  // 14: outside the grown box
   const std::vector<cv::Rect2f> boxes = {cv::Rect2f(100, 100, 100, 100)};
@@ -124,8 +124,11 @@ TEST(FilterScorer, MaskMembershipByDepth) {
   EXPECT_EQ(m.depth_outlier[8], 1);
   EXPECT_EQ(m.depth_outlier[9], 1);
   EXPECT_EQ(m.instance[10], 1);
+  EXPECT_EQ(m.margin[10], 1);
   EXPECT_EQ(m.depth_outlier[11], 1);
-  EXPECT_EQ(m.instance[12], 1);
+  EXPECT_EQ(m.instance[12], 0);
+  EXPECT_EQ(m.margin[12], 2);
+  EXPECT_EQ(m.margin[0], 0);
   EXPECT_EQ(m.instance[13], 0);
   EXPECT_EQ(m.depth_outlier[13], 0);
   EXPECT_EQ(m.instance[14], 0);
