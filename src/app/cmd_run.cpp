@@ -41,6 +41,11 @@ void AddRunCommand(CLI::App& app) {
                 "write per-keypoint filter decisions to OUT/filter_decisions.txt");
   cmd->add_option("--truth-miss-rate", args->dynamic.truth_miss_rate,
                   "--segmenter truth: probability that an instance is missed in a frame");
+  cmd->add_option(
+         "--truth-labels", args->dynamic.truth_labels,
+         "KITTI tracking labels (label_02 file, frame k = sequence frame k) of a raw drive: "
+         "score the filter's decisions against the projected 3-D boxes of moving objects")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--set", args->overrides, "override one key: section.key=value (repeatable)");
   cmd->callback([args] {
     const Dataset dataset = OpenDataset(args->sequence);

@@ -38,6 +38,12 @@ DynamicRun::DynamicRun(const Dataset& dataset, const DynamicRunOptions& options,
   if (std::filesystem::is_regular_file(table) &&
       std::filesystem::is_directory(dataset.root + "/instance_0"))
     instances_ = sim::InstanceTable::Read(table);
+  if (!options_.truth_labels.empty()) {
+    if (!options_.filter) throw ConfigError("--truth-labels needs --filter on");
+    labels_.emplace(dataset, options_.truth_labels);
+    spdlog::info("truth labels {}: {} tracks, {} moving", options_.truth_labels,
+                 labels_->num_tracks(), labels_->num_moving_tracks());
+  }
 }
 
 DynamicRun::~DynamicRun() = default;
@@ -45,7 +51,8 @@ DynamicRun::~DynamicRun() = default;
 std::string DynamicRun::Describe() const {
   if (!filter_) return "filter off";
   return "filter on, segmenter " + options_.segmenter +
-         (instances_ ? ", scored against the synthetic instance images" : "");
+         (instances_ ? ", scored against the synthetic instance images" : "") +
+         (labels_ ? ", scored against the tracking labels' 3-D boxes" : "");
 }
 
 SlamSystem::KeypointFilterProvider DynamicRun::ForFrame(size_t i, const cv::Mat& left,
@@ -85,6 +92,11 @@ SlamSystem::KeypointFilterProvider DynamicRun::ForFrame(size_t i, const cv::Mat&
       ids = LoadImageChecked(dataset_.root + name, cv::IMREAD_UNCHANGED);
       if (!summary->filter_confusion) summary->filter_confusion.emplace();
     }
+    std::vector<LabelTruthKind> label_kinds;
+    if (labels_) {
+      label_kinds = labels_->Classify(i, features.keypoints);
+      if (!summary->filter_confusion) summary->filter_confusion.emplace();
+    }
     for (size_t k = 0; k < features.keypoints.size(); ++k) {
       const cv::Point2f& p = features.keypoints[k].pt;
       const bool excluded = out.filter.excluded[k] != 0;
@@ -103,6 +115,20 @@ SlamSystem::KeypointFilterProvider DynamicRun::ForFrame(size_t i, const cv::Mat&
         truth = moving ? "moving" : (instances_->IsObject(id) ? "parked" : "static");
         if (instances_->IsObject(id)) truth += ":" + std::to_string(id);
         if (instances_->IsObject(id) && !moving) {
+          ++summary->parked_points;
+          summary->parked_points_kept += excluded ? 0 : 1;
+        }
+      }
+      if (!label_kinds.empty()) {
+        const LabelTruthKind kind = label_kinds[k];
+        const FilterReason reason = out.points[k].reason;
+        const bool predicted =
+            excluded && (IsMovingReason(reason) || reason == FilterReason::kMask);
+        summary->filter_confusion->Add(predicted, kind == LabelTruthKind::kMoving);
+        truth = LabelTruthName(kind);
+        if (kind != LabelTruthKind::kStatic)
+          truth += ":" + std::to_string(labels_->TrackAt(i, features.keypoints[k].pt));
+        if (kind == LabelTruthKind::kParked) {
           ++summary->parked_points;
           summary->parked_points_kept += excluded ? 0 : 1;
         }

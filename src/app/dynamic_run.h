@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "app/label_truth.h"
 #include "app/run_slam.h"
 #include "app/slam_config.h"
 #include "io/dataset.h"
@@ -38,6 +39,7 @@ class DynamicRun {
   TruthSegmenter* truth_ = nullptr;  // segmenter_ when it is the truth segmenter
   std::optional<DynamicFilter> filter_;
   std::optional<sim::InstanceTable> instances_;  // synthetic ground truth, when present
+  std::optional<LabelTruth> labels_;             // real-drive ground truth (--truth-labels)
 };
 
 }  // namespace pcr::app

@@ -23,6 +23,7 @@ struct DynamicRunOptions {
   bool filter = false;             // run the multi-stage filter (Eq. 2) before tracking
   bool dump = false;               // write per-keypoint decisions (filter_decisions.txt)
   double truth_miss_rate = 0.0;    // --segmenter truth: emulated detector misses
+  std::string truth_labels;        // KITTI tracking label_02 file: score decisions against it
 };
 
 struct RunConfig {

@@ -488,6 +488,20 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
             object_step_m * k, travel_dir, options_.motion);
         if (long_pm.valid() && long_pm.observability > pm.observability) pm = long_pm;
       }
+      // Outside any mask, a depth test that sees motion where the depth-free epipolar test sees
+      // none is more often a wrong stereo match (repetitive road texture) than a moving object:
+      // the point's motion evidence is dropped (its depth is suspect, not the point).
+      if (options_.cross_check_depth_motion && pm.test == MotionTest::kDepth &&
+          pm.static_prob < 0.5 && confidence[i] < options_.scoring.mask_evidence_below) {
+        const PointMotion epipolar =
+            ScorePointMotion(camera, bf, Eigen::Vector2d(cur_uv[i].x, cur_uv[i].y), -1.0,
+                             Eigen::Vector2d(prev_uv[i].x, prev_uv[i].y), prev_from_cur, pose_sigma,
+                             noise, object_step_m, travel_dir, options_.motion);
+        if (epipolar.valid() && epipolar.static_prob >= 0.5) {
+          pm = epipolar;
+          ++out.num_depth_suspect;
+        }
+      }
     }
     d.test = pm.test;
     if (pm.valid()) {

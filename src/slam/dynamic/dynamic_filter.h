@@ -95,6 +95,8 @@ struct DynamicFilterOptions {
   // slow walkers and cars far ahead become visible, and parked cars get confirmed. The more
   // observable of the two tests is used. 0 or 1: off.
   int long_baseline_frames = 5;
+  // Outside masks, motion seen by the depth test but not by the epipolar test is a suspect depth.
+  bool cross_check_depth_motion = true;
   bool IsValid(std::string* why) const;
 };
 
@@ -168,8 +170,9 @@ struct FilterOutput {
   std::string motion_note;  // why PnP failed or was rejected, when it was
   int num_tracked = 0;      // keypoints with a previous-image position
   int num_continued = 0;    // keypoints continuing an LK track of the previous frame
-  int num_recalled_instances =
-      0;  // instances that took a remembered verdict (InstanceMemoryOptions)
+  // Instances that took a remembered verdict (InstanceMemoryOptions).
+  int num_recalled_instances = 0;
+  int num_depth_suspect = 0;  // unmasked points whose depth-test motion the epipolar test denied
   std::array<int, kNumFilterReasons> reason_counts{};
   int num_excluded = 0;
   int num_moving = 0;  // excluded for IsMovingReason reasons

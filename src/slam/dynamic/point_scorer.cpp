@@ -289,7 +289,11 @@ FilterReason DecidePoint(const PointTerms& terms, double score, const ScoringOpt
 }
 
 float WeightFromScore(double score, const ScoringOptions& options) {
-  return std::clamp(static_cast<float>(score), options.min_weight, 1.0f);
+  // Relative to an uninformed point (no mask, motion untested, not ground, not at the border:
+  // score 1 - w_motion / 2): lack of evidence costs no weight, evidence against a point does.
+  const double uninformed =
+      options.weight_relative_to_uninformed ? 1.0 - 0.5 * options.weights.motion : 1.0;
+  return std::clamp(static_cast<float>(score / uninformed), options.min_weight, 1.0f);
 }
 
 std::vector<InstanceMotion> SummarizeInstances(std::span<const uint16_t> instance,

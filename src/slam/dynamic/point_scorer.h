@@ -50,8 +50,12 @@ struct ScoreWeights {
 
 struct ScoringOptions {
   ScoreWeights weights;
-  double exclude_below = 0.65;         // scores below this exclude the keypoint
-  float min_weight = 0.05f;            // optimiser weight = max(score, min_weight)
+  double exclude_below = 0.65;  // scores below this exclude the keypoint
+  float min_weight = 0.05f;     // optimiser weight = max(score / uninformed, min_weight)
+  // The weight is the score relative to that of an uninformed point (1 - w_motion / 2): an
+  // untested motion term does not down-weight far points (the rotation's best constraints).
+  // false: the weight is the score itself.
+  bool weight_relative_to_uninformed = true;
   double motion_evidence_below = 0.5;  // M_motion below: the reason names motion
   double mask_evidence_below = 0.5;    // S_mask below: the reason names the mask
   bool IsValid(std::string* why) const;

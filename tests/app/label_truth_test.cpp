@@ -1,0 +1,64 @@
+#include "app/label_truth.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "io/dataset.h"
+#include "slam/common/error.h"
+#include "support/data_paths.h"
+
+namespace pcr::app {
+namespace {
+
+std::string Drive0005() {
+  return test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync");
+}
+std::string Labels0000() {
+  return test::SharedPath("data/kitti_tracking/training/label_02/0000.txt");
+}
+
+cv::KeyPoint At(float u, float v) { return cv::KeyPoint(cv::Point2f(u, v), 7.0f); }
+
+TEST(LabelTruth, CyclistMovesParkedVanStandsBackgroundIsStatic) {
+  const Dataset dataset = OpenDataset(Drive0005());
+  const LabelTruth truth(dataset, Labels0000());
+  EXPECT_EQ(truth.num_tracks(), 4u);
+  EXPECT_EQ(truth.num_moving_tracks(), 3u);
+  // Frame 45 (label_02 2-D boxes, image_02 pixels, a few pixels from image_00): cyclist (track 1)
+  // around (632, 258), parked van (track 3) around (814, 192); the sky and the road near the
+  // left border hold no object.
+  const std::vector<cv::KeyPoint> keypoints = {At(632, 258), At(814, 192), At(100, 30),
+                                               At(60, 360)};
+  const std::vector<LabelTruthKind> kinds = truth.Classify(45, keypoints);
+  ASSERT_EQ(kinds.size(), keypoints.size());
+  EXPECT_EQ(kinds[0], LabelTruthKind::kMoving);
+  EXPECT_EQ(truth.TrackAt(45, keypoints[0].pt), 1);
+  EXPECT_EQ(kinds[1], LabelTruthKind::kParked);
+  EXPECT_EQ(truth.TrackAt(45, keypoints[1].pt), 3);
+  EXPECT_EQ(kinds[2], LabelTruthKind::kStatic);
+  EXPECT_EQ(kinds[3], LabelTruthKind::kStatic);
+  EXPECT_EQ(truth.TrackAt(45, keypoints[2].pt), -1);
+  // A frame past the labels: everything static.
+  const std::vector<LabelTruthKind> beyond = truth.Classify(10000, keypoints);
+  for (LabelTruthKind k : beyond) EXPECT_EQ(k, LabelTruthKind::kStatic);
+}
+
+TEST(LabelTruth, NeedsGroundTruthPoses) {
+  Dataset dataset = OpenDataset(Drive0005());
+  dataset.ground_truth.reset();
+  EXPECT_THROW(LabelTruth(dataset, Labels0000()), ConfigError);
+}
+
+TEST(LabelTruth, MissingLabelFileNamesIt) {
+  const Dataset dataset = OpenDataset(Drive0005());
+  try {
+    LabelTruth truth(dataset, "/nonexistent/label_02/0000.txt");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/label_02/0000.txt"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace pcr::app
