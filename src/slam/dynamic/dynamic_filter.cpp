@@ -450,12 +450,11 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   std::vector<float> static_prob(n, 0.5f), observability(n, 0.0f);
   std::vector<TrackVote> votes(n);
   std::vector<TrackState> states(n);
+  std::vector<PointMotion> motions(n);
+  std::vector<PointMotion> suspect_alternative(n);  // epipolar verdicts of suspect depth tests
+  std::vector<uint8_t> suspect(n, 0);
   for (size_t i = 0; i < n; ++i) {
-    KeypointDiagnostics& d = out.points[i];
-    d.track_id = track_ids[i];
-    d.instance = instance[i];
-    d.mask_depth_outlier = mask_outlier[i];
-    PointMotion pm;
+    PointMotion& pm = motions[i];
     if (observed[i] && out.motion_source != MotionSource::kNone) {
       PointNoise noise;
       if (matched_mode) {
@@ -498,11 +497,35 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
                              Eigen::Vector2d(prev_uv[i].x, prev_uv[i].y), prev_from_cur, pose_sigma,
                              noise, object_step_m, travel_dir, options_.motion);
         if (epipolar.valid() && epipolar.static_prob >= 0.5) {
-          pm = epipolar;
-          ++out.num_depth_suspect;
+          suspect[i] = 1;
+          suspect_alternative[i] = epipolar;
         }
       }
     }
+  }
+  // A suspect is a wrong depth when it moves alone: a moving object moves its neighbours too.
+  if (options_.cross_check_depth_motion) {
+    const double r2 = options_.cross_check_radius_px * options_.cross_check_radius_px;
+    for (size_t i = 0; i < n; ++i) {
+      if (!suspect[i]) continue;
+      int moving_neighbours = 0;
+      for (size_t j = 0; j < n && moving_neighbours < options_.cross_check_min_neighbours; ++j) {
+        if (j == i || !motions[j].valid() || motions[j].static_prob >= 0.5) continue;
+        const cv::Point2f dd = cur_uv[j] - cur_uv[i];
+        if (dd.x * dd.x + dd.y * dd.y <= r2) ++moving_neighbours;
+      }
+      if (moving_neighbours < options_.cross_check_min_neighbours) {
+        motions[i] = suspect_alternative[i];
+        ++out.num_depth_suspect;
+      }
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    KeypointDiagnostics& d = out.points[i];
+    d.track_id = track_ids[i];
+    d.instance = instance[i];
+    d.mask_depth_outlier = mask_outlier[i];
+    const PointMotion& pm = motions[i];
     d.test = pm.test;
     if (pm.valid()) {
       d.frame_static_prob = static_cast<float>(pm.static_prob);

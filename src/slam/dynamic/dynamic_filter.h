@@ -96,7 +96,12 @@ struct DynamicFilterOptions {
   // observable of the two tests is used. 0 or 1: off.
   int long_baseline_frames = 5;
   // Outside masks, motion seen by the depth test but not by the epipolar test is a suspect depth.
+  // Only lone suspects: fewer than cross_check_min_neighbours other points within
+  // cross_check_radius_px whose own test sees motion (an object moving along the epipolar lines,
+  // e.g. a car ahead, moves its neighbours too).
   bool cross_check_depth_motion = true;
+  double cross_check_radius_px = 40.0;
+  int cross_check_min_neighbours = 3;
   bool IsValid(std::string* why) const;
 };
 

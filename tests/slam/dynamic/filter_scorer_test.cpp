@@ -59,8 +59,18 @@ TEST(FilterScorer, DecisionsAndReasons) {
   EXPECT_EQ(DecidePoint(ground, StaticScore(ground, o.weights), o, false), FilterReason::kKept);
   EXPECT_EQ(DecidePoint(ground, StaticScore(ground, o.weights), o, true), FilterReason::kGround);
   EXPECT_EQ(WeightFromScore(0.0, o), o.min_weight);
-  EXPECT_EQ(WeightFromScore(0.8, o), 0.8f);
-  EXPECT_EQ(WeightFromScore(1.5, o), 1.0f);
+  // Relative to an uninformed point (score 1 - 0.5 / 2 = 0.75 with the default weights).
+  EXPECT_FLOAT_EQ(WeightFromScore(0.6, o), 0.8f);
+  EXPECT_EQ(WeightFromScore(0.75, o), 1.0f);
+  EXPECT_EQ(WeightFromScore(0.9, o), 1.0f);
+  PointTerms uninformed;
+  EXPECT_EQ(WeightFromScore(StaticScore(uninformed, o.weights), o), 1.0f);
+  uninformed.has_motion = true;  // tested, but blind: m = 0.5
+  EXPECT_EQ(WeightFromScore(StaticScore(uninformed, o.weights), o), 1.0f);
+  ScoringOptions raw = o;
+  raw.weight_relative_to_uninformed = false;
+  EXPECT_FLOAT_EQ(WeightFromScore(0.8, raw), 0.8f);
+  EXPECT_EQ(WeightFromScore(1.5, raw), 1.0f);
   EXPECT_STREQ(FilterReasonName(FilterReason::kMaskMotion), "mask+motion");
   EXPECT_TRUE(IsMovingReason(FilterReason::kCluster));
   EXPECT_FALSE(IsMovingReason(FilterReason::kMask));
