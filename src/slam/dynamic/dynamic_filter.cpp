@@ -604,6 +604,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
     PointTerms terms;
     terms.s_mask = 1.0 - confidence[i];
     terms.has_motion = has_motion[i];
+    terms.first_frame = !has_previous_ && options_.keep_first_frame_masks;
     if (has_motion[i]) terms.m_motion = GateByObservability(static_prob[i], observability[i]);
     if (out.ground_plane && has_depth[i] &&
         IsGroundPoint(*out.ground_plane, points[i], bf, options_.ground)) {

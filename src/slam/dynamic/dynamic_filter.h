@@ -100,6 +100,9 @@ struct DynamicFilterOptions {
   // cross_check_radius_px whose own test sees motion (an object moving along the epipolar lines,
   // e.g. a car ahead, moves its neighbours too).
   bool cross_check_depth_motion = true;
+  // The first frame (no motion evidence anywhere) keeps its masked points, weighted by their
+  // score, rather than cutting every parked car out of the initial map.
+  bool keep_first_frame_masks = true;
   double cross_check_radius_px = 40.0;
   int cross_check_min_neighbours = 3;
   bool IsValid(std::string* why) const;

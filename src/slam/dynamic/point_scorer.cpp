@@ -278,6 +278,10 @@ FilterReason DecidePoint(const PointTerms& terms, double score, const ScoringOpt
   if (remove_ground && terms.ground) return FilterReason::kGround;
   // Inside a dynamic mask with nothing to say it is static (no motion test, no instance verdict):
   // the mask decides, whatever the other (static-looking) terms say.
+  // The first frame of a run has no motion evidence anywhere: the mask alone would cut every
+  // parked car out of the initial map. Its points are kept (weighted by their score) and the
+  // next frames decide.
+  if (terms.first_frame && !terms.has_motion) return FilterReason::kKept;
   if (!terms.has_motion && terms.s_mask < options.mask_evidence_below) return FilterReason::kMask;
   if (score >= options.exclude_below) return FilterReason::kKept;
   const bool motion = terms.has_motion && terms.m_motion < options.motion_evidence_below;

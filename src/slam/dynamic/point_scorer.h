@@ -70,6 +70,7 @@ struct PointTerms {
   bool hard_edge = false;  // within EdgeOptions::exclude_within_px
   bool sky = false;
   bool ground = false;
+  bool first_frame = false;  // no previous frame: no motion evidence anywhere yet
 };
 
 // Eq. 2, renormalised over the terms present (the motion term only when has_motion).

@@ -297,9 +297,9 @@ TEST(FilterScene, DefaultPolicyRefinesARoughPriorByPnp) {
   }
 }
 
-TEST(FilterScene, FirstFrameHasNoMotionEvidenceAndExcludesMaskedPointsOnly) {
-  const auto frames = test::BuildFilterScene({});
-  DynamicFilter filter;
+FilterOutput RunFirstFrame(const std::vector<test::FilterSceneFrame>& frames,
+                           const DynamicFilterOptions& options) {
+  DynamicFilter filter(options);
   FilterInput in;
   in.frame_index = 0;
   in.left_image = frames[0].image;
@@ -309,8 +309,16 @@ TEST(FilterScene, FirstFrameHasNoMotionEvidenceAndExcludesMaskedPointsOnly) {
   in.previous_uv_px = frames[0].prev_uv_px;
   in.rig = test::KittiRig();
   in.segmentation = &frames[0].segmentation;
-  const FilterOutput out = filter.Process(in);
-  int static_kept = 0, statics = 0;
+  return filter.Process(in);
+}
+
+TEST(FilterScene, FirstFrameHasNoMotionEvidenceAndKeepsMaskedPointsAtReducedWeight) {
+  const auto frames = test::BuildFilterScene({});
+  const FilterOutput out = RunFirstFrame(frames, {});
+  DynamicFilterOptions strict;
+  strict.keep_first_frame_masks = false;
+  const FilterOutput strict_out = RunFirstFrame(frames, strict);
+  int static_kept = 0, statics = 0, masked = 0;
   for (size_t i = 0; i < frames[0].kinds.size(); ++i) {
     const PointKind kind = frames[0].kinds[i];
     EXPECT_FALSE(out.points[i].has_motion);
@@ -318,11 +326,16 @@ TEST(FilterScene, FirstFrameHasNoMotionEvidenceAndExcludesMaskedPointsOnly) {
       ++statics;
       static_kept += out.filter.excluded[i] ? 0 : 1;
     }
-    // Masked points without any motion evidence are excluded for their mask.
     if ((kind == PointKind::kMoving || kind == PointKind::kParked) && out.points[i].s_mask < 0.2f) {
-      EXPECT_EQ(out.points[i].reason, FilterReason::kMask);
+      ++masked;
+      // Kept (the next frames decide), but weighted down by the mask ...
+      EXPECT_EQ(out.points[i].reason, FilterReason::kKept);
+      EXPECT_LT(out.filter.weight[i], 0.9f);
+      // ... and excluded for their mask when the first frame is not special.
+      EXPECT_EQ(strict_out.points[i].reason, FilterReason::kMask);
     }
   }
+  EXPECT_GT(masked, 20);
   EXPECT_GE(static_kept, 0.95 * statics);
 }
 
