@@ -508,11 +508,20 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
     const double r2 = options_.cross_check_radius_px * options_.cross_check_radius_px;
     for (size_t i = 0; i < n; ++i) {
       if (!suspect[i]) continue;
+      // With a segmenter, an object that moves is expected under a mask: any unmasked suspect
+      // is a suspect depth. Without one, only a lone suspect is.
+      if (seg != nullptr) {
+        motions[i] = suspect_alternative[i];
+        ++out.num_depth_suspect;
+        continue;
+      }
       int moving_neighbours = 0;
       for (size_t j = 0; j < n && moving_neighbours < options_.cross_check_min_neighbours; ++j) {
         if (j == i || !motions[j].valid() || motions[j].static_prob >= 0.5) continue;
         const cv::Point2f dd = cur_uv[j] - cur_uv[i];
-        if (dd.x * dd.x + dd.y * dd.y <= r2) ++moving_neighbours;
+        if (dd.x * dd.x + dd.y * dd.y > r2 || !(depth[j] > 0.0f)) continue;
+        // Neighbours on the same surface: at about the suspect's (stereo) depth.
+        if (std::abs(depth[j] - depth[i]) <= std::max(1.0, 0.15 * depth[i])) ++moving_neighbours;
       }
       if (moving_neighbours < options_.cross_check_min_neighbours) {
         motions[i] = suspect_alternative[i];
