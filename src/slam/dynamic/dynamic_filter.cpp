@@ -387,6 +387,31 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
       history_count[i] = static_cast<uint8_t>(std::min<int>(count, cur_from_past.size()));
     }
   }
+  // The chained motion to the oldest frame accumulates every frame's rotation error (the
+  // largest term for far points): PnP on the long tracks themselves measures it directly.
+  bool long_pnp = false;
+  const int longest = static_cast<int>(cur_from_past.size());
+  if (longest >= 2 && bf > 0.0 && options_.long_baseline_pnp) {
+    std::vector<cv::Point2f> past_uv(n, cv::Point2f(-1.0f, -1.0f));
+    std::vector<uint8_t> usable(n, 0);
+    for (size_t i = 0; i < n; ++i) {
+      if (history_count[i] != longest) continue;
+      past_uv[i] = history[i][longest - 1];
+      usable[i] = depth[i] > 0.0f && confidence[i] < options_.pnp_max_dynamic_confidence &&
+                  !sky_instance[i];
+    }
+    const SE3 chained = cur_from_past[longest - 1];
+    const EgoMotionEstimate pnp =
+        EstimateCurFromPrev(camera, cur_uv, depth, past_uv, usable, &chained, options_.ego_motion);
+    if (pnp.success) {
+      const SE3 delta = chained.inverse() * pnp.cur_from_prev;
+      if (delta.translation().norm() <= options_.max_prior_deviation_m &&
+          RotationAngleRad(delta.linear()) <= options_.max_prior_deviation_rad) {
+        cur_from_past[longest - 1] = pnp.cur_from_prev;
+        long_pnp = true;
+      }
+    }
+  }
 
   // 4. Ground plane and horizon.
   stage = Clock::now();
@@ -478,8 +503,10 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
         const double root_k = std::sqrt(static_cast<double>(k));
         PointNoise long_noise = noise;
         long_noise.prev_sigma_px = noise.prev_sigma_px * root_k;
-        const PoseSigma long_sigma{pose_sigma.rotation_rad * root_k,
-                                   pose_sigma.translation_m * root_k};
+        // Chained motions add their errors; a PnP over the long tracks has a single one.
+        const double pose_factor = long_pnp && k == longest ? 1.0 : root_k;
+        const PoseSigma long_sigma{pose_sigma.rotation_rad * pose_factor,
+                                   pose_sigma.translation_m * pose_factor};
         const cv::Point2f past = history[i][k - 1];
         const PointMotion long_pm = ScorePointMotion(
             camera, bf, Eigen::Vector2d(cur_uv[i].x, cur_uv[i].y), depth[i],
@@ -500,6 +527,18 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
           suspect[i] = 1;
           suspect_alternative[i] = epipolar;
         }
+      }
+    }
+  }
+  // With a segmenter, the epipolar test alone (no depth) does not call an unmasked point moving:
+  // LK sliding along edges and stripes fools it more often than a detector misses an object
+  // (a missed mask is bridged by the temporal vote).
+  if (seg != nullptr && options_.cross_check_depth_motion) {
+    for (size_t i = 0; i < n; ++i) {
+      if (motions[i].test == MotionTest::kEpipolar && motions[i].static_prob < 0.5 &&
+          confidence[i] < options_.scoring.mask_evidence_below) {
+        motions[i].static_prob = 0.5;
+        ++out.num_depth_suspect;
       }
     }
   }
@@ -602,6 +641,18 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
         // A point of a confirmed static instance whose own test saw no motion shares the
         // instance's confirmation (e.g. a point without depth: epipolar test only).
         observability[i] = std::max(observability[i], static_cast<float>(m.median_observability));
+      }
+      // A point of a moving instance carries "moving" along its track: a frame where the
+      // detector misses the object, or where the point's own test is blind, still excludes it.
+      if (m.state == InstanceState::kMoving && options_.instance_vote) {
+        const double floor =
+            std::min(options_.voting.max_log_odds,
+                     options_.voting.dynamic_threshold + options_.voting.max_evidence);
+        if (states[i].log_odds < floor) {
+          states[i].log_odds = floor;
+          const int64_t map_id = input.point_ids.empty() ? -1 : input.point_ids[i];
+          if (map_id >= 0) voting_.Store(map_id, states[i]);
+        }
       }
     }
   }

@@ -95,6 +95,8 @@ struct DynamicFilterOptions {
   // slow walkers and cars far ahead become visible, and parked cars get confirmed. The more
   // observable of the two tests is used. 0 or 1: off.
   int long_baseline_frames = 5;
+  // Re-measure the motion to the oldest frame of the long test by PnP on the long tracks.
+  bool long_baseline_pnp = true;
   // Outside masks, motion seen by the depth test but not by the epipolar test is a suspect depth.
   // Only lone suspects: fewer than cross_check_min_neighbours other points within
   // cross_check_radius_px whose own test sees motion (an object moving along the epipolar lines,
@@ -103,6 +105,9 @@ struct DynamicFilterOptions {
   // The first frame (no motion evidence anywhere) keeps its masked points, weighted by their
   // score, rather than cutting every parked car out of the initial map.
   bool keep_first_frame_masks = true;
+  // Points of an instance judged moving raise their track's vote to "moving" (carried through
+  // frames where the mask is missed).
+  bool instance_vote = true;
   double cross_check_radius_px = 40.0;
   int cross_check_min_neighbours = 3;
   bool IsValid(std::string* why) const;
