@@ -376,3 +376,41 @@ TEST(WorldLoopTest, LoopRouteReturnsToItsStart) {
 
 }  // namespace
 }  // namespace pcr::sim
+
+namespace pcr::sim {
+namespace {
+
+TEST(SyntheticWorld, LeadGapPutsAVanCloseAheadForTheWholeRun) {
+  SynthOptions o;
+  o.frames = 100;
+  o.num_movers = 1;  // the first mover of the cycle: a car ahead in the ego lane
+  o.num_parked = 0;
+  o.lead_gap_m = 6.0;
+  const SyntheticWorld world(o);
+  uint16_t lead = 0;
+  for (const InstanceInfo& info : world.Instances().all()) {
+    if (info.moving) lead = info.id;
+  }
+  ASSERT_NE(lead, 0);
+  const InstanceInfo& info = *world.Instances().Find(lead);
+  EXPECT_GT(info.size_m.y(), 2.0);  // a van: taller than a car
+  for (int f : {0, 50, 99}) {
+    const Eigen::Vector3d p_in_cam =
+        (world.WorldFromCam(f).inverse() * world.WorldFromObject(lead, f)).translation();
+    SCOPED_TRACE(f);
+    EXPECT_GT(p_in_cam.z(), 6.0);            // ahead, at least the gap
+    EXPECT_LT(p_in_cam.z(), 15.0);           // and never more than ~3 s x 0.3 m/s further
+    EXPECT_LT(std::abs(p_in_cam.x()), 0.5);  // in the ego lane
+  }
+  // It fills a large part of the image.
+  const RenderedFrame frame = world.RenderFrame(50);
+  const double share = cv::countNonZero(frame.instance_left == lead) /
+                       static_cast<double>(frame.instance_left.total());
+  EXPECT_GT(share, 0.05);
+  SynthOptions bad = o;
+  bad.lead_gap_m = 2.0;
+  EXPECT_THROW(SyntheticWorld{bad}, ConfigError);
+}
+
+}  // namespace
+}  // namespace pcr::sim
