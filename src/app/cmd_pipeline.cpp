@@ -141,7 +141,8 @@ void RunPipelineCommand(const PipelineArgs& args) {
   };
   std::unique_ptr<nodes::DynamicFilterScorer> scorer;
   if (args.filter == "on")
-    scorer = std::make_unique<nodes::DynamicFilterScorer>(source.rig, config.slam.orb.scale_factor);
+    scorer = std::make_unique<nodes::DynamicFilterScorer>(source.rig, config.slam.orb.scale_factor,
+                                                          config.dynamic.options);
   const graph::PipelineResult result =
       graph::RunPipeline(source, config.slam, run_options, segmenters, scorer.get());
   progress.Finish();

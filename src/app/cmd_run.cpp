@@ -51,7 +51,9 @@ void AddRunCommand(CLI::App& app) {
     const Dataset dataset = OpenDataset(args->sequence);
     std::string config_yaml;
     RunConfig config = LoadRunConfig(args->config, args->overrides, &config_yaml);
+    const DynamicFilterOptions filter_options = config.dynamic.options;  // from the config file
     config.dynamic = args->dynamic;
+    config.dynamic.options = filter_options;
     const SlamMode mode = args->mode == "mono" ? SlamMode::kMonocular : SlamMode::kStereo;
     const FrameRange range = FrameRange::Parse(args->frames, dataset.size());
     spdlog::info("run: {} {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m, out {}",

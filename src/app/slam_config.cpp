@@ -73,6 +73,25 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("mapping", "cull_keyframes", &m.cull_keyframes);
   s.Add("mapping", "redundant_fraction", &m.redundant_fraction);
 
+  DynamicFilterOptions& f = c.dynamic.options;
+  s.Add("filter", "exclude_below", &f.scoring.exclude_below, "Eq. 2 scores below this: excluded");
+  s.Add("filter", "weight_mask", &f.scoring.weights.mask, "Eq. 2 weights (sum 1)");
+  s.Add("filter", "weight_motion", &f.scoring.weights.motion);
+  s.Add("filter", "weight_ground", &f.scoring.weights.ground);
+  s.Add("filter", "weight_edge", &f.scoring.weights.edge);
+  s.Add("filter", "weight_relative_to_uninformed", &f.scoring.weight_relative_to_uninformed,
+        "optimiser weight = score / score of an untested point (false: the score)");
+  s.Add("filter", "remove_ground", &f.ground.remove_ground, "false: down-weight ground points");
+  s.Add("filter", "reference_speed_mps", &f.motion.reference_speed_mps,
+        "motion the test must see before it confirms a point static");
+  s.Add("filter", "lk_sigma_px", &f.lk_sigma_px);
+  s.Add("filter", "long_baseline_frames", &f.long_baseline_frames, "0: one-frame motion test only");
+  s.Add("filter", "temporal_window_frames", &f.voting.window_frames, "Eq. 4 window");
+  s.Add("filter", "vote_threshold", &f.voting.dynamic_threshold, "log-odds of 'moving'");
+  s.Add("filter", "instance_memory_frames", &f.instance_memory.max_age_frames);
+  s.Add("filter", "cross_check_depth_motion", &f.cross_check_depth_motion);
+  s.Add("filter", "keep_first_frame_masks", &f.keep_first_frame_masks);
+
   s.Add("camera", "fx", &c.camera.fx, "0: use the dataset's calibration");
   s.Add("camera", "fy", &c.camera.fy);
   s.Add("camera", "cx", &c.camera.cx);
@@ -97,9 +116,13 @@ RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>&
                       config.subpixel_fit + "'");
   }
   std::string why;
-  const std::string source = path.empty() ? std::string("defaults") : path;
+  const std::string source =
+      !path.empty() ? path : (overrides.empty() ? std::string("defaults") : std::string("--set"));
   if (!config.slam.IsValid(&why)) throw ConfigError(source + ": invalid configuration: " + why);
   if (!config.camera.IsValid(&why)) throw ConfigError(source + ": invalid configuration: " + why);
+  if (!config.dynamic.options.IsValid(&why)) {
+    throw ConfigError(source + ": invalid configuration: filter: " + why);
+  }
   if (effective_yaml) *effective_yaml = schema.Dump();
   return config;
 }

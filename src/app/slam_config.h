@@ -4,6 +4,7 @@
 #include <string>
 
 #include "app/config_schema.h"
+#include "slam/dynamic/dynamic_filter.h"
 #include "slam/system/slam_system.h"
 
 namespace pcr::app {
@@ -24,6 +25,7 @@ struct DynamicRunOptions {
   bool dump = false;               // write per-keypoint decisions (filter_decisions.txt)
   double truth_miss_rate = 0.0;    // --segmenter truth: emulated detector misses
   std::string truth_labels;        // KITTI tracking label_02 file: score decisions against it
+  DynamicFilterOptions options;    // the filter's configuration (config section "filter")
 };
 
 struct RunConfig {

@@ -69,6 +69,27 @@ TEST(RunConfig, TypoNamesLine) {
   }
 }
 
+TEST(RunConfig, FilterSectionConfiguresTheDynamicFilter) {
+  std::string yaml;
+  const RunConfig c = LoadRunConfig(
+      "",
+      {"filter.exclude_below=0.7", "filter.long_baseline_frames=3", "filter.remove_ground=true"},
+      &yaml);
+  EXPECT_DOUBLE_EQ(c.dynamic.options.scoring.exclude_below, 0.7);
+  EXPECT_EQ(c.dynamic.options.long_baseline_frames, 3);
+  EXPECT_TRUE(c.dynamic.options.ground.remove_ground);
+  EXPECT_NE(yaml.find("exclude_below: 0.7"), std::string::npos);
+  // Weights that do not sum to one are refused, naming the section and the reason.
+  try {
+    LoadRunConfig("", {"filter.weight_mask=0.5"}, nullptr);
+    FAIL() << "accepted weights summing to 1.3";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("filter"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("sum to 1"), std::string::npos);
+  }
+  EXPECT_THROW(LoadRunConfig("", {"filter.long_baseline_frames=99"}, nullptr), ConfigError);
+}
+
 TEST(FrameRange, Parses) {
   EXPECT_EQ(FrameRange::Parse("", 51).first, 0u);
   EXPECT_EQ(FrameRange::Parse("", 51).end, 51u);
