@@ -566,7 +566,7 @@ uint16_t AddMover(BuildContext& ctx, MoverType type, int index_of_type, Rng& rng
       const bool lead = opt.lead_gap_m > 0 && index_of_type == 0;
       for (int attempt = 0; attempt < kAttempts; ++attempt) {
         if (lead) {  // a queue: close ahead, a little slower or faster than the ego
-          motion.speed_mps = v + rng.Uniform(0.0, 0.3);
+          motion.speed_mps = v + rng.Uniform(0.0, 0.1);
           motion.s0_m = scene.ego_s0_m + opt.lead_gap_m + rng.Uniform(0, 2);
         } else {
           motion.speed_mps = v + rng.Uniform(0.4, 1.5);
