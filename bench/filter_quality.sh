@@ -41,7 +41,9 @@ run_set() {  # run_set NAME SEQUENCE ARGS... : mean ATE over the feature counts,
   local sum=0 line=""
   for n in "${counts[@]}"; do
     local out="$work/runs/$name-$n"
-    "$bin" run --sequence "$seq" --out "$out" --set orb.num_features=$n "$@" >"$out.log" 2>&1 ||
+    # Runs already in WORK_DIR are reused (delete WORK_DIR/runs to measure again).
+    [ -f "$out/stats.json" ] ||
+      "$bin" run --sequence "$seq" --out "$out" --set orb.num_features=$n "$@" >"$out.log" 2>&1 ||
       { echo "run failed: $out.log" >&2; exit 1; }
     line=$(stat "$out")
     sum=$(python3 -c "print($sum + ${line%% *})")
