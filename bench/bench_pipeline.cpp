@@ -1,19 +1,33 @@
 // End-to-end pipeline benchmark: the same input under the sequential, pipelined and realtime
-// policies in one invocation, one table (throughput, latency percentiles, drops, stale masks,
-// ATE) and the pipelined/sequential throughput ratio.
+// policies (realtime with adaptive quality off and on) in one invocation, one table (frames
+// processed and dropped, throughput, latency percentiles, stale masks, quality levels, ATE and
+// its ratio to the sequential run), the pipelined/sequential throughput ratio and the CPU bound
+// of a 2-core pipeline.
 //
 //   bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N]
-//                  [--rate R] [--segmenter yolo|none] [--model FILE] [--out DIR]
+//                  [--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none]
+//                  [--filter on|off] [--out DIR]
 //
 // Default input: KITTI raw drive 0005 (stereo, moving vehicles and a cyclist) with the
-// YOLOv8n-seg 224x640 model, both from PCR_SHARED_DIR. With --out, each policy's trace.json and
-// timing.png are written to DIR/<policy>/.
+// YOLOv8n-seg 224x640 model (the fast level) and, for adaptive quality, the 384x1280 model (the
+// high level) when present, all from PCR_SHARED_DIR; the multi-stage dynamic filter scores the
+// keypoints (--filter on, as `pcr_orb pipeline --filter on`). With --out, each row's trace.json
+// and timing.png are written to DIR/<row>/.
+//
+// CPU bound: OpenCV's parallel backend (TBB here) lets a single stage use several cores (the DNN
+// forward pass scales ~1.85x on 2 threads, the LK flow of the filter too), so stage times of the
+// sequential run are not CPU work. The benchmark therefore also runs the sequential policy on ONE
+// thread (OpenCV, TBB and Ceres capped to 1): its per-stage means are CPU work per call, and their
+// per-frame sum divided by `threads` is the wall time per frame of a perfectly packed pipeline.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <string>
@@ -25,6 +39,7 @@
 #include "graph/pipeline.h"
 #include "graph/pipeline_report.h"
 #include "io/dataset.h"
+#include "nodes/filter_node.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
 namespace {
@@ -38,7 +53,8 @@ std::string SharedDir() {
 
 struct BenchArgs {
   std::string sequence = SharedDir() + "/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
-  std::string frames, segmenter = "yolo", model, out;
+  std::string frames, segmenter = "yolo", model, model_high, out;
+  bool filter = true;
   int threads = 2, max_in_flight = 4;
   double rate = 1.0;
 };
@@ -46,6 +62,7 @@ struct BenchArgs {
 BenchArgs ParseArgs(int argc, char** argv) {
   BenchArgs a;
   a.model = SharedDir() + "/models/yolov8n-seg_coco_224x640.onnx";
+  a.model_high = SharedDir() + "/models/yolov8n-seg_coco_384x1280.onnx";
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     auto value = [&]() -> std::string {
@@ -64,12 +81,19 @@ BenchArgs ParseArgs(int argc, char** argv) {
       a.segmenter = value();
     } else if (arg == "--model") {
       a.model = value();
+    } else if (arg == "--model-high") {
+      a.model_high = value();
+    } else if (arg == "--filter") {
+      const std::string v = value();
+      if (v != "on" && v != "off") throw std::invalid_argument("--filter must be on or off");
+      a.filter = v == "on";
     } else if (arg == "--out") {
       a.out = value();
     } else if (arg == "-h" || arg == "--help") {
       std::printf(
           "bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N] "
-          "[--rate R] [--segmenter yolo|none] [--model FILE] [--out DIR]\n");
+          "[--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none] "
+          "[--filter on|off] [--out DIR]\n");
       std::exit(0);
     } else if (!arg.empty() && arg[0] != '-') {
       a.sequence = arg;
@@ -77,6 +101,8 @@ BenchArgs ParseArgs(int argc, char** argv) {
       throw std::invalid_argument("unknown argument " + arg);
     }
   }
+  if (a.segmenter != "yolo" && a.segmenter != "none")
+    throw std::invalid_argument("--segmenter must be yolo or none");
   return a;
 }
 
@@ -107,6 +133,37 @@ double AteRmse(const pcr::Dataset& dataset, const pcr::Trajectory& tracked) {
   }
 }
 
+// The first line of /proc/loadavg (1, 5 and 15 minute load averages, ...): the benchmark's
+// figures only mean something when nothing else loads the machine.
+std::string LoadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string line;
+  std::getline(in, line);
+  return line.empty() ? "?" : line;
+}
+
+// User + system CPU seconds of the whole process so far.
+double ProcessCpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  auto seconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + t.tv_usec * 1e-6; };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
+}
+
+struct Row {
+  std::string name;
+  Policy policy = Policy::kSequential;
+  bool adaptive = false;
+  int threads = 2;
+  pcr::graph::PipelineStats stats;
+  double ate_m = -1;
+  double cpu_s = 0;
+};
+
+std::string Fixed(double value, int decimals, bool valid = true) {
+  return valid ? fmt::format("{:.{}f}", value, decimals) : std::string("-");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -116,60 +173,180 @@ int main(int argc, char** argv) {
     const pcr::Dataset dataset = pcr::OpenDataset(args.sequence);
     const pcr::app::FrameRange range = pcr::app::FrameRange::Parse(args.frames, dataset.size());
     const pcr::nodes::FrameSource source = SourceOf(dataset, range);
+    const pcr::SlamOptions slam_options;
 
-    std::unique_ptr<pcr::YoloSegmenter> yolo;
+    // Networks as `pcr_orb pipeline` sets them up: the fast model in the fast slot (every frame
+    // without adaptive quality; the medium and low levels), the high model in the accurate slot
+    // (the high level), each warmed up by one forward pass kept out of the runs.
+    std::vector<std::unique_ptr<pcr::YoloSegmenter>> networks;
     pcr::nodes::SegmenterSet segmenters;
     std::string segmenter_name = "none";
     if (args.segmenter == "yolo") {
-      pcr::YoloOptions options;
-      options.model_path = args.model;
-      yolo = std::make_unique<pcr::YoloSegmenter>(options);
-      // The first forward pass initialises the network (about a second): keep it out of the runs.
-      yolo->Segment(source.load_left(source.frame_indices.front()));
-      segmenters.fast = yolo.get();
-      segmenter_name =
-          fmt::format("YOLOv8n-seg {}x{}", yolo->input_size().height, yolo->input_size().width);
-    } else if (args.segmenter != "none") {
-      throw std::invalid_argument("--segmenter must be yolo or none");
+      const cv::Mat first = source.load_left(source.frame_indices.front());
+      auto load = [&](const std::string& path) {
+        pcr::YoloOptions options;
+        options.model_path = path;
+        networks.push_back(std::make_unique<pcr::YoloSegmenter>(options));
+        networks.back()->Segment(first);
+        return networks.back().get();
+      };
+      segmenters.fast = load(args.model);
+      segmenter_name = fmt::format("YOLOv8n-seg {}x{}", networks.back()->input_size().height,
+                                   networks.back()->input_size().width);
+      if (args.model_high != "none" && std::filesystem::is_regular_file(args.model_high)) {
+        segmenters.accurate = load(args.model_high);
+        segmenter_name +=
+            fmt::format(" (adaptive high: {}x{})", networks.back()->input_size().height,
+                        networks.back()->input_size().width);
+      }
+    }
+    // Page-cache the images so that the first run does not pay the disk.
+    for (int64_t i : source.frame_indices) {
+      source.load_left(i);
+      source.load_right(i);
     }
 
     std::printf(
-        "bench_pipeline: %s, frames %zu..%zu (%zu), %d threads, %d in flight, %s, "
+        "bench_pipeline: %s, frames %zu..%zu (%zu), %d threads, %d in flight, %s, filter %s, "
         "realtime rate %.3g\n",
         dataset.name.c_str(), range.first, range.end - 1, source.size(), args.threads,
-        args.max_in_flight, segmenter_name.c_str(), args.rate);
-    std::printf("%-11s %6s %7s %7s %8s %8s %8s %8s %6s %6s %9s\n", "policy", "frames", "dropped",
-                "fps", "lat p50", "lat p95", "lat p99", "lat max", "stale", "fresh", "ATE [m]");
-    std::map<Policy, pcr::graph::PipelineStats> stats;
-    for (Policy policy : {Policy::kSequential, Policy::kPipelined, Policy::kRealtime}) {
+        args.max_in_flight, segmenter_name.c_str(), args.filter ? "on (multi-stage)" : "off",
+        args.rate);
+    std::printf("load average before: %s\n", LoadAverage().c_str());
+
+    std::vector<Row> rows;
+    auto add_row = [&](const char* name, Policy policy, bool adaptive, int threads) {
+      Row row;
+      row.name = name;
+      row.policy = policy;
+      row.adaptive = adaptive;
+      row.threads = threads;
+      rows.push_back(row);
+    };
+    add_row("sequential", Policy::kSequential, false, args.threads);
+    add_row("pipelined", Policy::kPipelined, false, args.threads);
+    add_row("realtime", Policy::kRealtime, false, args.threads);
+    add_row("realtime+adaptive", Policy::kRealtime, true, args.threads);
+    add_row("sequential 1-thread", Policy::kSequential, false, 1);
+    for (Row& row : rows) {
       pcr::graph::PipelineOptions options;
-      options.policy = policy;
-      options.threads = args.threads;
+      options.policy = row.policy;
+      options.threads = row.threads;
       options.max_in_flight = args.max_in_flight;
       options.rate = args.rate;
+      options.adaptive = row.adaptive;
+      // The filter keeps state across frames: one per run.
+      std::unique_ptr<pcr::nodes::DynamicFilterScorer> scorer;
+      if (args.filter)
+        scorer = std::make_unique<pcr::nodes::DynamicFilterScorer>(source.rig,
+                                                                   slam_options.orb.scale_factor);
+      const double cpu_before = ProcessCpuSeconds();
       const pcr::graph::PipelineResult r =
-          pcr::graph::RunPipeline(source, pcr::SlamOptions{}, options, segmenters);
-      if (!r.error.empty()) std::fprintf(stderr, "%s: %s\n", ToString(policy), r.error.c_str());
-      const pcr::graph::PipelineStats& s = r.stats;
-      const double ate = AteRmse(dataset, r.tracked);
-      std::printf("%-11s %6zu %7zu %7.2f %8.1f %8.1f %8.1f %8.1f %6zu %6zu %9s\n", s.policy.c_str(),
-                  s.frames_completed, s.frames_dropped, s.fps, s.latency.p50_ms, s.latency.p95_ms,
-                  s.latency.p99_ms, s.latency.max_ms, s.masks_stale, s.masks_fresh,
-                  ate >= 0 ? fmt::format("{:.3f}", ate).c_str() : "-");
-      stats[policy] = s;
+          pcr::graph::RunPipeline(source, slam_options, options, segmenters, scorer.get());
+      row.cpu_s = ProcessCpuSeconds() - cpu_before;
+      if (!r.error.empty()) std::fprintf(stderr, "%s: %s\n", row.name.c_str(), r.error.c_str());
+      row.stats = r.stats;
+      row.ate_m = AteRmse(dataset, r.tracked);
       if (!args.out.empty()) {
-        const std::string dir = args.out + "/" + s.policy;
+        std::string dir_name = row.name;
+        std::replace_if(
+            dir_name.begin(), dir_name.end(), [](char c) { return c == ' ' || c == '+'; }, '_');
+        const std::string dir = args.out + "/" + dir_name;
         std::filesystem::create_directories(dir);
         pcr::graph::WriteChromeTrace(dir + "/trace.json", r);
         pcr::graph::WriteTimingChart(dir + "/timing.png", r);
       }
     }
-    const double seq_fps = stats[Policy::kSequential].fps;
-    std::printf("throughput ratio pipelined/sequential: %.2f\n",
-                seq_fps > 0 ? stats[Policy::kPipelined].fps / seq_fps : 0.0);
+
+    const std::string load_after = LoadAverage();
+    std::printf("load average after: %s\n", load_after.c_str());
+    // The 1-minute load includes this benchmark (about `threads`); more means other processes
+    // took cores from it.
+    if (std::atof(load_after.c_str()) > args.threads + 0.75)
+      std::printf(
+          "WARNING: other processes were using the cores (load average above %d + 0.75): the "
+          "timings below are not those of an idle machine\n",
+          args.threads);
+    const Row& seq = rows[0];
+    const Row& pipe = rows[1];
+    const Row& one = rows[4];
+    std::printf("%-19s %5s %5s %6s %6s %7s %7s %7s %7s %5s %11s %7s %7s %5s\n", "row", "done",
+                "drop", "%proc", "fps", "lat p50", "lat p95", "lat p99", "lat max", "stale",
+                "quality H/M/L", "ATE [m]", "ATE/seq", "cpu%");
+    for (const Row& row : rows) {
+      const pcr::graph::PipelineStats& s = row.stats;
+      const double processed =
+          s.frames_total > 0 ? 100.0 * static_cast<double>(s.frames_completed) / s.frames_total : 0;
+      const std::string quality = row.adaptive
+                                      ? fmt::format("{}/{}/{}", s.quality_frames[2],
+                                                    s.quality_frames[1], s.quality_frames[0])
+                                      : std::string("-");
+      const double cpu_util = s.wall_s > 0 ? 100.0 * row.cpu_s / (s.wall_s * row.threads) : 0;
+      std::printf("%-19s %5zu %5zu %6.1f %6.2f %7.1f %7.1f %7.1f %7.1f %5zu %11s %7s %7s %5.0f\n",
+                  row.name.c_str(), s.frames_completed, s.frames_dropped, processed, s.fps,
+                  s.latency.p50_ms, s.latency.p95_ms, s.latency.p99_ms, s.latency.max_ms,
+                  s.masks_stale, quality.c_str(), Fixed(row.ate_m, 3, row.ate_m >= 0).c_str(),
+                  Fixed(row.ate_m / seq.ate_m, 2, row.ate_m >= 0 && seq.ate_m > 0).c_str(),
+                  cpu_util);
+    }
     std::printf(
-        "(latency: admission -> pose for sequential/pipelined, camera release -> pose "
-        "for realtime)\n");
+        "(latency: admission -> pose for sequential/pipelined, camera release -> pose for "
+        "realtime; cpu%%: process CPU time / (wall x threads))\n");
+
+    // Per-stage times: wall per call in the sequential run (stages may use several cores), CPU
+    // work per call from the 1-thread run, CPU work per frame = that times calls per frame.
+    std::printf("\n%-11s %6s %12s %12s %12s\n", "stage", "calls", "seq ms/call", "1thr ms/call",
+                "cpu ms/frame");
+    const double frames_one = static_cast<double>(std::max<size_t>(1, one.stats.frames_completed));
+    double cpu_per_frame_ms = 0, serial_chain_ms = 0, segment_ms = 0, filter_ms = 0;
+    for (const char* stage :
+         {pcr::graph::kStagePreprocess, pcr::graph::kStageOrbLeft, pcr::graph::kStageOrbRight,
+          pcr::graph::kStageSegment, pcr::graph::kStageStereo, pcr::graph::kStageFilter,
+          pcr::graph::kStageTracking, pcr::graph::kStageMapping}) {
+      const auto a = seq.stats.stages.find(stage);
+      const auto b = one.stats.stages.find(stage);
+      if (a == seq.stats.stages.end() && b == one.stats.stages.end()) continue;
+      const bool has_b = b != one.stats.stages.end();
+      const double per_frame = has_b ? b->second.time.total_ms / frames_one : 0.0;
+      cpu_per_frame_ms += per_frame;
+      const std::string name = stage;
+      // Serial nodes: tracking and mapping share the token (one chain); the filter and (outside
+      // realtime) the segmenter are serial nodes of their own. Their wall time per frame uses the
+      // 2-thread timing of the sequential run (what they take when they get both cores).
+      const double seq_per_frame =
+          a != seq.stats.stages.end()
+              ? a->second.time.total_ms /
+                    static_cast<double>(std::max<size_t>(1, seq.stats.frames_completed))
+              : 0.0;
+      if (name == pcr::graph::kStageTracking || name == pcr::graph::kStageMapping)
+        serial_chain_ms += seq_per_frame;
+      if (name == pcr::graph::kStageSegment) segment_ms = seq_per_frame;
+      if (name == pcr::graph::kStageFilter) filter_ms = seq_per_frame;
+      std::printf("%-11s %6zu %12s %12s %12.1f\n", stage,
+                  a != seq.stats.stages.end() ? a->second.time.count : 0,
+                  Fixed(a != seq.stats.stages.end() ? a->second.time.mean_ms : 0, 1,
+                        a != seq.stats.stages.end())
+                      .c_str(),
+                  Fixed(has_b ? b->second.time.mean_ms : 0, 1, has_b).c_str(), per_frame);
+    }
+    std::printf("%-11s %6s %12s %12s %12.1f\n", "sum", "", "", "", cpu_per_frame_ms);
+
+    const double seq_fps = seq.stats.fps;
+    std::printf("\nthroughput ratio pipelined/sequential: %.2f (%.2f / %.2f fps)\n",
+                seq_fps > 0 ? pipe.stats.fps / seq_fps : 0.0, pipe.stats.fps, seq_fps);
+    const double ideal_fps = cpu_per_frame_ms > 0 ? 1000.0 * args.threads / cpu_per_frame_ms : 0;
+    const double serial_ms = std::max({serial_chain_ms, segment_ms, filter_ms});
+    const double serial_fps = serial_ms > 0 ? 1000.0 / serial_ms : 0;
+    const double bound_fps = serial_fps > 0 ? std::min(ideal_fps, serial_fps) : ideal_fps;
+    std::printf(
+        "CPU bound: %.1f ms CPU work per frame (1-thread stage means) / %d cores = %.2f fps "
+        "ideal pipelined (ratio %.2f); slowest serial node %.1f ms/frame (tracking+mapping "
+        "%.1f, filter %.1f, segment %.1f) = %.2f fps; bound %.2f fps (ratio %.2f), pipelined "
+        "reaches %.0f%% of it\n",
+        cpu_per_frame_ms, args.threads, ideal_fps, seq_fps > 0 ? ideal_fps / seq_fps : 0.0,
+        serial_ms, serial_chain_ms, filter_ms, segment_ms, serial_fps, bound_fps,
+        seq_fps > 0 ? bound_fps / seq_fps : 0.0,
+        bound_fps > 0 ? 100.0 * pipe.stats.fps / bound_fps : 0.0);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_pipeline: %s\n", e.what());

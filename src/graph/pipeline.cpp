@@ -71,6 +71,80 @@ const FrameTicket& TicketOf(const std::tuple<A, B>& t) {
 
 double NsToMs(int64_t ns) { return static_cast<double>(ns) * 1e-6; }
 
+// ThreadSanitizer builds (scripts/tsan.sh). oneTBB's scheduler is not instrumented, so TSAN does
+// not see the happens-before edges that TBB's task hand-off provides; these helpers declare them
+// (no-ops in other builds):
+//  - set-up: what the calling thread wrote before the clock thread starts happens before every
+//    node body (TsanSetupDone, TsanAfterSetup);
+//  - inputs: a body copies its input out of TBB's slot (written by the producer's thread) with
+//    the reads ignored (TsanReceive); a message is a shared_ptr, and the copy's reference-count
+//    increment then orders the producer's writes to the message before the body's reads;
+//  - serial nodes: their calls come one after the other, on any thread (TsanBody);
+//  - tear-down: every body has returned when wait_for_all does (TsanBody, TsanAfterBodies);
+//  - the token: mapping of frame k releases the map before it returns the token, and tracking
+//    of frame k+1 acquires it.
+// Concurrent bodies stay unordered, so races between them are still reported.
+#if defined(__SANITIZE_THREAD__)
+#define PCR_UNDER_TSAN 1
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define PCR_UNDER_TSAN 1
+#endif
+#endif
+#ifdef PCR_UNDER_TSAN
+extern "C" {
+void __tsan_acquire(void* addr);
+void __tsan_release(void* addr);
+void AnnotateIgnoreReadsBegin(const char* file, int line);
+void AnnotateIgnoreReadsEnd(const char* file, int line);
+}
+char tsan_setup_sync, tsan_bodies_done;
+inline void TsanAcquire(const void* addr) { __tsan_acquire(const_cast<void*>(addr)); }
+inline void TsanRelease(const void* addr) { __tsan_release(const_cast<void*>(addr)); }
+template <typename T>
+T TsanReceive(const T& input) {
+  AnnotateIgnoreReadsBegin(__FILE__, __LINE__);
+  T copy = input;
+  AnnotateIgnoreReadsEnd(__FILE__, __LINE__);
+  return copy;
+}
+inline void TsanSetupDone() { TsanRelease(&tsan_setup_sync); }
+inline void TsanAfterSetup() { TsanAcquire(&tsan_setup_sync); }
+inline void TsanAfterBodies() { TsanAcquire(&tsan_bodies_done); }
+#else
+char tsan_bodies_done;
+inline void TsanAcquire(const void*) {}
+inline void TsanRelease(const void*) {}
+template <typename T>
+const T& TsanReceive(const T& input) {
+  return input;
+}
+inline void TsanSetupDone() {}
+inline void TsanAfterSetup() {}
+inline void TsanAfterBodies() {}
+#endif
+
+// One call of a node body, its first statement: acquires the set-up (and, for a serial node,
+// the node's previous call) at the start; releases the node and "bodies done" at the end, which
+// the caller of wait_for_all acquires before it destroys the graph. A body whose argument to it
+// reads a member calls TsanAfterSetup() first.
+class TsanBody {
+ public:
+  explicit TsanBody(const void* serial_node = nullptr) : serial_node_(serial_node) {
+    TsanAfterSetup();
+    if (serial_node_) TsanAcquire(serial_node_);
+  }
+  ~TsanBody() {
+    if (serial_node_) TsanRelease(serial_node_);
+    TsanRelease(&tsan_bodies_done);
+  }
+  TsanBody(const TsanBody&) = delete;
+  TsanBody& operator=(const TsanBody&) = delete;
+
+ private:
+  const void* serial_node_;
+};
+
 // One run of the graph: shared state of the node bodies and the clock.
 class GraphRun {
  public:
@@ -260,12 +334,16 @@ PipelineResult GraphRun::Run() {
   limiter_ = std::make_unique<tf::limiter_node<FrameTicket>>(g, max_in_flight_);
 
   StageNode<FrameTicket, ImagesPtr> preprocess(
-      g, tf::unlimited, [this](const FrameTicket& t, auto& ports) {
+      g, tf::unlimited, [this](const FrameTicket& input, auto& ports) {
+        const TsanBody tsan_body;
+        const auto& t = TsanReceive(input);
         if (auto out = Guarded(kStagePreprocess, t, [&] { return preprocess_(t); }))
           std::get<0>(ports).try_put(*out);
       });
   auto orb_body = [this](const nodes::OrbNode& node, const char* stage) {
-    return [this, &node, stage](const ImagesPtr& images, auto& ports) {
+    return [this, &node, stage](const ImagesPtr& input, auto& ports) {
+      const TsanBody tsan_body;
+      const auto& images = TsanReceive(input);
       if (auto out = Guarded(stage, images->ticket, [&] { return node(images); }))
         std::get<0>(ports).try_put(*out);
     };
@@ -276,7 +354,9 @@ PipelineResult GraphRun::Run() {
   tf::join_node<std::tuple<FeaturesPtr, FeaturesPtr>, tf::key_matching<int64_t>> feature_join(
       g, key_of, key_of);
   StageNode<std::tuple<FeaturesPtr, FeaturesPtr>, StereoPtr> stereo(
-      g, tf::unlimited, [this](const std::tuple<FeaturesPtr, FeaturesPtr>& in, auto& ports) {
+      g, tf::unlimited, [this](const std::tuple<FeaturesPtr, FeaturesPtr>& input, auto& ports) {
+        const TsanBody tsan_body;
+        const auto& in = TsanReceive(input);
         const FrameTicket& t = TicketOf(in);
         auto out =
             Guarded(kStageStereo, t, [&] { return stereo_(std::get<0>(in), std::get<1>(in)); });
@@ -291,7 +371,10 @@ PipelineResult GraphRun::Run() {
   // (every frame is segmented, in arrival order) except in realtime, where the network takes the
   // newest waiting frame when it becomes free and frames it skipped answer "busy" at once.
   tf::function_node<ImagesPtr, tf::continue_msg> segment(
-      g, realtime_ ? tf::unlimited : tf::serial, [this](const ImagesPtr& images) {
+      g, realtime_ ? tf::unlimited : tf::serial, [this](const ImagesPtr& input) {
+        TsanAfterSetup();  // before the next line reads a member
+        const TsanBody tsan_body(realtime_ ? nullptr : &segment_);
+        const auto& images = TsanReceive(input);
         if (!segment_.WillRun(images->ticket)) {
           board_->OnSegmentation(segment_(images));  // "not run", immediately
         } else if (!realtime_) {
@@ -329,7 +412,10 @@ PipelineResult GraphRun::Run() {
   auto seq_of = [](const auto& msg) { return static_cast<size_t>(TicketOf(msg).seq); };
   tf::sequencer_node<StereoAndMask> filter_order(g, seq_of);
   StageNode<StereoAndMask, FilteredPtr> filter(
-      g, tf::serial, [this](const StereoAndMask& in, auto& ports) {
+      g, tf::serial, [this](const StereoAndMask& input, auto& ports) {
+        TsanAfterSetup();  // before the next line reads a member
+        const TsanBody tsan_body(&filter_);
+        const auto& in = TsanReceive(input);
         if (auto out = Guarded(kStageFilter, TicketOf(in),
                                [&] { return filter_(std::get<0>(in), std::get<1>(in)); }))
           std::get<0>(ports).try_put(*out);
@@ -338,7 +424,11 @@ PipelineResult GraphRun::Run() {
   tf::queue_node<Token> tokens(g);
   tf::join_node<TrackingInput, tf::reserving> token_join(g);
   StageNode<TrackingInput, TrackedPtr> tracking(
-      g, tf::serial, [this](const TrackingInput& in, auto& ports) {
+      g, tf::serial, [this](const TrackingInput& input, auto& ports) {
+        TsanAfterSetup();  // before the next line reads a member
+        const TsanBody tsan_body(&tracking_);
+        const auto& in = TsanReceive(input);
+        TsanAcquire(slam_);  // the token: frame k-1's map edits
         const FilteredPtr& filtered = std::get<0>(in);
         if (auto out = Guarded(kStageTracking, filtered->ticket, [&] {
               if (options_.tracking_delay_ms > 0)
@@ -352,16 +442,23 @@ PipelineResult GraphRun::Run() {
   // map holds frame k's edits. Loop closing will sit here: one more serial node between mapping
   // and the token return.
   StageNode<TrackedPtr, FrameResultPtr, Token> mapping(
-      g, tf::serial, [this](const TrackedPtr& tracked, auto& ports) {
+      g, tf::serial, [this](const TrackedPtr& input, auto& ports) {
+        TsanAfterSetup();  // before the next line reads a member
+        const TsanBody tsan_body(&mapping_);
+        const auto& tracked = TsanReceive(input);
         const bool keyframe = nodes::MappingNode::NeedsMapping(*tracked);
         if (auto out = Guarded(
                 kStageMapping, tracked->ticket, [&] { return mapping_(tracked); }, keyframe)) {
+          TsanRelease(slam_);  // the map edits of this frame, before the token goes back
           std::get<1>(ports).try_put(Token{0});
           std::get<0>(ports).try_put(*out);
         }
       });
   tf::function_node<FrameResultPtr, tf::continue_msg> sink(
-      g, tf::serial, [this](const FrameResultPtr& result) {
+      g, tf::serial, [this](const FrameResultPtr& input) {
+        TsanAfterSetup();  // before the next line reads a member
+        const TsanBody tsan_body(&frames_);
+        const auto& result = TsanReceive(input);
         try {
           Complete(result);
         } catch (const std::exception& e) {
@@ -390,6 +487,7 @@ PipelineResult GraphRun::Run() {
   tokens.try_put(Token{0});
 
   g.reserve_wait();  // released by the clock when it is done
+  TsanSetupDone();
   std::thread clock([this] { ClockLoop(); });
   try {
     g.wait_for_all();
@@ -405,6 +503,7 @@ PipelineResult GraphRun::Run() {
     throw;
   }
   clock.join();
+  TsanAfterBodies();
   return Collect();
 }
 
@@ -667,7 +766,12 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
   const int arena_threads = options.policy == Policy::kSequential ? 1 : options.threads;
   oneapi::tbb::global_control parallelism(oneapi::tbb::global_control::max_allowed_parallelism,
                                           static_cast<size_t>(options.threads));
-  CvThreadsScope cv_threads(options.threads);
+  // OpenCV's parallel loops (DNN forward, LK flow, resize) run on TBB in an arena of their own.
+  // In the sequential policy they are the only parallelism; in the others the graph already
+  // keeps `threads` cores busy with different stages, and a second arena competing for the same
+  // TBB workers left one worker idle for seconds at a time (pipelined fps 8.5 instead of 14.7 on
+  // 2 cores, bench_pipeline): stages there run OpenCV on their own thread.
+  CvThreadsScope cv_threads(options.policy == Policy::kSequential ? options.threads : 1);
   oneapi::tbb::task_arena arena(arena_threads);
   spdlog::debug("pipeline: {} on {} ({} frames), {} threads, {} in flight",
                 ToString(options.policy), source.name, source.size(), options.threads,

@@ -39,7 +39,10 @@ inline constexpr const char* kStageMapping = "mapping";
 
 struct PipelineOptions {
   Policy policy = Policy::kPipelined;
-  int threads = 2;        // caps TBB (global_control), OpenCV (cv::setNumThreads) and Ceres
+  // Caps TBB (global_control), OpenCV and Ceres. OpenCV's own parallel loops get `threads` in
+  // the sequential policy only; pipelined and realtime run them on the calling stage's thread
+  // (the graph already keeps the cores busy with different stages).
+  int threads = 2;
   int max_in_flight = 4;  // frames admitted and not finished (sequential uses 1)
   // realtime: frame i is released (t_i - t_0) * rate after the start (1 = real time, 0.5 = twice
   // as fast, 0 = all at once).
