@@ -57,6 +57,8 @@ struct Args {
   uint64_t seed = 1;
   int movers = 6, parked = 8;
   double speed_mps = 8.0;  // 0: a parked ego car (control run: no new keyframes are needed)
+  int max_keyframes = 0;   // mapping.max_keyframes: 0 unbounded, else a bounded map
+  bool trim = false;       // return freed heap to the system after each sample (malloc_trim)
 };
 
 Args ParseArgs(int argc, char** argv) {
@@ -95,11 +97,16 @@ Args ParseArgs(int argc, char** argv) {
       a.parked = std::stoi(value());
     } else if (arg == "--speed") {
       a.speed_mps = std::stod(value());
+    } else if (arg == "--max-keyframes") {
+      a.max_keyframes = std::stoi(value());
+    } else if (arg == "--trim") {
+      a.trim = true;
     } else if (arg == "-h" || arg == "--help") {
       std::printf(
           "bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400] "
           "[--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2] "
-          "[--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8]\n");
+          "[--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8] "
+          "[--max-keyframes N] [--trim]\n");
       std::exit(0);
     } else {
       throw std::invalid_argument("unknown argument " + arg);
@@ -289,7 +296,8 @@ int main(int argc, char** argv) {
 
     pcr::nodes::SegmenterSet segmenters;
     if (args.segmenter == "truth") segmenters.fast = &truth;
-    const pcr::SlamOptions slam_options;
+    pcr::SlamOptions slam_options;
+    slam_options.mapping.max_keyframes = args.max_keyframes;
     std::unique_ptr<pcr::nodes::DynamicFilterScorer> scorer;
     if (args.filter)
       scorer = std::make_unique<pcr::nodes::DynamicFilterScorer>(source.rig,
@@ -312,6 +320,7 @@ int main(int argc, char** argv) {
       Sample s;
       s.frame = frame;
       s.t_s = seconds();
+      if (args.trim) malloc_trim(0);  // glibc keeps freed arenas resident otherwise
       s.rss = ResidentBytes();
       s.rss_peak = std::max(window_peak, s.rss);
       window_peak = 0;

@@ -72,6 +72,8 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("mapping", "ba_optimise_twice", &m.bundle_adjustment.optimise_twice);
   s.Add("mapping", "cull_keyframes", &m.cull_keyframes);
   s.Add("mapping", "redundant_fraction", &m.redundant_fraction);
+  s.Add("mapping", "max_keyframes", &m.max_keyframes,
+        "0: unbounded; else the oldest keyframes beyond it are forgotten (bounded memory)");
 
   DynamicFilterOptions& f = c.dynamic.options;
   s.Add("filter", "exclude_below", &f.scoring.exclude_below, "Eq. 2 scores below this: excluded");

@@ -58,6 +58,7 @@ bool LocalMapperOptions::IsValid(std::string* why) const {
     return false;
   };
   if (!(close_depth_baselines > 0)) return fail("close_depth_baselines must be > 0");
+  if (max_keyframes != 0 && max_keyframes < 10) return fail("max_keyframes must be 0 or >= 10");
   if (min_stereo_points < 0 || triangulation_neighbours < 0 || fuse_neighbours < 0 ||
       fuse_second_neighbours < 0)
     return fail("point and neighbour counts must be >= 0");
@@ -441,6 +442,20 @@ MappingResult LocalMapper::ProcessKeyframe(KeyframeId id, Map* map) {
     start = std::chrono::steady_clock::now();
     result.keyframes_culled = map->Apply(CullKeyframes(id, *map)).num_keyframes_removed;
     result.keyframe_culling_ms = MsSince(start);
+  }
+  if (options_.max_keyframes > 0 &&
+      map->num_keyframes() > static_cast<size_t>(options_.max_keyframes)) {
+    std::vector<std::pair<int64_t, KeyframeId>> by_age;
+    for (const auto& [kf_id, kf] : map->keyframes()) {
+      if (kf_id != map->first_keyframe() && kf_id != id) by_age.emplace_back(kf.index, kf_id);
+    }
+    std::sort(by_age.begin(), by_age.end());
+    MapDelta forget;
+    const size_t excess = map->num_keyframes() - static_cast<size_t>(options_.max_keyframes);
+    for (size_t k = 0; k < excess && k < by_age.size(); ++k) {
+      forget.removed_keyframes.push_back(by_age[k].second);
+    }
+    result.keyframes_forgotten = map->Apply(forget).num_keyframes_removed;
   }
   return result;
 }

@@ -29,6 +29,11 @@ struct LocalMapperOptions {
   bool local_bundle_adjustment = true;
   BundleAdjustmentOptions bundle_adjustment;
   bool cull_keyframes = true;
+  // Bounded map (long replays, odometry without loop closing): above this many keyframes the
+  // oldest ones (never the first, never the newest) are forgotten with the points only they
+  // observe; the trajectory keeps their poses (chained to their spanning-tree parents).
+  // 0: unbounded.
+  int max_keyframes = 0;
   double redundant_fraction = 0.9;  // keyframe culled when this fraction of its close points ...
   int redundant_observers = 3;      // ... is seen by this many other keyframes at the same or
                                     // a finer scale
@@ -44,6 +49,7 @@ struct MappingResult {
   int ba_outlier_observations = 0;
   int ba_keyframes = 0, ba_fixed_keyframes = 0, ba_points = 0;
   int keyframes_culled = 0;
+  int keyframes_forgotten = 0;  // by max_keyframes
   double ba_initial_cost = 0, ba_final_cost = 0;
   // Step times in milliseconds: stereo, culling, triangulation, fusion, ba, keyframe_culling.
   double stereo_ms = 0, culling_ms = 0, triangulation_ms = 0, fusion_ms = 0, ba_ms = 0,
