@@ -26,7 +26,7 @@ struct QualitySettings {
   SegmenterSlot segmenter = SegmenterSlot::kFast;
   int inference_every = 1;     // segment every n-th frame at this level (>= 1)
   bool optical_flow = true;    // LK flow in the dynamic filter (its scorer)
-  int ba_max_iterations = 10;  // local BA iterations (see pipeline notes)
+  int ba_max_iterations = 10;  // cap of local BA iterations for keyframes made at this level
   bool IsValid(std::string* why) const;
   bool operator==(const QualitySettings&) const = default;
 };

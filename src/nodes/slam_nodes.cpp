@@ -43,7 +43,8 @@ FrameResultPtr MappingNode::operator()(const TrackedPtr& tracked) {
   out = tracked->output;
   out.keyframe_reason = tracked->keyframe.reason;
   if (tracked->keyframe.insert) {
-    out.mapping = slam_->InsertKeyframe(tracked->frame, tracked->tracking);
+    out.mapping = slam_->InsertKeyframe(tracked->frame, tracked->tracking,
+                                        tracked->ticket.settings.ba_max_iterations);
     out.keyframe_inserted = true;
   }
   out.keyframe_inserted =

@@ -280,8 +280,11 @@ MapDelta LocalMapper::FusePoints(KeyframeId id, const Map& map, bool into_neighb
   return delta;
 }
 
-MapDelta LocalMapper::LocalBundleAdjustment(KeyframeId id, const Map& map,
-                                            MappingResult* stats) const {
+MapDelta LocalMapper::LocalBundleAdjustment(KeyframeId id, const Map& map, MappingResult* stats,
+                                            int ba_max_iterations) const {
+  BundleAdjustmentOptions ba_options = options_.bundle_adjustment;
+  if (ba_max_iterations > 0)
+    ba_options.max_iterations = std::min(ba_options.max_iterations, ba_max_iterations);
   MapDelta delta;
   const Keyframe* kf = map.keyframe(id);
   if (!kf) return delta;
@@ -334,7 +337,7 @@ MapDelta LocalMapper::LocalBundleAdjustment(KeyframeId id, const Map& map,
   }
   const StereoRig& rig = kf->frame->rig();
   const BundleAdjustmentResult r =
-      RunBundleAdjustment(rig, ba_keyframes, ba_points, ba_obs, options_.bundle_adjustment);
+      RunBundleAdjustment(rig, ba_keyframes, ba_points, ba_obs, ba_options);
   for (size_t k = 0; k < local.size(); ++k)
     if (!ba_keyframes[k].fixed) delta.keyframe_poses.emplace_back(local[k], r.cam_from_world[k]);
   for (size_t j = 0; j < points.size(); ++j)
@@ -342,6 +345,7 @@ MapDelta LocalMapper::LocalBundleAdjustment(KeyframeId id, const Map& map,
   for (size_t i = 0; i < ba_obs.size(); ++i)
     if (!r.observation_inlier[i]) delta.removed_observations.push_back(obs_edit[i]);
   if (stats) {
+    stats->ba_iterations = r.iterations;
     stats->ba_keyframes = static_cast<int>(local.size());
     stats->ba_fixed_keyframes = static_cast<int>(fixed_set.size());
     stats->ba_points = static_cast<int>(points.size());
@@ -393,7 +397,7 @@ MapDelta LocalMapper::CullKeyframes(KeyframeId id, const Map& map) const {
   return delta;
 }
 
-MappingResult LocalMapper::ProcessKeyframe(KeyframeId id, Map* map) {
+MappingResult LocalMapper::ProcessKeyframe(KeyframeId id, Map* map, int ba_max_iterations) {
   MappingResult result;
   result.keyframe = id;
   if (!map->keyframe(id)) return result;
@@ -434,7 +438,7 @@ MappingResult LocalMapper::ProcessKeyframe(KeyframeId id, Map* map) {
 
   if (options_.local_bundle_adjustment && map->num_keyframes() > 1) {
     start = std::chrono::steady_clock::now();
-    map->Apply(LocalBundleAdjustment(id, *map, &result));
+    map->Apply(LocalBundleAdjustment(id, *map, &result, ba_max_iterations));
     result.ba_ms = MsSince(start);
   }
 

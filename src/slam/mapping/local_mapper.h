@@ -51,6 +51,7 @@ struct MappingResult {
   int keyframes_culled = 0;
   int keyframes_forgotten = 0;  // by max_keyframes
   double ba_initial_cost = 0, ba_final_cost = 0;
+  int ba_iterations = 0;  // solver iterations of the local BA (both solves)
   // Step times in milliseconds: stereo, culling, triangulation, fusion, ba, keyframe_culling.
   double stereo_ms = 0, culling_ms = 0, triangulation_ms = 0, fusion_ms = 0, ba_ms = 0,
          keyframe_culling_ms = 0;
@@ -62,7 +63,9 @@ class LocalMapper {
   explicit LocalMapper(const LocalMapperOptions& options);
 
   // Runs all steps for keyframe id (already in the map), applying each step's delta.
-  MappingResult ProcessKeyframe(KeyframeId id, Map* map);
+  // ba_max_iterations > 0 caps this keyframe's local BA below the options' (a scheduler's
+  // low-quality level); 0: the options'.
+  MappingResult ProcessKeyframe(KeyframeId id, Map* map, int ba_max_iterations = 0);
 
   // The steps, each a pure function of the map (and, for culling, the recent-point list).
   MapDelta CreateStereoPoints(KeyframeId id, const Map& map) const;
@@ -73,7 +76,8 @@ class LocalMapper {
   // into_neighbours: the keyframe's points into its neighbours; else the neighbours' points
   // into the keyframe.
   MapDelta FusePoints(KeyframeId id, const Map& map, bool into_neighbours) const;
-  MapDelta LocalBundleAdjustment(KeyframeId id, const Map& map, MappingResult* stats) const;
+  MapDelta LocalBundleAdjustment(KeyframeId id, const Map& map, MappingResult* stats,
+                                 int ba_max_iterations = 0) const;
   MapDelta CullKeyframes(KeyframeId id, const Map& map) const;
 
   const std::vector<MapPointId>& recent_points() const { return recent_points_; }

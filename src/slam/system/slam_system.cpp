@@ -160,7 +160,8 @@ KeyframeDecision SlamSystem::DecideKeyframe(const TrackingResult& tracking) cons
   return ShouldInsertKeyframe(tracking.keyframe_input, options_.keyframe);
 }
 
-MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking) {
+MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking,
+                                         int ba_max_iterations) {
   MapDelta delta;
   NewKeyframe kf;
   kf.frame = frame;
@@ -171,7 +172,7 @@ MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingRe
   delta.new_keyframe = std::move(kf);
   map_.Apply(delta);
   const KeyframeId id(frame->id());
-  MappingResult result = mapper_.ProcessKeyframe(id, &map_);
+  MappingResult result = mapper_.ProcessKeyframe(id, &map_, ba_max_iterations);
   tracker_.OnKeyframeInserted(id, map_);
   // The frame is now its own reference.
   if (!records_.empty() && records_.back().t_ns == frame->t_ns()) {

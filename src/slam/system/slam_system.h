@@ -115,8 +115,10 @@ class SlamSystem {
   // RefinedTrajectory().
   TrackingResult Track(const FramePtr& frame, int64_t frame_index);
   KeyframeDecision DecideKeyframe(const TrackingResult& tracking) const;
-  // Inserts the tracked frame as a keyframe and runs local mapping on it.
-  MappingResult InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking);
+  // Inserts the tracked frame as a keyframe and runs local mapping on it (ba_max_iterations > 0:
+  // caps this keyframe's local BA, e.g. a scheduler's low-quality level).
+  MappingResult InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking,
+                               int ba_max_iterations = 0);
 
   const Map& map() const { return map_; }
   const StereoRig& rig() const { return rig_; }  // baseline_m = 0 in monocular mode

@@ -231,6 +231,25 @@ TEST(LocalMapper, BundleAdjustmentPullsAPerturbedKeyframeBack) {
   EXPECT_TRUE(s.map.keyframe(KeyframeId(0))->cam_from_world.isApprox(TruePose(0)));
 }
 
+TEST(LocalMapper, PerKeyframeIterationCapLimitsTheBundleAdjustment) {
+  SceneMap s(35);
+  s.AddKeyframe(0, TruePose(0), true);
+  s.AddKeyframe(2, TruePose(2), true);
+  SE3 wrong = TruePose(4);
+  wrong.translation() += Eigen::Vector3d(0.2, -0.05, 0.1);
+  const KeyframeId k4 = s.AddKeyframe(4, TruePose(4), false, &wrong);
+  LocalMapper mapper(LocalMapperOptions{});
+  MappingResult full, capped;
+  mapper.LocalBundleAdjustment(k4, s.map, &full);
+  // A scheduler's low-quality level caps the solver's iterations of this keyframe.
+  mapper.LocalBundleAdjustment(k4, s.map, &capped, 1);
+  // Ceres counts the initial evaluation as an iteration: at most 2 per solve, two solves.
+  EXPECT_GE(capped.ba_iterations, 1);
+  EXPECT_LE(capped.ba_iterations, 4);
+  EXPECT_GT(full.ba_iterations, capped.ba_iterations);
+  EXPECT_GT(capped.ba_final_cost, full.ba_final_cost);
+}
+
 TEST(LocalMapper, CullsRedundantKeyframesButNeverTheFirst) {
   SceneMap s(36);
   s.AddKeyframe(0, TruePose(0), true);
