@@ -209,14 +209,18 @@ TEST(LocalMapper, FusesDuplicatePoints) {
   EXPECT_LT(mapper.FusePoints(k1, s.map, false).merges.size(), 5u);
 }
 
-TEST(LocalMapper, BundleAdjustmentPullsAPerturbedKeyframeBack) {
-  SceneMap s(35);
+// Keyframes 0 and 2 at their true poses, keyframe 4 stored 20 cm off its true pose.
+KeyframeId AddPerturbedThirdKeyframe(SceneMap& s) {
   s.AddKeyframe(0, TruePose(0), true);
   s.AddKeyframe(2, TruePose(2), true);
-  // K4 is stored 20 cm off its true pose.
   SE3 wrong = TruePose(4);
   wrong.translation() += Eigen::Vector3d(0.2, -0.05, 0.1);
-  const KeyframeId k4 = s.AddKeyframe(4, TruePose(4), false, &wrong);
+  return s.AddKeyframe(4, TruePose(4), false, &wrong);
+}
+
+TEST(LocalMapper, BundleAdjustmentPullsAPerturbedKeyframeBack) {
+  SceneMap s(35);
+  const KeyframeId k4 = AddPerturbedThirdKeyframe(s);
   LocalMapperOptions options;
   LocalMapper mapper(options);
   MappingResult stats;
@@ -233,11 +237,7 @@ TEST(LocalMapper, BundleAdjustmentPullsAPerturbedKeyframeBack) {
 
 TEST(LocalMapper, PerKeyframeIterationCapLimitsTheBundleAdjustment) {
   SceneMap s(35);
-  s.AddKeyframe(0, TruePose(0), true);
-  s.AddKeyframe(2, TruePose(2), true);
-  SE3 wrong = TruePose(4);
-  wrong.translation() += Eigen::Vector3d(0.2, -0.05, 0.1);
-  const KeyframeId k4 = s.AddKeyframe(4, TruePose(4), false, &wrong);
+  const KeyframeId k4 = AddPerturbedThirdKeyframe(s);
   LocalMapper mapper(LocalMapperOptions{});
   MappingResult full, capped;
   mapper.LocalBundleAdjustment(k4, s.map, &full);
