@@ -23,7 +23,9 @@ struct PreparedObservation {
   bool usable = false;
   bool stereo = false;
   double chi2_threshold = 0;
-  optim::ReprojectionTarget target;
+  double weight = 1;                                    // the filter's confidence
+  optim::ReprojectionTarget target;                     // sqrt_info of the measurement noise alone
+  std::unique_ptr<ceres::LossFunction> scaled_loss[2];  // weight * rho: [plain, robust]
 };
 
 // Huber rho(s) as Ceres defines it, for delta^2 = threshold.
@@ -90,16 +92,23 @@ class BundleAdjuster {
                               " refers to keyframe " + std::to_string(obs.keyframe) + " / point " +
                               std::to_string(obs.point) + " (out of range)");
     PreparedObservation& p = prepared_[i];
-    const double info = obs.information * obs.weight;
-    if (!obs.uv_px.allFinite() || !std::isfinite(obs.u_right_px) || !std::isfinite(info) ||
-        !(info > 0) || !points_[obs.point].allFinite())
+    if (!obs.uv_px.allFinite() || !std::isfinite(obs.u_right_px) ||
+        !std::isfinite(obs.information) || !(obs.information > 0) || !std::isfinite(obs.weight) ||
+        !(obs.weight > 0) || !points_[obs.point].allFinite())
       return;
     p.usable = true;
     p.stereo = rig_.IsStereo() && obs.u_right_px >= 0;
     p.chi2_threshold = p.stereo ? options_.chi2_stereo : options_.chi2_mono;
+    p.weight = obs.weight;
     p.target.uv_px = obs.uv_px;
     p.target.u_right_px = obs.u_right_px;
-    p.target.sqrt_info = std::sqrt(info);
+    p.target.sqrt_info = std::sqrt(obs.information);
+    if (p.weight != 1.0) {
+      p.scaled_loss[0] =
+          std::make_unique<ceres::ScaledLoss>(nullptr, p.weight, ceres::DO_NOT_TAKE_OWNERSHIP);
+      p.scaled_loss[1] = std::make_unique<ceres::ScaledLoss>(
+          p.stereo ? &huber_stereo_ : &huber_mono_, p.weight, ceres::DO_NOT_TAKE_OWNERSHIP);
+    }
   }
 
   optim::ReprojectionCheck Check(size_t i) const {
@@ -127,7 +136,8 @@ class BundleAdjuster {
       if (!set[i]) continue;
       const double threshold = prepared_[i].chi2_threshold;
       const optim::ReprojectionCheck check = Check(i);
-      cost += 0.5 * Huber(std::isfinite(check.chi2) ? check.chi2 : threshold, threshold);
+      cost += 0.5 * prepared_[i].weight *
+              Huber(std::isfinite(check.chi2) ? check.chi2 : threshold, threshold);
     }
     return cost;
   }
@@ -158,12 +168,14 @@ class BundleAdjuster {
         ordering->AddElementToGroup(point, 0);
       }
       const PreparedObservation& p = prepared_[i];
+      ceres::LossFunction* loss = p.weight != 1.0 ? p.scaled_loss[robust ? 1 : 0].get()
+                                  : !robust       ? nullptr
+                                  : p.stereo      ? &huber_stereo_
+                                                  : &huber_mono_;
       if (p.stereo) {
-        problem.AddResidualBlock(new optim::StereoBaCost(rig_, p.target),
-                                 robust ? &huber_stereo_ : nullptr, pose, point);
+        problem.AddResidualBlock(new optim::StereoBaCost(rig_, p.target), loss, pose, point);
       } else {
-        problem.AddResidualBlock(new optim::MonoBaCost(rig_, p.target),
-                                 robust ? &huber_mono_ : nullptr, pose, point);
+        problem.AddResidualBlock(new optim::MonoBaCost(rig_, p.target), loss, pose, point);
       }
       ++num_residuals;
     }

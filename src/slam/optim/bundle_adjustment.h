@@ -1,8 +1,9 @@
 #pragma once
 // Local bundle adjustment: keyframe poses and map points jointly, monocular/stereo reprojection
-// residuals weighted by information * weight, Huber kernel, fixed keyframes held constant, then
-// observations over the chi-square thresholds are reported as outliers (and, as in ORB-SLAM, the
-// problem is re-solved without them when optimise_twice is set).
+// residuals whitened by the information, each robust cost scaled by the filter's weight, Huber
+// kernel, fixed keyframes held constant, then observations over the chi-square thresholds are
+// reported as outliers (and, as in ORB-SLAM, the problem is re-solved without them when
+// optimise_twice is set).
 #include <Eigen/Core>
 #include <cstdint>
 #include <string>
@@ -61,9 +62,10 @@ struct BundleAdjustmentResult {
 };
 
 // Contract:
-// - Residuals as in slam/optim/reprojection_cost.h, s = sqrt(information * weight); u_right_px is
-//   used only when u_right_px >= 0 and rig.IsStereo().
-// - Observations enter the first solve when their values are finite, information * weight > 0
+// - Residuals as in slam/optim/reprojection_cost.h, s = sqrt(information); u_right_px is used
+//   only when u_right_px >= 0 and rig.IsStereo(). The weight scales the cost, weight * rho(chi2)
+//   (as in pose_optimizer.h), so the chi2 classification does not depend on it.
+// - Observations enter the first solve when their values are finite, information > 0, weight > 0
 //   and the point is in front of the camera at the input estimate; others are outliers.
 // - First solve: Huber (delta = sqrt(chi2 threshold)), max_iterations LM iterations. With
 //   optimise_twice, observations with chi2 > threshold or depth <= 0 are dropped and the rest is

@@ -6,6 +6,8 @@
 
 #include <array>
 #include <cmath>
+#include <memory>
+#include <vector>
 
 #include "slam/common/error.h"
 #include "slam/optim/reprojection_cost.h"
@@ -19,20 +21,22 @@ using optim::ReprojectionTarget;
 struct PreparedObservation {
   bool usable = false;
   bool stereo = false;
-  ReprojectionTarget target;
+  double weight = 1;          // the filter's confidence, scales the robust cost
+  ReprojectionTarget target;  // sqrt_info of the measurement noise alone
 };
 
 PreparedObservation Prepare(const StereoRig& rig, const PoseObservation& obs) {
   PreparedObservation prepared;
-  const double info = obs.information * obs.weight;
   if (obs.excluded || !obs.p_in_world.allFinite() || !obs.uv_px.allFinite() ||
-      !std::isfinite(info) || !(info > 0) || !std::isfinite(obs.u_right_px))
+      !std::isfinite(obs.information) || !(obs.information > 0) || !std::isfinite(obs.weight) ||
+      !(obs.weight > 0) || !std::isfinite(obs.u_right_px))
     return prepared;
   prepared.usable = true;
   prepared.stereo = rig.IsStereo() && obs.u_right_px >= 0;
+  prepared.weight = obs.weight;
   prepared.target.uv_px = obs.uv_px;
   prepared.target.u_right_px = obs.u_right_px;
-  prepared.target.sqrt_info = std::sqrt(info);
+  prepared.target.sqrt_info = std::sqrt(obs.information);
   return prepared;
 }
 
@@ -84,6 +88,21 @@ PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_wo
   optim::LeftSe3Manifold manifold;
   ceres::HuberLoss huber_mono(std::sqrt(options.chi2_mono));
   ceres::HuberLoss huber_stereo(std::sqrt(options.chi2_stereo));
+  // weight * rho(chi2) for observations the filter down-weighted (built once, per kernel).
+  std::vector<std::unique_ptr<ceres::LossFunction>> scaled_robust(n), scaled_plain(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (!prepared[i].usable || prepared[i].weight == 1.0) continue;
+    const ceres::LossFunction* huber = prepared[i].stereo ? &huber_stereo : &huber_mono;
+    scaled_robust[i] = std::make_unique<ceres::ScaledLoss>(huber, prepared[i].weight,
+                                                           ceres::DO_NOT_TAKE_OWNERSHIP);
+    scaled_plain[i] = std::make_unique<ceres::ScaledLoss>(nullptr, prepared[i].weight,
+                                                          ceres::DO_NOT_TAKE_OWNERSHIP);
+  }
+  auto loss = [&](size_t i, bool robust) -> ceres::LossFunction* {
+    if (prepared[i].weight != 1.0) return robust ? scaled_robust[i].get() : scaled_plain[i].get();
+    if (!robust) return nullptr;
+    return prepared[i].stereo ? &huber_stereo : &huber_mono;
+  };
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -112,11 +131,11 @@ PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_wo
         const PreparedObservation& p = prepared[i];
         const Eigen::Vector3d& x = observations[i].p_in_world;
         if (p.stereo) {
-          problem.AddResidualBlock(new optim::StereoPoseCost(rig, p.target, x),
-                                   robust ? &huber_stereo : nullptr, pose.data());
+          problem.AddResidualBlock(new optim::StereoPoseCost(rig, p.target, x), loss(i, robust),
+                                   pose.data());
         } else {
-          problem.AddResidualBlock(new optim::MonoPoseCost(rig, p.target, x),
-                                   robust ? &huber_mono : nullptr, pose.data());
+          problem.AddResidualBlock(new optim::MonoPoseCost(rig, p.target, x), loss(i, robust),
+                                   pose.data());
         }
       }
       ceres::Solver::Summary summary;
@@ -140,8 +159,8 @@ PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_wo
     result.inlier[i] = active[i];
     if (!active[i]) continue;
     ++result.num_inliers;
-    result.final_cost +=
-        0.5 * Check(rig, prepared[i], pose.data(), observations[i].p_in_world).chi2;
+    result.final_cost += 0.5 * prepared[i].weight *
+                         Check(rig, prepared[i], pose.data(), observations[i].p_in_world).chi2;
   }
   return result;
 }

@@ -35,21 +35,25 @@ struct PoseOptimizationResult {
   SE3 cam_from_world = SE3::Identity();
   std::vector<bool> inlier;  // per observation; excluded observations are false
   int num_inliers = 0;
-  double final_cost = 0;  // 0.5 * sum of chi2 over the final inliers at the returned pose
+  double final_cost = 0;  // 0.5 * sum of weight * chi2 over the final inliers at the returned pose
   int iterations = 0;     // solver iterations over all rounds
 };
 
 // Contract:
 // - Residuals are the monocular/stereo ones of slam/optim/reprojection_cost.h with
-//   s = sqrt(information * weight); u_right_px is used only when u_right_px >= 0 and
-//   rig.IsStereo(). chi2 = squared weighted residual, compared with chi2_mono / chi2_stereo.
+//   s = sqrt(information); u_right_px is used only when u_right_px >= 0 and rig.IsStereo().
+//   chi2 = squared whitened residual, compared with chi2_mono / chi2_stereo. The dynamic
+//   filter's weight scales the cost, weight * rho(chi2), not the residual: a down-weighted
+//   point pulls less but is classified as an outlier at the same chi2 as any other (a weight
+//   folded into the information would hide exactly the suspect points from the chi2 test).
 // - Rounds: each round solves (LM, DENSE_QR, one thread, iterations_per_round iterations) over
 //   the active observations, then re-classifies every usable observation at the new pose:
 //   inlier iff depth > 0 and chi2 <= threshold; the inliers are the next round's active set (an
 //   outlier may come back). Huber loss (delta = sqrt(threshold)) in every round except the last
 //   when rounds >= 2. The first round's active set is the usable observations in front of the
 //   initial pose.
-// - Excluded observations and those with non-finite values or information * weight <= 0 are never
+// - Excluded observations and those with non-finite values, information <= 0 or weight <= 0 are
+// never
 //   used and are reported as outliers.
 // - Deterministic: the same input gives bitwise the same output.
 // Throws ConfigError when the options or the rig are invalid.

@@ -25,7 +25,7 @@ inline constexpr double kMinDepthM = 1e-6;
 struct ReprojectionTarget {
   Eigen::Vector2d uv_px = Eigen::Vector2d::Zero();
   double u_right_px = 0;  // used by the 3-row (stereo) residual only
-  double sqrt_info = 1;   // sqrt(information * weight)
+  double sqrt_info = 1;   // sqrt(information): the measurement noise alone
 };
 
 // Residual (kRows = 2 or 3) and, where the pointers are not null, the row-major Jacobians
@@ -35,7 +35,7 @@ bool EvaluateReprojection(const StereoRig& rig, const ReprojectionTarget& target
                           const double* pose_params, const double* p_in_world, double* residuals,
                           double* jacobian_pose, double* jacobian_point);
 
-// Depth (metres) of the point in the camera and chi2 = squared weighted residual, for outlier
+// Depth (metres) of the point in the camera and chi2 = squared whitened residual, for outlier
 // classification. chi2 is +infinity when depth <= kMinDepthM.
 struct ReprojectionCheck {
   double depth_m = 0;

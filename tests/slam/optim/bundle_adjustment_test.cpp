@@ -268,6 +268,30 @@ TEST(BundleAdjustmentTest, MonocularWithTwoFixedKeyframes) {
   EXPECT_LT(result.final_cost, 0.1 * result.initial_cost);
 }
 
+// As in the pose optimiser: the weight scales the cost, so an observation 6 px off stays an
+// outlier however little the filter trusts it.
+TEST(BundleAdjustmentTest, DownWeightedOutliersAreStillFlagged) {
+  const StereoRig rig = KittiRig();
+  std::mt19937_64 rng(51);
+  BaSceneOptions scene_options;
+  scene_options.num_points = 150;
+  scene_options.noise_px = 0.3;
+  BaScene scene = MakeBaScene(rig, scene_options, rng);
+  std::vector<size_t> shifted;
+  for (size_t i = 0; i < scene.observations.size(); i += 15) {
+    BaObservation& obs = scene.observations[i];
+    obs.uv_px += Eigen::Vector2d(0.0, 6.0);
+    obs.weight = 0.1;
+    shifted.push_back(i);
+  }
+  const BundleAdjustmentResult result =
+      RunBundleAdjustment(rig, scene.keyframes, scene.points, scene.observations);
+  for (size_t i : shifted) EXPECT_FALSE(result.observation_inlier[i]) << "observation " << i;
+  int inliers = 0;
+  for (bool in : result.observation_inlier) inliers += in ? 1 : 0;
+  EXPECT_GT(inliers, static_cast<int>(0.85 * (scene.observations.size() - shifted.size())));
+}
+
 TEST(BundleAdjustmentTest, UnobservedBlocksAreReturnedUnchanged) {
   const StereoRig rig = KittiRig();
   std::mt19937_64 rng(50);

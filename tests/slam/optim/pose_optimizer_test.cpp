@@ -96,6 +96,31 @@ TEST(PoseOptimizerTest, GrossOutliersAreFlaggedAndPoseStaysAccurate) {
   }
 }
 
+// The filter's weight scales a point's pull, not its noise: a down-weighted observation 5 px off
+// (chi2 about 25 > 7.8) is still an outlier. Folding the weight into the information would
+// have scaled its chi2 by 0.1 and accepted exactly the points the filter suspects.
+TEST(PoseOptimizerTest, DownWeightedOutliersAreStillFlagged) {
+  const StereoRig rig = KittiRig();
+  std::mt19937_64 rng(31);
+  PoseSceneOptions scene_options;
+  scene_options.num_points = 200;
+  scene_options.noise_px = 0.3;
+  PoseScene scene = MakePoseScene(rig, scene_options, rng);
+  std::vector<size_t> shifted;
+  for (size_t i = 0; i < scene.observations.size(); i += 10) {
+    scene.observations[i].uv_px += Eigen::Vector2d(5.0, 0.0);
+    if (scene.observations[i].u_right_px >= 0) scene.observations[i].u_right_px += 5.0;
+    scene.observations[i].weight = 0.1;
+    shifted.push_back(i);
+  }
+  const PoseOptimizationResult result =
+      OptimizePose(rig, scene.cam_from_world_true, scene.observations);
+  for (size_t i : shifted) EXPECT_FALSE(result.inlier[i]) << "observation " << i;
+  EXPECT_GT(result.num_inliers,
+            static_cast<int>(0.85 * (scene.observations.size() - shifted.size())));
+  EXPECT_LT(CentreErrorM(result.cam_from_world, scene.cam_from_world_true), 0.02);
+}
+
 TEST(PoseOptimizerTest, ExcludedObservationsAreIgnored) {
   const StereoRig rig = KittiRig();
   std::mt19937_64 rng(30);
