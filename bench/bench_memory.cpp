@@ -5,6 +5,7 @@
 //   bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400]
 //                [--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2]
 //                [--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8]
+//                [--max-keyframes N] [--trim] [--heap-policy on|off]
 //
 // Frames are rendered on the fly in memory by the synthetic world (src/sim) inside the source's
 // loaders; nothing is written to disk. The world is built on the loop route for --world-frames
@@ -40,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "graph/heap.h"
 #include "graph/pipeline.h"
 #include "nodes/filter_node.h"
 #include "sim/synthetic_world.h"
@@ -56,9 +58,10 @@ struct Args {
   int threads = 2, max_in_flight = 4;
   uint64_t seed = 1;
   int movers = 6, parked = 8;
-  double speed_mps = 8.0;  // 0: a parked ego car (control run: no new keyframes are needed)
-  int max_keyframes = 0;   // mapping.max_keyframes: 0 unbounded, else a bounded map
-  bool trim = false;       // return freed heap to the system after each sample (malloc_trim)
+  double speed_mps = 8.0;   // 0: a parked ego car (control run: no new keyframes are needed)
+  int max_keyframes = 0;    // mapping.max_keyframes: 0 unbounded, else a bounded map
+  bool trim = false;        // return freed heap to the system after each sample (malloc_trim)
+  bool heap_policy = true;  // graph/heap.h: fixed mmap threshold, capped arenas, periodic trim
 };
 
 Args ParseArgs(int argc, char** argv) {
@@ -101,12 +104,16 @@ Args ParseArgs(int argc, char** argv) {
       a.max_keyframes = std::stoi(value());
     } else if (arg == "--trim") {
       a.trim = true;
+    } else if (arg == "--heap-policy") {
+      const std::string v = value();
+      if (v != "on" && v != "off") throw std::invalid_argument("--heap-policy: on or off");
+      a.heap_policy = v == "on";
     } else if (arg == "-h" || arg == "--help") {
       std::printf(
           "bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400] "
           "[--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2] "
           "[--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8] "
-          "[--max-keyframes N] [--trim]\n");
+          "[--max-keyframes N] [--trim] [--heap-policy on|off]\n");
       std::exit(0);
     } else {
       throw std::invalid_argument("unknown argument " + arg);
@@ -253,6 +260,7 @@ struct Sample {
   double t_s = 0;
   int64_t rss = 0, heap = 0;
   int64_t rss_peak = 0;  // largest RSS seen at any frame since the previous sample
+  int64_t rss_mean = 0;  // mean RSS over the frames since the previous sample
   size_t keyframes = 0, map_points = 0;
   int tracked = 0;
   std::string status;
@@ -263,6 +271,7 @@ struct Sample {
 int main(int argc, char** argv) {
   try {
     const Args args = ParseArgs(argc, argv);
+    if (args.heap_policy) pcr::graph::ConfigureHeap();  // as pcr_orb does
     spdlog::set_level(spdlog::level::warn);
     const auto start = std::chrono::steady_clock::now();
     auto seconds = [&] {
@@ -310,12 +319,14 @@ int main(int argc, char** argv) {
         args.frames, synth.width_px, synth.height_px, args.world_frames, lap,
         lap * synth.speed_mps / synth.rate_hz, lap_jump_m, args.threads, args.max_in_flight,
         args.segmenter.c_str(), args.filter ? "on" : "off", args.warmup);
-    std::printf("%6s %7s %9s %9s %9s %5s %7s %7s %9s\n", "frame", "time s", "RSS MiB", "peak MiB",
-                "heap MiB", "kf", "points", "tracked", "status");
+    std::printf("%6s %7s %9s %9s %9s %9s %5s %7s %7s %9s\n", "frame", "time s", "RSS MiB",
+                "mean MiB", "peak MiB", "heap MiB", "kf", "points", "tracked", "status");
     std::fflush(stdout);
 
     std::vector<Sample> samples;
     int64_t window_peak = 0;
+    double window_sum = 0;
+    int window_count = 0;
     auto take = [&](size_t frame, const pcr::FrameOutput* out) {
       Sample s;
       s.frame = frame;
@@ -323,7 +334,10 @@ int main(int argc, char** argv) {
       if (args.trim) malloc_trim(0);  // glibc keeps freed arenas resident otherwise
       s.rss = ResidentBytes();
       s.rss_peak = std::max(window_peak, s.rss);
+      s.rss_mean = window_count > 0 ? static_cast<int64_t>(window_sum / window_count) : s.rss;
       window_peak = 0;
+      window_sum = 0;
+      window_count = 0;
       const struct mallinfo2 heap = mallinfo2();
       s.heap = static_cast<int64_t>(heap.uordblks + heap.hblkhd);
       if (out) {
@@ -332,9 +346,9 @@ int main(int argc, char** argv) {
         s.tracked = out->num_tracked;
         s.status = pcr::ToString(out->status);
       }
-      std::printf("%6zu %7.1f %9.1f %9.1f %9.1f %5zu %7zu %7d %9s\n", s.frame, s.t_s, MiB(s.rss),
-                  MiB(s.rss_peak), MiB(s.heap), s.keyframes, s.map_points, s.tracked,
-                  s.status.c_str());
+      std::printf("%6zu %7.1f %9.1f %9.1f %9.1f %9.1f %5zu %7zu %7d %9s\n", s.frame, s.t_s,
+                  MiB(s.rss), MiB(s.rss_mean), MiB(s.rss_peak), MiB(s.heap), s.keyframes,
+                  s.map_points, s.tracked, s.status.c_str());
       std::fflush(stdout);
       samples.push_back(s);
     };
@@ -344,8 +358,12 @@ int main(int argc, char** argv) {
     options.policy = pcr::graph::Policy::kPipelined;
     options.threads = args.threads;
     options.max_in_flight = args.max_in_flight;
+    if (!args.heap_policy) options.trim_heap_every = 0;
     options.on_frame = [&](size_t done, size_t, const pcr::FrameOutput& out) {
-      window_peak = std::max(window_peak, ResidentBytes());
+      const int64_t rss_now = ResidentBytes();
+      window_peak = std::max(window_peak, rss_now);
+      window_sum += static_cast<double>(rss_now);
+      ++window_count;
       if (done % static_cast<size_t>(args.sample_every) == 0 ||
           done == static_cast<size_t>(args.warmup))
         take(done, &out);
@@ -453,6 +471,24 @@ int main(int argc, char** argv) {
           "peaks: largest RSS at any frame after warm-up %.1f MiB is within %.1f%% of the largest "
           "in the last warm-up window %.1f MiB: %s\n",
           MiB(peak_after), peak_pct, MiB(at_warmup->rss_peak), peak_pct <= 10.0 ? "PASS" : "FAIL");
+    }
+    // And with per-frame means over each sampling window (the level the run holds, whatever
+    // the phase of a frame at the sampling instant).
+    int64_t mean_after = 0;
+    size_t mean_frame = 0;
+    for (const Sample& s : samples)
+      if (s.frame > at_warmup->frame && s.rss_mean > mean_after) {
+        mean_after = s.rss_mean;
+        mean_frame = s.frame;
+      }
+    if (mean_after > 0) {
+      const double mean_pct = 100.0 * static_cast<double>(mean_after - at_warmup->rss_mean) /
+                              static_cast<double>(at_warmup->rss_mean);
+      std::printf(
+          "window means: largest mean RSS of a window after warm-up %.1f MiB (window ending at "
+          "frame %zu) is within %.1f%% of the last warm-up window's mean %.1f MiB: %s\n",
+          MiB(mean_after), mean_frame, mean_pct, MiB(at_warmup->rss_mean),
+          mean_pct <= 10.0 ? "PASS" : "FAIL");
     }
     return 0;
   } catch (const std::exception& e) {

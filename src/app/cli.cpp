@@ -3,11 +3,14 @@
 #include <exception>
 
 #include "app/commands.h"
+#include "graph/heap.h"
 #include "pcr/version.h"
 
 namespace pcr::app {
 
 int Main(int argc, char** argv) {
+  // Long runs: big per-frame buffers go back to the system when freed (graph/heap.h).
+  graph::ConfigureHeap();
   CLI::App app{
       "PCR-ORB: stereo/monocular visual SLAM with dynamic-point filtering for driving scenes"};
   app.set_version_flag("--version", std::string(kVersion));

@@ -18,6 +18,7 @@
 #include <tuple>
 #include <utility>
 
+#include "graph/heap.h"
 #include "graph/mask_board.h"
 #include "nodes/feature_nodes.h"
 #include "nodes/filter_node.h"
@@ -614,6 +615,9 @@ void GraphRun::Complete(const FrameResultPtr& result) {
   // Progress before the token goes back, so an observer never sees more frames in flight than
   // the bound.
   if (options_.on_frame) options_.on_frame(completed, source_.size(), result->output);
+  if (options_.trim_heap_every > 0 &&
+      completed % static_cast<size_t>(options_.trim_heap_every) == 0)
+    TrimHeap();
   limiter_->decrementer().try_put(tf::continue_msg());
   Wake();
 }

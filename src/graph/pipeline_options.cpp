@@ -37,6 +37,7 @@ bool PipelineOptions::IsValid(std::string* why) const {
   if (waiting_capacity < 1) return fail("waiting_capacity must be >= 1");
   if (!(std::isfinite(mask_deadline_ms) && mask_deadline_ms >= 0))
     return fail("mask_deadline_ms must be finite and >= 0");
+  if (trim_heap_every < 0) return fail("trim_heap_every must be >= 0");
   if (!(std::isfinite(tracking_delay_ms) && tracking_delay_ms >= 0))
     return fail("tracking_delay_ms must be finite and >= 0");
   std::string inner;

@@ -56,6 +56,9 @@ struct PipelineOptions {
   nodes::QualityControllerOptions controller;
   nodes::MaskCarryOptions carry;
   nodes::MaskScorerOptions scorer;  // the default scorer when a segmenter is given
+  // Memory: the sink hands free heap pages back to the system every this many frames (TrimHeap,
+  // graph/heap.h), so the resident set follows what the run holds; 0 never.
+  int trim_heap_every = 25;
   // Testing and demonstrations: artificial delay added to every tracking call (simulates a slow
   // back end), and a hook called at the start of every stage body (may sleep or throw).
   double tracking_delay_ms = 0;

@@ -384,6 +384,9 @@ TEST(PipelineTest, RejectsInvalidOptions) {
   options = PipelineOptions{};
   options.rate = -1;
   EXPECT_THROW(RunPipeline(clip, SlamOptions{}, options), ConfigError);
+  options = PipelineOptions{};
+  options.trim_heap_every = -1;
+  EXPECT_THROW(RunPipeline(clip, SlamOptions{}, options), ConfigError);
   nodes::FrameSource broken = clip;
   broken.load_right = nullptr;
   EXPECT_THROW(RunPipeline(broken, SlamOptions{}, PipelineOptions{}), ConfigError);
