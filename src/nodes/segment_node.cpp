@@ -1,6 +1,7 @@
 #include "nodes/segment_node.h"
 
 #include <chrono>
+#include <utility>
 
 #include "slam/common/timing.h"
 
@@ -59,7 +60,12 @@ SegmentationPtr SegmentNode::operator()(const ImagesPtr& images) const {
   auto msg = std::make_shared<SegmentationMsg>();
   msg->ticket = ticket;
   msg->outcome = SegmentationOutcome::kFresh;
-  msg->segmentation = std::make_shared<const Segmentation>(segmenter->Segment(images->left));
+  Segmentation segmentation = segmenter->Segment(images->left);
+  // Downstream stages read the per-pixel maps; full-image per-instance masks would only ride
+  // along with every frame in flight (one image each) and make memory follow the object count.
+  // instance_map keeps them: instance k covers the pixels where instance_map == k + 1.
+  for (Instance& instance : segmentation.instances) instance.mask.release();
+  msg->segmentation = std::make_shared<const Segmentation>(std::move(segmentation));
   msg->model = segmenter->Name();
   msg->segment_ms = MsSince(start);
   return msg;

@@ -26,7 +26,9 @@ class SegmentNode {
   bool has_segmenter() const { return !segmenters_.empty(); }
   // Whether this frame will run a network (false: operator() returns at once).
   bool WillRun(const FrameTicket& ticket) const;
-  // The frame's segmentation (kFresh), or kNoSegmenter / kNotScheduled.
+  // The frame's segmentation (kFresh), or kNoSegmenter / kNotScheduled. The message carries
+  // the per-pixel maps (dynamic_confidence, instance_map) and the instances' boxes and classes;
+  // Instance::mask is released (instance k is where instance_map == k + 1).
   SegmentationPtr operator()(const ImagesPtr& images) const;
   // A "not run" message for a ticket (kNoSegmenter, kNotScheduled, kBusy, kLate).
   static SegmentationPtr NotRun(const FrameTicket& ticket, SegmentationOutcome outcome);

@@ -184,6 +184,14 @@ class NamedSegmenter final : public Segmenter {
     ++calls;
     Segmentation s;
     s.dynamic_confidence = cv::Mat::zeros(image.size(), CV_32FC1);
+    s.instance_map = cv::Mat::zeros(image.size(), CV_16UC1);
+    Instance car;
+    car.class_name = "car";
+    car.box_px = cv::Rect2f(1, 1, 2, 2);
+    car.mask = cv::Mat::zeros(image.size(), CV_8UC1);
+    car.mask(cv::Rect(1, 1, 2, 2)).setTo(255);
+    s.instance_map(cv::Rect(1, 1, 2, 2)).setTo(1);
+    s.instances.push_back(car);
     s.backend = name_;
     return s;
   }
@@ -210,6 +218,11 @@ TEST(SegmentNodeTest, RunsTheSlotOfTheTicketOrSaysWhyNot) {
   EXPECT_EQ(out->outcome, SegmentationOutcome::kFresh);
   EXPECT_EQ(out->model, "accurate");
   EXPECT_EQ(out->segmentation->dynamic_confidence.size(), images->left.size());
+  // The instances travel without their full-image masks; the instance map still has them.
+  ASSERT_EQ(out->segmentation->instances.size(), 1u);
+  EXPECT_EQ(out->segmentation->instances[0].class_name, "car");
+  EXPECT_TRUE(out->segmentation->instances[0].mask.empty());
+  EXPECT_EQ(cv::countNonZero(out->segmentation->instance_map == 1), 4);
   images->ticket.settings.segmenter = SegmenterSlot::kFast;
   EXPECT_EQ(both(images)->model, "fast");
   images->ticket.run_inference = false;

@@ -21,6 +21,7 @@ struct Instance {
   float confidence = 0.0f;  // detector score in [0, 1]
   cv::Rect2f box_px;        // image pixels, clipped to the image
   cv::Mat mask;             // CV_8U 0/255, full image size; non-zero only inside box_px
+                            // (released in pipeline messages: see nodes/segment_node.h)
   int instance_id = -1;     // index of this instance in Segmentation::instances of its frame
 };
 
