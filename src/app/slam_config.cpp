@@ -83,6 +83,8 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("filter", "weight_edge", &f.scoring.weights.edge);
   s.Add("filter", "weight_relative_to_uninformed", &f.scoring.weight_relative_to_uninformed,
         "optimiser weight = score / score of an untested point (false: the score)");
+  s.Add("filter", "keep_masked_static_above", &f.scoring.keep_masked_static_above,
+        "masked points with no motion seen (P(static) >= this) but blind tests: kept (> 1: off)");
   s.Add("filter", "remove_ground", &f.ground.remove_ground, "false: down-weight ground points");
   s.Add("filter", "reference_speed_mps", &f.motion.reference_speed_mps,
         "motion the test must see before it confirms a point static");
@@ -93,6 +95,8 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("filter", "instance_memory_frames", &f.instance_memory.max_age_frames);
   s.Add("filter", "cross_check_depth_motion", &f.cross_check_depth_motion);
   s.Add("filter", "keep_first_frame_masks", &f.keep_first_frame_masks);
+  s.Add("filter", "use_previous_disparity", &f.use_previous_disparity,
+        "depth test also compares the previous frame's disparity (3 dof)");
 
   s.Add("camera", "fx", &c.camera.fx, "0: use the dataset's calibration");
   s.Add("camera", "fy", &c.camera.fy);

@@ -83,6 +83,8 @@ bool DynamicFilterOptions::IsValid(std::string* why) const {
     return Fail(why, "keypoint_sigma_px and lk_sigma_px must be > 0");
   }
   if (!(track_match_radius_px > 0.0)) return Fail(why, "track_match_radius_px must be > 0");
+  if (!(previous_disparity_radius_px >= 0.0))
+    return Fail(why, "previous_disparity_radius_px must be >= 0");
   if (!(pnp_max_dynamic_confidence > 0.0f && pnp_max_dynamic_confidence <= 1.0f)) {
     return Fail(why, "pnp_max_dynamic_confidence must be in (0, 1]");
   }
@@ -115,6 +117,7 @@ void DynamicFilter::Reset() {
   previous_size_ = cv::Size();
   previous_pyramid_.clear();
   previous_uv_.clear();
+  previous_depth_.clear();
   previous_track_ids_.clear();
   previous_states_.clear();
   previous_history_.clear();
@@ -490,6 +493,15 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
         noise.prev_sigma_px = options_.lk_sigma_px;
       }
       noise.disparity_sigma_px = options_.motion.disparity_sigma_px * scale[i];
+      // The previous keypoint this track continues, when LK landed on it, brings its disparity.
+      if (options_.use_previous_disparity && continues[i] >= 0 && bf > 0.0) {
+        const size_t j = static_cast<size_t>(continues[i]);
+        const cv::Point2f gap = previous_uv_[j] - prev_uv[i];
+        if (j < previous_depth_.size() && previous_depth_[j] > 0.0f &&
+            gap.x * gap.x + gap.y * gap.y <=
+                options_.previous_disparity_radius_px * options_.previous_disparity_radius_px)
+          noise.prev_disparity_px = bf / previous_depth_[j];
+      }
       const double class_speed_mps = instance[i] > 0 && instance[i] < instance_speed_mps.size()
                                          ? instance_speed_mps[instance[i]]
                                          : 0.0;
@@ -503,6 +515,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
         const double root_k = std::sqrt(static_cast<double>(k));
         PointNoise long_noise = noise;
         long_noise.prev_sigma_px = noise.prev_sigma_px * root_k;
+        long_noise.prev_disparity_px = -1.0;  // the previous disparity is one frame back, not k
         // Chained motions add their errors; a PnP over the long tracks has a single one.
         const double pose_factor = long_pnp && k == longest ? 1.0 : root_k;
         const PoseSigma long_sigma{pose_sigma.rotation_rad * pose_factor,
@@ -512,7 +525,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
             camera, bf, Eigen::Vector2d(cur_uv[i].x, cur_uv[i].y), depth[i],
             Eigen::Vector2d(past.x, past.y), cur_from_past[k - 1].inverse(), long_sigma, long_noise,
             object_step_m * k, travel_dir, options_.motion);
-        if (long_pm.valid() && long_pm.observability > pm.observability) pm = long_pm;
+        if (long_pm.valid() && long_pm.observability >= pm.observability) pm = long_pm;
       }
       // Outside any mask, a depth test that sees motion where the depth-free epipolar test sees
       // none is more often a wrong stereo match (repetitive road texture) than a moving object:
@@ -665,7 +678,10 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
     terms.s_mask = 1.0 - confidence[i];
     terms.has_motion = has_motion[i];
     terms.first_frame = !has_previous_ && options_.keep_first_frame_masks;
-    if (has_motion[i]) terms.m_motion = GateByObservability(static_prob[i], observability[i]);
+    if (has_motion[i]) {
+      terms.m_motion = GateByObservability(static_prob[i], observability[i]);
+      terms.own_static_prob = static_prob[i];
+    }
     if (out.ground_plane && has_depth[i] &&
         IsGroundPoint(*out.ground_plane, points[i], bf, options_.ground)) {
       terms.ground = true;
@@ -726,6 +742,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   previous_size_ = image.size();
   previous_pyramid_ = std::move(cur_pyramid);
   previous_uv_ = std::move(cur_uv);
+  previous_depth_ = std::move(depth);
   previous_track_ids_ = std::move(track_ids);
   previous_states_ = std::move(states);
   previous_history_ = std::move(history);

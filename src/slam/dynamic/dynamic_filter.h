@@ -82,9 +82,13 @@ struct DynamicFilterOptions {
   // Also start LK at the static prediction of keypoints with depth (under the prior, else the
   // last frame's motion); see LkOptions::guess_*.
   bool lk_predict_initial_flow = true;
-  double keypoint_sigma_px = 1.0;           // detection noise at level 0 (matched positions)
-  double lk_sigma_px = 0.5;                 // LK-tracked position noise
-  double track_match_radius_px = 3.0;       // LK position -> previous keypoint, for track state
+  double keypoint_sigma_px = 1.0;      // detection noise at level 0 (matched positions)
+  double lk_sigma_px = 0.5;            // LK-tracked position noise
+  double track_match_radius_px = 3.0;  // LK position -> previous keypoint, for track state
+  // The depth test also compares the previous frame's disparity (3 dof) when LK lands within
+  // this radius of the previous keypoint it continues.
+  bool use_previous_disparity = true;
+  double previous_disparity_radius_px = 1.5;
   float pnp_max_dynamic_confidence = 0.3f;  // PnP candidates lie outside stronger masks
   double default_frame_dt_s = 0.1;          // when timestamps do not give one (KITTI: 10 Hz)
   int max_plane_age_frames = 5;   // re-use the last ground plane this long when RANSAC fails
@@ -212,6 +216,7 @@ class DynamicFilter {
   cv::Size previous_size_;
   std::vector<cv::Mat> previous_pyramid_;
   std::vector<cv::Point2f> previous_uv_;
+  std::vector<float> previous_depth_;  // stereo depth of the previous keypoints (<= 0: none)
   std::vector<int64_t> previous_track_ids_;
   std::vector<TrackState> previous_states_;  // temporal state per previous keypoint
   // Long-baseline test: per previous keypoint, its positions 1..history_count frames before

@@ -27,8 +27,10 @@ Eigen::Matrix<double, 2, 3> ProjectionJacobian(const PinholeCamera& camera,
 
 // Pixel covariance of the projection of p under the camera-motion uncertainty (small rotation
 // and translation perturbations of prev_from_cur, applied on the left).
-Eigen::Matrix2d PoseCovariance(const Eigen::Matrix<double, 2, 3>& j, const Eigen::Vector3d& p,
-                               const PoseSigma& sigma) {
+template <int kRows>
+Eigen::Matrix<double, kRows, kRows> PoseCovariance(const Eigen::Matrix<double, kRows, 3>& j,
+                                                   const Eigen::Vector3d& p,
+                                                   const PoseSigma& sigma) {
   const Eigen::Matrix3d skew = Skew(p);
   const Eigen::Matrix3d cov3 =
       sigma.translation_m * sigma.translation_m * Eigen::Matrix3d::Identity() +
@@ -36,10 +38,25 @@ Eigen::Matrix2d PoseCovariance(const Eigen::Matrix<double, 2, 3>& j, const Eigen
   return j * cov3 * j.transpose();
 }
 
-double Mahalanobis2(const Eigen::Vector2d& r, const Eigen::Matrix2d& cov) {
+template <int kRows>
+double Mahalanobis2(const Eigen::Matrix<double, kRows, 1>& r,
+                    const Eigen::Matrix<double, kRows, kRows>& cov) {
   const double det = cov.determinant();
-  if (!(det > 1e-18)) return r.squaredNorm() / std::max(cov.trace() * 0.5, 1e-9);
+  if (!(det > 1e-18)) return r.squaredNorm() / std::max(cov.trace() / kRows, 1e-9);
   return r.dot(cov.inverse() * r);
+}
+
+// Observability of a displacement whose effect on the measurement is `shift`, against the
+// prediction covariance: |shift| in units of observability_sigmas standard deviations along it.
+template <int kRows>
+double Observability(const Eigen::Matrix<double, kRows, 1>& shift,
+                     const Eigen::Matrix<double, kRows, kRows>& cov,
+                     const MotionScoreOptions& options) {
+  const double norm = shift.norm();
+  if (!(norm > 1e-9)) return 0.0;
+  const Eigen::Matrix<double, kRows, 1> dir = shift / norm;
+  const double sigma_dir = std::sqrt(std::max(dir.dot(cov * dir), 1e-12));
+  return std::clamp(norm / (options.observability_sigmas * sigma_dir), 0.0, 1.0);
 }
 
 }  // namespace
@@ -82,7 +99,8 @@ bool MotionScoreOptions::IsValid(std::string* why) const {
       return Fail(why, "pose sigmas must be >= 0");
     }
   }
-  if (!(chi2_mid_2dof > 0.0 && chi2_mid_1dof > 0.0)) return Fail(why, "chi2 mids must be > 0");
+  if (!(chi2_mid_2dof > 0.0 && chi2_mid_1dof > 0.0 && chi2_mid_3dof > 0.0))
+    return Fail(why, "chi2 mids must be > 0");
   if (!(chi2_width > 0.0)) return Fail(why, "chi2_width must be > 0");
   if (!(reference_speed_mps > 0.0)) return Fail(why, "reference_speed_mps must be > 0");
   if (!(observability_sigmas > 0.0)) return Fail(why, "observability_sigmas must be > 0");
@@ -332,7 +350,9 @@ EgoMotionEstimate EstimateCurFromPrev(const PinholeCamera& camera,
 }
 
 double StaticProbabilityFromChi2(double chi2, int dof, const MotionScoreOptions& options) {
-  const double mid = dof == 1 ? options.chi2_mid_1dof : options.chi2_mid_2dof;
+  const double mid = dof == 1   ? options.chi2_mid_1dof
+                     : dof == 3 ? options.chi2_mid_3dof
+                                : options.chi2_mid_2dof;
   const double x = (chi2 - mid) / options.chi2_width;
   if (x > 50.0) return 0.0;
   return 1.0 / (1.0 + std::exp(x));
@@ -373,23 +393,42 @@ PointMotion ScorePointMotion(const PinholeCamera& camera, double bf,
     const Eigen::Vector2d j_z = jr * ray;
     Eigen::Matrix2d cov =
         prev_var * Eigen::Matrix2d::Identity() + cur_var * j_uv * j_uv.transpose() +
-        sigma_z * sigma_z * j_z * j_z.transpose() + PoseCovariance(j, p_prev, pose_sigma);
+        sigma_z * sigma_z * j_z * j_z.transpose() + PoseCovariance<2>(j, p_prev, pose_sigma);
     out.predicted_prev_uv_px = camera.Project(p_prev);
     const Eigen::Vector2d residual = prev_uv_px - out.predicted_prev_uv_px;
     out.test = MotionTest::kDepth;
     out.residual_px = residual.norm();
-    out.chi2 = Mahalanobis2(residual, cov);
-    out.static_prob = StaticProbabilityFromChi2(out.chi2, 2, options);
     // Observability: an object displaced by delta (current frame) between the frames was at
     // p_cur - delta in the previous one, so its previous pixel moves by -J R delta.
-    const Eigen::Vector2d shift = jr * (object_displacement_m * travel_dir_in_cur);
-    const double shift_px = shift.norm();
-    if (shift_px > 1e-9) {
-      const Eigen::Vector2d dir = shift / shift_px;
-      const double sigma_dir = std::sqrt(std::max(dir.dot(cov * dir), 1e-12));
-      out.observability =
-          std::clamp(shift_px / (options.observability_sigmas * sigma_dir), 0.0, 1.0);
+    const Eigen::Vector3d delta = object_displacement_m * travel_dir_in_cur;
+    if (noise.prev_disparity_px > 0.0 && std::isfinite(noise.prev_disparity_px)) {
+      // The previous frame's own disparity is a third measurement: a car ahead that keeps its
+      // distance keeps its disparity, where a static point at the same place would have come
+      // closer (the 2-D test alone hardly sees this near the focus of expansion).
+      const double inv_z = 1.0 / p_prev.z();
+      Eigen::Matrix3d j3;
+      j3.topRows<2>() = j;
+      j3.row(2) << 0.0, 0.0, -bf * inv_z * inv_z;
+      const Eigen::Matrix3d j3r = j3 * r;
+      const Eigen::Matrix<double, 3, 2> j3_uv = j3r * d_point_d_uv;
+      const Eigen::Vector3d j3_z = j3r * ray;
+      Eigen::Matrix3d cov3 = Eigen::Matrix3d::Zero();
+      cov3(0, 0) = prev_var;
+      cov3(1, 1) = prev_var;
+      cov3(2, 2) = noise.disparity_sigma_px * noise.disparity_sigma_px;
+      cov3 += cur_var * j3_uv * j3_uv.transpose() + sigma_z * sigma_z * j3_z * j3_z.transpose() +
+              PoseCovariance<3>(j3, p_prev, pose_sigma);
+      const Eigen::Vector3d residual3(residual.x(), residual.y(),
+                                      noise.prev_disparity_px - bf * inv_z);
+      out.with_disparity = true;
+      out.chi2 = Mahalanobis2<3>(residual3, cov3);
+      out.static_prob = StaticProbabilityFromChi2(out.chi2, 3, options);
+      out.observability = Observability<3>(j3r * delta, cov3, options);
+      return out;
     }
+    out.chi2 = Mahalanobis2<2>(residual, cov);
+    out.static_prob = StaticProbabilityFromChi2(out.chi2, 2, options);
+    out.observability = Observability<2>(jr * delta, cov, options);
     return out;
   }
 
@@ -398,13 +437,14 @@ PointMotion ScorePointMotion(const PinholeCamera& camera, double bf,
     const Eigen::Vector3d p_prev = r * ray;
     if (!(p_prev.z() > 1e-6)) return out;
     const Eigen::Matrix<double, 2, 3> j = ProjectionJacobian(camera, p_prev);
-    const Eigen::Matrix2d cov = (prev_var + cur_var) * Eigen::Matrix2d::Identity() +
-                                PoseCovariance(j, p_prev, PoseSigma{pose_sigma.rotation_rad, 0.0});
+    const Eigen::Matrix2d cov =
+        (prev_var + cur_var) * Eigen::Matrix2d::Identity() +
+        PoseCovariance<2>(j, p_prev, PoseSigma{pose_sigma.rotation_rad, 0.0});
     out.predicted_prev_uv_px = camera.Project(p_prev);
     const Eigen::Vector2d residual = prev_uv_px - out.predicted_prev_uv_px;
     out.test = MotionTest::kRotation;
     out.residual_px = residual.norm();
-    out.chi2 = Mahalanobis2(residual, cov);
+    out.chi2 = Mahalanobis2<2>(residual, cov);
     out.static_prob = StaticProbabilityFromChi2(out.chi2, 2, options);
     out.observability = 0.0;  // motion along the travel direction at unknown depth is invisible
     return out;

@@ -123,8 +123,9 @@ struct MotionScoreOptions {
   PoseSigma prior_pose{0.003, 0.05};
   PoseSigma pnp_pose{0.0015, 0.008};
   // P(static) = 1 / (1 + exp((chi2 - mid) / width)): 0.5 at the chi-square 99% quantile.
-  double chi2_mid_2dof = 9.21;  // depth or rotation-only test (2 dof)
-  double chi2_mid_1dof = 14.0;  // epipolar test (1 dof): LK slides along edges and stripes
+  double chi2_mid_2dof = 9.21;   // depth or rotation-only test (2 dof)
+  double chi2_mid_1dof = 14.0;   // epipolar test (1 dof): LK slides along edges and stripes
+  double chi2_mid_3dof = 11.34;  // depth test with the previous disparity (3 dof)
   double chi2_width = 2.0;
   // Observability: how far (pixels) a point of an object moving at reference_speed_mps along
   // the camera's direction of travel (the usual direction of traffic, and the direction hardest
@@ -139,7 +140,7 @@ struct MotionScoreOptions {
 
 enum class MotionTest : uint8_t {
   kNone,      // no observation in the previous frame (or no camera motion)
-  kDepth,     // point with stereo depth: full 2-D prediction
+  kDepth,     // point with stereo depth: full 2-D prediction (+ the previous disparity: 3 dof)
   kEpipolar,  // no depth: Sampson distance to the epipolar line (1 dof)
   kRotation,  // no depth and no translation: infinite-homography prediction (2 dof)
 };
@@ -151,6 +152,7 @@ struct PointMotion {
   double static_prob = 0.5;    // P(static | residual) in [0, 1]
   double observability = 0.0;  // in [0, 1], see MotionScoreOptions
   Eigen::Vector2d predicted_prev_uv_px = Eigen::Vector2d::Constant(-1.0);  // kDepth, kRotation
+  bool with_disparity = false;  // kDepth: the previous disparity entered the test (3 dof)
   bool valid() const { return test != MotionTest::kNone; }
 };
 
@@ -159,6 +161,9 @@ struct PointNoise {
   double cur_sigma_px = 0.0;   // current position (0 when LK tracked from this exact position)
   double prev_sigma_px = 0.5;  // previous position (LK or matched keypoint)
   double disparity_sigma_px = 0.5;
+  // Stereo disparity measured at the previous position (the same point's keypoint in the
+  // previous frame); <= 0: none (the depth test is then 2-D).
+  double prev_disparity_px = -1.0;
 };
 
 // Motion test of one keypoint. bf: rig baseline * fx (0: mono), depth_m <= 0: no depth.

@@ -79,6 +79,7 @@ bool ScoringOptions::IsValid(std::string* why) const {
   if (!(mask_evidence_below > 0.0 && mask_evidence_below < 1.0)) {
     return Fail(why, "mask_evidence_below in (0, 1)");
   }
+  if (!(keep_masked_static_above > 0.5)) return Fail(why, "keep_masked_static_above must be > 0.5");
   return true;
 }
 
@@ -288,6 +289,8 @@ FilterReason DecidePoint(const PointTerms& terms, double score, const ScoringOpt
   const bool mask = terms.s_mask < options.mask_evidence_below;
   if (motion && mask) return FilterReason::kMaskMotion;
   if (motion) return FilterReason::kMotion;
+  if (mask && terms.has_motion && terms.own_static_prob >= options.keep_masked_static_above)
+    return FilterReason::kKept;  // no motion seen, none the images could show: weighted
   if (mask) return FilterReason::kMask;
   return FilterReason::kLowScore;
 }

@@ -58,13 +58,20 @@ struct ScoringOptions {
   bool weight_relative_to_uninformed = true;
   double motion_evidence_below = 0.5;  // M_motion below: the reason names motion
   double mask_evidence_below = 0.5;    // S_mask below: the reason names the mask
+  // A masked point whose motion test saw no motion (P(static) before the observability gate at
+  // least this) but could not have seen a car driving along the travel direction (far ahead, no
+  // depth) is kept, weighted by its score: a motion that the images cannot show biases the pose
+  // no more than the test's noise, and far points are the rotation's best constraints. > 1: off
+  // (the mask decides).
+  double keep_masked_static_above = 0.9;
   bool IsValid(std::string* why) const;
 };
 
 struct PointTerms {
-  double s_mask = 1.0;      // 1 - dynamic confidence at the keypoint
-  double m_motion = 0.5;    // static probability, gated by observability
-  bool has_motion = false;  // m_motion comes from an observation (this frame or the window)
+  double s_mask = 1.0;           // 1 - dynamic confidence at the keypoint
+  double m_motion = 0.5;         // static probability, gated by observability
+  double own_static_prob = 0.5;  // the same before the gate (has_motion only)
+  bool has_motion = false;       // m_motion comes from an observation (this frame or the window)
   double g_ground = 1.0;
   double e_edge = 1.0;     // 0 for sky points
   bool hard_edge = false;  // within EdgeOptions::exclude_within_px

@@ -61,6 +61,73 @@ TEST(FilterMotion, RawFlowIsNotMotion) {
   EXPECT_NEAR(far.residual_px, 718.856 * 0.5 / 31.0, 0.5);
 }
 
+// A van 4 m ahead that keeps its distance, near the focus of expansion: its pixel hardly moves
+// either way, so the 2-D test calls it static; its disparity, which a static point would have
+// changed by 7 px over the 0.3 m the camera drove, gives it away.
+TEST(FilterMotion, LeadVehicleKeepingItsDistanceIsSeenByThePreviousDisparity) {
+  SE3 cur_from_prev = SE3::Identity();
+  cur_from_prev.translation() = Eigen::Vector3d(0.0, 0.0, -0.3);
+  const Eigen::Vector3d van_cur(0.05, -0.03, 4.0);
+  const Eigen::Vector2d prev_uv = Px(van_cur);  // same place in the previous image
+  PointNoise noise;
+  const PointMotion flat = Score(van_cur, van_cur.z(), prev_uv, cur_from_prev, noise);
+  EXPECT_FALSE(flat.with_disparity);
+  EXPECT_GT(flat.static_prob, 0.5);
+  noise.prev_disparity_px = Bf() / van_cur.z();  // the same disparity as now
+  const PointMotion with = Score(van_cur, van_cur.z(), prev_uv, cur_from_prev, noise);
+  EXPECT_EQ(with.test, MotionTest::kDepth);
+  EXPECT_TRUE(with.with_disparity);
+  EXPECT_LT(with.static_prob, 0.01);
+  EXPECT_DOUBLE_EQ(with.residual_px, flat.residual_px);  // the pixel residual is unchanged
+  EXPECT_GE(with.observability, flat.observability);
+
+  // A static point at the same place: 0.3 m further away in the previous frame.
+  const Eigen::Vector3d static_prev = cur_from_prev.inverse() * van_cur;
+  noise.prev_disparity_px = Bf() / static_prev.z();
+  const PointMotion still = Score(van_cur, van_cur.z(), Px(static_prev), cur_from_prev, noise);
+  EXPECT_TRUE(still.with_disparity);
+  EXPECT_GT(still.static_prob, 0.99);
+}
+
+// The 3-dof test under its own noise model: the squared Mahalanobis distance averages 3.
+TEST(FilterMotion, DisparityTestIsCalibratedOnStaticPoints) {
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const PoseSigma pose{0.002, 0.03};
+  PointNoise noise;
+  noise.cur_sigma_px = 1.0;
+  noise.prev_sigma_px = 1.0;
+  noise.disparity_sigma_px = 0.5;
+  const MotionScoreOptions options;
+  double sum_chi2 = 0.0;
+  int flagged = 0;
+  const int trials = 4000;
+  for (int t = 0; t < trials; ++t) {
+    const Eigen::Vector3d p_cur(u(rng) * 16 - 8, u(rng) * 3 - 1.5, 3.0 + u(rng) * 40.0);
+    const SE3 cur_from_prev = ForwardOneMetre();
+    Vector6d twist;
+    twist << pose.translation_m * g(rng), pose.translation_m * g(rng), pose.translation_m * g(rng),
+        pose.rotation_rad * g(rng), pose.rotation_rad * g(rng), pose.rotation_rad * g(rng);
+    const Eigen::Vector3d p_prev = ExpSE3(twist) * cur_from_prev.inverse() * p_cur;
+    Eigen::Vector2d prev_uv = Px(p_prev) + noise.prev_sigma_px * Eigen::Vector2d(g(rng), g(rng));
+    const Eigen::Vector2d cur_uv = Px(p_cur) + noise.cur_sigma_px * Eigen::Vector2d(g(rng), g(rng));
+    const double depth = Bf() / (Bf() / p_cur.z() + noise.disparity_sigma_px * g(rng));
+    PointNoise with = noise;
+    with.prev_disparity_px = Bf() / p_prev.z() + noise.disparity_sigma_px * g(rng);
+    const PointMotion m =
+        ScorePointMotion(Camera(), Bf(), cur_uv, depth, prev_uv, cur_from_prev.inverse(), pose,
+                         with, 0.5, Eigen::Vector3d::UnitZ(), options);
+    ASSERT_TRUE(m.with_disparity);
+    sum_chi2 += m.chi2;
+    flagged += m.static_prob < 0.5 ? 1 : 0;
+  }
+  const double mean_chi2 = sum_chi2 / trials;
+  EXPECT_GT(mean_chi2, 2.4);
+  EXPECT_LT(mean_chi2, 3.6);
+  EXPECT_LT(flagged, trials / 50);  // the 99% quantile: about 1% flagged
+}
+
 TEST(FilterMotion, NoiseModelIsCalibratedOnStaticPoints) {
   // Static points with noise drawn from the model the test assumes: the squared Mahalanobis
   // distance must average 2 (2 dof) and the static probability fall below 0.5 rarely.

@@ -45,6 +45,19 @@ TEST(FilterScorer, DecisionsAndReasons) {
   EXPECT_EQ(decide(Terms(1.0, 0.4)), FilterReason::kKept);         // weak evidence alone: kept
   EXPECT_EQ(decide(Terms(0.1, 0.5, false)), FilterReason::kMask);  // masked, never observed
   EXPECT_EQ(decide(Terms(0.1, 0.5)), FilterReason::kMask);         // masked, unobservable
+  PointTerms far_parked = Terms(0.1, 0.52);  // masked, no motion seen, but a blind test
+  far_parked.own_static_prob = 0.99;
+  EXPECT_EQ(decide(far_parked), FilterReason::kKept);
+  EXPECT_LT(WeightFromScore(StaticScore(far_parked, o.weights), o), 0.8f);  // ... down-weighted
+  far_parked.own_static_prob = 0.6;  // a hint of motion: the mask decides
+  EXPECT_EQ(decide(far_parked), FilterReason::kMask);
+  ScoringOptions mask_decides = o;
+  mask_decides.keep_masked_static_above = 1.5;
+  far_parked.own_static_prob = 0.99;
+  EXPECT_EQ(DecidePoint(far_parked, StaticScore(far_parked, o.weights), mask_decides, false),
+            FilterReason::kMask);
+  mask_decides.keep_masked_static_above = 0.5;
+  EXPECT_FALSE(mask_decides.IsValid(nullptr));
   EXPECT_EQ(decide(Terms(1.0, 0.5, false)), FilterReason::kKept);  // unmasked, unobserved
   EXPECT_EQ(decide(Terms(0.6, 0.5, false)), FilterReason::kKept);  // medium confidence: kept
   PointTerms sky = Terms(1.0, 1.0);
