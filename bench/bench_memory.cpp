@@ -458,38 +458,28 @@ int main(int argc, char** argv) {
         "warm-up end %.1f MiB (frame %zu): %s (target 10%%)\n",
         MiB(max_rss), max_frame, growth_pct, MiB(at_warmup->rss), at_warmup->frame,
         pass ? "PASS" : "FAIL");
-    // The same with per-frame peaks (a single sample can fall on a moment with fewer frames in
-    // flight): the largest RSS at any frame after the warm-up against the largest in the warm-up's
-    // last sampling window.
-    int64_t peak_after = 0;
-    for (const Sample& s : samples)
-      if (s.frame > at_warmup->frame) peak_after = std::max(peak_after, s.rss_peak);
-    if (peak_after > 0) {
-      const double peak_pct = 100.0 * static_cast<double>(peak_after - at_warmup->rss_peak) /
-                              static_cast<double>(at_warmup->rss_peak);
+    // The same with per-frame statistics of each sampling window (a single sample can fall on a
+    // moment with fewer frames in flight): the largest window value after the warm-up against
+    // the warm-up's last window.
+    auto window_verdict = [&](const char* label, int64_t Sample::*field) {
+      int64_t after = 0;
+      size_t frame = 0;
+      for (const Sample& s : samples)
+        if (s.frame > at_warmup->frame && s.*field > after) {
+          after = s.*field;
+          frame = s.frame;
+        }
+      if (after <= 0) return;
+      const int64_t base = (*at_warmup).*field;
+      const double pct = 100.0 * static_cast<double>(after - base) /
+                         static_cast<double>(std::max<int64_t>(base, 1));
       std::printf(
-          "peaks: largest RSS at any frame after warm-up %.1f MiB is within %.1f%% of the largest "
-          "in the last warm-up window %.1f MiB: %s\n",
-          MiB(peak_after), peak_pct, MiB(at_warmup->rss_peak), peak_pct <= 10.0 ? "PASS" : "FAIL");
-    }
-    // And with per-frame means over each sampling window (the level the run holds, whatever
-    // the phase of a frame at the sampling instant).
-    int64_t mean_after = 0;
-    size_t mean_frame = 0;
-    for (const Sample& s : samples)
-      if (s.frame > at_warmup->frame && s.rss_mean > mean_after) {
-        mean_after = s.rss_mean;
-        mean_frame = s.frame;
-      }
-    if (mean_after > 0) {
-      const double mean_pct = 100.0 * static_cast<double>(mean_after - at_warmup->rss_mean) /
-                              static_cast<double>(at_warmup->rss_mean);
-      std::printf(
-          "window means: largest mean RSS of a window after warm-up %.1f MiB (window ending at "
-          "frame %zu) is within %.1f%% of the last warm-up window's mean %.1f MiB: %s\n",
-          MiB(mean_after), mean_frame, mean_pct, MiB(at_warmup->rss_mean),
-          mean_pct <= 10.0 ? "PASS" : "FAIL");
-    }
+          "%s: largest after warm-up %.1f MiB (window ending at frame %zu) is within %.1f%% of the "
+          "last warm-up window's %.1f MiB: %s\n",
+          label, MiB(after), frame, pct, MiB(base), pct <= 10.0 ? "PASS" : "FAIL");
+    };
+    window_verdict("window peaks (RSS at any frame)", &Sample::rss_peak);
+    window_verdict("window means (mean RSS over the frames)", &Sample::rss_mean);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_memory: %s\n", e.what());

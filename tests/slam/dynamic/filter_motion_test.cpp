@@ -89,9 +89,15 @@ TEST(FilterMotion, LeadVehicleKeepingItsDistanceIsSeenByThePreviousDisparity) {
   EXPECT_GT(still.static_prob, 0.99);
 }
 
-// The 3-dof test under its own noise model: the squared Mahalanobis distance averages 3.
-TEST(FilterMotion, DisparityTestIsCalibratedOnStaticPoints) {
-  std::mt19937_64 rng(11);
+// Static points with noise drawn from the model the depth test assumes (pose, both positions,
+// disparity; with_disparity: also the previous frame's disparity). Returns the mean squared
+// Mahalanobis distance and the fraction flagged (static probability under 0.5).
+struct Calibration {
+  double mean_chi2 = 0.0;
+  double flagged_fraction = 0.0;
+};
+Calibration StaticDepthTestCalibration(uint64_t seed, bool with_disparity) {
+  std::mt19937_64 rng(seed);
   std::normal_distribution<double> g(0.0, 1.0);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const PoseSigma pose{0.002, 0.03};
@@ -106,67 +112,44 @@ TEST(FilterMotion, DisparityTestIsCalibratedOnStaticPoints) {
   for (int t = 0; t < trials; ++t) {
     const Eigen::Vector3d p_cur(u(rng) * 16 - 8, u(rng) * 3 - 1.5, 3.0 + u(rng) * 40.0);
     const SE3 cur_from_prev = ForwardOneMetre();
+    // True previous position under a perturbed (true) motion; the test sees the nominal one.
     Vector6d twist;
     twist << pose.translation_m * g(rng), pose.translation_m * g(rng), pose.translation_m * g(rng),
         pose.rotation_rad * g(rng), pose.rotation_rad * g(rng), pose.rotation_rad * g(rng);
     const Eigen::Vector3d p_prev = ExpSE3(twist) * cur_from_prev.inverse() * p_cur;
-    Eigen::Vector2d prev_uv = Px(p_prev) + noise.prev_sigma_px * Eigen::Vector2d(g(rng), g(rng));
+    const Eigen::Vector2d prev_uv =
+        Px(p_prev) + noise.prev_sigma_px * Eigen::Vector2d(g(rng), g(rng));
     const Eigen::Vector2d cur_uv = Px(p_cur) + noise.cur_sigma_px * Eigen::Vector2d(g(rng), g(rng));
     const double depth = Bf() / (Bf() / p_cur.z() + noise.disparity_sigma_px * g(rng));
-    PointNoise with = noise;
-    with.prev_disparity_px = Bf() / p_prev.z() + noise.disparity_sigma_px * g(rng);
+    PointNoise used = noise;
+    if (with_disparity)
+      used.prev_disparity_px = Bf() / p_prev.z() + noise.disparity_sigma_px * g(rng);
     const PointMotion m =
         ScorePointMotion(Camera(), Bf(), cur_uv, depth, prev_uv, cur_from_prev.inverse(), pose,
-                         with, 0.5, Eigen::Vector3d::UnitZ(), options);
-    ASSERT_TRUE(m.with_disparity);
+                         used, 0.5, Eigen::Vector3d::UnitZ(), options);
+    EXPECT_EQ(m.test, MotionTest::kDepth);
+    EXPECT_EQ(m.with_disparity, with_disparity);
     sum_chi2 += m.chi2;
     flagged += m.static_prob < 0.5 ? 1 : 0;
   }
-  const double mean_chi2 = sum_chi2 / trials;
-  EXPECT_GT(mean_chi2, 2.4);
-  EXPECT_LT(mean_chi2, 3.6);
-  EXPECT_LT(flagged, trials / 50);  // the 99% quantile: about 1% flagged
+  return {sum_chi2 / trials, static_cast<double>(flagged) / trials};
 }
 
+// The 3-dof test under its own noise model: the squared Mahalanobis distance averages 3 and the
+// 99% quantile flags about 1%.
+TEST(FilterMotion, DisparityTestIsCalibratedOnStaticPoints) {
+  const Calibration c = StaticDepthTestCalibration(11, true);
+  EXPECT_GT(c.mean_chi2, 2.4);
+  EXPECT_LT(c.mean_chi2, 3.6);
+  EXPECT_LT(c.flagged_fraction, 0.02);
+}
+
+// The 2-dof test: the squared Mahalanobis distance averages 2, few static points flagged.
 TEST(FilterMotion, NoiseModelIsCalibratedOnStaticPoints) {
-  // Static points with noise drawn from the model the test assumes: the squared Mahalanobis
-  // distance must average 2 (2 dof) and the static probability fall below 0.5 rarely.
-  std::mt19937_64 rng(7);
-  std::normal_distribution<double> g(0.0, 1.0);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  const PoseSigma pose{0.002, 0.03};
-  PointNoise noise;
-  noise.cur_sigma_px = 1.0;
-  noise.prev_sigma_px = 1.0;
-  noise.disparity_sigma_px = 0.5;
-  MotionScoreOptions options;
-  double sum_chi2 = 0.0;
-  int flagged = 0;
-  const int trials = 4000;
-  for (int t = 0; t < trials; ++t) {
-    const Eigen::Vector3d p_cur(u(rng) * 16 - 8, u(rng) * 3 - 1.5, 3.0 + u(rng) * 40.0);
-    const SE3 cur_from_prev = ForwardOneMetre();
-    // True previous position under a perturbed (true) motion; the filter sees the nominal one.
-    Vector6d twist;
-    twist << pose.translation_m * g(rng), pose.translation_m * g(rng), pose.translation_m * g(rng),
-        pose.rotation_rad * g(rng), pose.rotation_rad * g(rng), pose.rotation_rad * g(rng);
-    const SE3 prev_from_cur_true = ExpSE3(twist) * cur_from_prev.inverse();
-    Eigen::Vector2d prev_uv = Px(prev_from_cur_true * p_cur);
-    prev_uv += noise.prev_sigma_px * Eigen::Vector2d(g(rng), g(rng));
-    const Eigen::Vector2d cur_uv = Px(p_cur) + noise.cur_sigma_px * Eigen::Vector2d(g(rng), g(rng));
-    const double disparity = Bf() / p_cur.z() + noise.disparity_sigma_px * g(rng);
-    const double depth = Bf() / disparity;
-    const PointMotion m =
-        ScorePointMotion(Camera(), Bf(), cur_uv, depth, prev_uv, cur_from_prev.inverse(), pose,
-                         noise, 0.5, Eigen::Vector3d::UnitZ(), options);
-    ASSERT_EQ(m.test, MotionTest::kDepth);
-    sum_chi2 += m.chi2;
-    flagged += m.static_prob < 0.5 ? 1 : 0;
-  }
-  const double mean_chi2 = sum_chi2 / trials;
-  EXPECT_GT(mean_chi2, 1.6);
-  EXPECT_LT(mean_chi2, 2.5);
-  EXPECT_LT(flagged, 0.03 * trials);
+  const Calibration c = StaticDepthTestCalibration(7, false);
+  EXPECT_GT(c.mean_chi2, 1.6);
+  EXPECT_LT(c.mean_chi2, 2.5);
+  EXPECT_LT(c.flagged_fraction, 0.03);
 }
 
 TEST(FilterMotion, EpipolarTestWithoutDepth) {
