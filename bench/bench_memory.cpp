@@ -17,11 +17,13 @@
 // --segmenter truth: the rendered instance image as a perfect detector's masks (every car,
 // cyclist and pedestrian, moving or parked), so the mask branch, the mask carry and the filter's
 // mask stage run as with YOLO, at no inference cost.
-// Columns: RSS (VmRSS from /proc/self/statm), heap (bytes malloc has handed out and not got back,
-// mallinfo2 uordblks + hblkhd), the map's keyframes and points, and the last frame's tracking. To
-// tell the map's growth from the rest, the heap is fitted against the keyframe count, and
-// --speed 0 (the ego car stands still, so the map needs no new keyframes while the movers keep
-// moving) is the control run of everything but the map.
+// Columns: RSS (VmRSS from /proc/self/statm), mean and anon (per-frame means since the previous
+// sample of RSS and of its anonymous part: without the file-backed pages of the program and its
+// libraries, which code paths page in as they first run), peak, heap (bytes malloc has handed out
+// and not got back, mallinfo2 uordblks + hblkhd), the map's keyframes and points, and the last
+// frame's tracking. To tell the map's growth from the rest, the heap is fitted against the keyframe
+// count, and --speed 0 (the ego car stands still, so the map needs no new keyframes while the
+// movers keep moving) is the control run of everything but the map.
 #include <fmt/format.h>
 #include <malloc.h>
 #include <spdlog/spdlog.h>
@@ -128,11 +130,16 @@ Args ParseArgs(int argc, char** argv) {
 }
 
 // Resident set size in bytes (/proc/self/statm, second field, in pages).
-int64_t ResidentBytes() {
+// Resident bytes of the process; file_bytes: the part backed by files (code and data of the
+// program and its libraries, paged in as code paths first run), the rest is anonymous memory
+// (heap, stacks): what the run holds.
+int64_t ResidentBytes(int64_t* file_bytes = nullptr) {
   std::ifstream statm("/proc/self/statm");
-  int64_t size_pages = 0, resident_pages = 0;
-  statm >> size_pages >> resident_pages;
-  return resident_pages * static_cast<int64_t>(sysconf(_SC_PAGESIZE));
+  int64_t size_pages = 0, resident_pages = 0, shared_pages = 0;
+  statm >> size_pages >> resident_pages >> shared_pages;
+  const int64_t page = sysconf(_SC_PAGESIZE);
+  if (file_bytes) *file_bytes = shared_pages * page;
+  return resident_pages * page;
 }
 
 double MiB(int64_t bytes) { return static_cast<double>(bytes) / (1024.0 * 1024.0); }
@@ -259,8 +266,9 @@ struct Sample {
   size_t frame = 0;
   double t_s = 0;
   int64_t rss = 0, heap = 0;
-  int64_t rss_peak = 0;  // largest RSS seen at any frame since the previous sample
-  int64_t rss_mean = 0;  // mean RSS over the frames since the previous sample
+  int64_t rss_peak = 0;   // largest RSS seen at any frame since the previous sample
+  int64_t rss_mean = 0;   // mean RSS over the frames since the previous sample
+  int64_t anon_mean = 0;  // the same without file-backed pages (anonymous memory)
   size_t keyframes = 0, map_points = 0;
   int tracked = 0;
   std::string status;
@@ -319,13 +327,14 @@ int main(int argc, char** argv) {
         args.frames, synth.width_px, synth.height_px, args.world_frames, lap,
         lap * synth.speed_mps / synth.rate_hz, lap_jump_m, args.threads, args.max_in_flight,
         args.segmenter.c_str(), args.filter ? "on" : "off", args.warmup);
-    std::printf("%6s %7s %9s %9s %9s %9s %5s %7s %7s %9s\n", "frame", "time s", "RSS MiB",
-                "mean MiB", "peak MiB", "heap MiB", "kf", "points", "tracked", "status");
+    std::printf("%6s %7s %9s %9s %9s %9s %9s %5s %7s %7s %9s\n", "frame", "time s", "RSS MiB",
+                "mean MiB", "anon MiB", "peak MiB", "heap MiB", "kf", "points", "tracked",
+                "status");
     std::fflush(stdout);
 
     std::vector<Sample> samples;
     int64_t window_peak = 0;
-    double window_sum = 0;
+    double window_sum = 0, window_anon_sum = 0;
     int window_count = 0;
     auto take = [&](size_t frame, const pcr::FrameOutput* out) {
       Sample s;
@@ -335,8 +344,10 @@ int main(int argc, char** argv) {
       s.rss = ResidentBytes();
       s.rss_peak = std::max(window_peak, s.rss);
       s.rss_mean = window_count > 0 ? static_cast<int64_t>(window_sum / window_count) : s.rss;
+      s.anon_mean = window_count > 0 ? static_cast<int64_t>(window_anon_sum / window_count) : 0;
       window_peak = 0;
       window_sum = 0;
+      window_anon_sum = 0;
       window_count = 0;
       const struct mallinfo2 heap = mallinfo2();
       s.heap = static_cast<int64_t>(heap.uordblks + heap.hblkhd);
@@ -346,9 +357,9 @@ int main(int argc, char** argv) {
         s.tracked = out->num_tracked;
         s.status = pcr::ToString(out->status);
       }
-      std::printf("%6zu %7.1f %9.1f %9.1f %9.1f %9.1f %5zu %7zu %7d %9s\n", s.frame, s.t_s,
-                  MiB(s.rss), MiB(s.rss_mean), MiB(s.rss_peak), MiB(s.heap), s.keyframes,
-                  s.map_points, s.tracked, s.status.c_str());
+      std::printf("%6zu %7.1f %9.1f %9.1f %9.1f %9.1f %9.1f %5zu %7zu %7d %9s\n", s.frame, s.t_s,
+                  MiB(s.rss), MiB(s.rss_mean), MiB(s.anon_mean), MiB(s.rss_peak), MiB(s.heap),
+                  s.keyframes, s.map_points, s.tracked, s.status.c_str());
       std::fflush(stdout);
       samples.push_back(s);
     };
@@ -360,9 +371,11 @@ int main(int argc, char** argv) {
     options.max_in_flight = args.max_in_flight;
     if (!args.heap_policy) options.trim_heap_every = 0;
     options.on_frame = [&](size_t done, size_t, const pcr::FrameOutput& out) {
-      const int64_t rss_now = ResidentBytes();
+      int64_t file_now = 0;
+      const int64_t rss_now = ResidentBytes(&file_now);
       window_peak = std::max(window_peak, rss_now);
       window_sum += static_cast<double>(rss_now);
+      window_anon_sum += static_cast<double>(rss_now - file_now);
       ++window_count;
       if (done % static_cast<size_t>(args.sample_every) == 0 ||
           done == static_cast<size_t>(args.warmup))
@@ -480,6 +493,7 @@ int main(int argc, char** argv) {
     };
     window_verdict("window peaks (RSS at any frame)", &Sample::rss_peak);
     window_verdict("window means (mean RSS over the frames)", &Sample::rss_mean);
+    window_verdict("window means of anonymous RSS (without library pages)", &Sample::anon_mean);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_memory: %s\n", e.what());
