@@ -13,6 +13,7 @@
 #include "slam/common/error.h"
 #include "slam/optim/reprojection_cost.h"
 #include "slam/optim/se3.h"
+#include "slam/optim/weighted_loss.h"
 
 namespace pcr {
 namespace {
@@ -23,9 +24,9 @@ struct PreparedObservation {
   bool usable = false;
   bool stereo = false;
   double chi2_threshold = 0;
-  double weight = 1;                                    // the filter's confidence
-  optim::ReprojectionTarget target;                     // sqrt_info of the measurement noise alone
-  std::unique_ptr<ceres::LossFunction> scaled_loss[2];  // weight * rho: [plain, robust]
+  double weight = 1;                 // the filter's confidence
+  optim::ReprojectionTarget target;  // sqrt_info of the measurement noise alone
+  optim::WeightedLoss loss;          // weight * rho
 };
 
 // Huber rho(s) as Ceres defines it, for delta^2 = threshold.
@@ -103,12 +104,7 @@ class BundleAdjuster {
     p.target.uv_px = obs.uv_px;
     p.target.u_right_px = obs.u_right_px;
     p.target.sqrt_info = std::sqrt(obs.information);
-    if (p.weight != 1.0) {
-      p.scaled_loss[0] =
-          std::make_unique<ceres::ScaledLoss>(nullptr, p.weight, ceres::DO_NOT_TAKE_OWNERSHIP);
-      p.scaled_loss[1] = std::make_unique<ceres::ScaledLoss>(
-          p.stereo ? &huber_stereo_ : &huber_mono_, p.weight, ceres::DO_NOT_TAKE_OWNERSHIP);
-    }
+    p.loss = optim::WeightedLoss(p.weight, p.stereo ? &huber_stereo_ : &huber_mono_);
   }
 
   optim::ReprojectionCheck Check(size_t i) const {
@@ -168,10 +164,7 @@ class BundleAdjuster {
         ordering->AddElementToGroup(point, 0);
       }
       const PreparedObservation& p = prepared_[i];
-      ceres::LossFunction* loss = p.weight != 1.0 ? p.scaled_loss[robust ? 1 : 0].get()
-                                  : !robust       ? nullptr
-                                  : p.stereo      ? &huber_stereo_
-                                                  : &huber_mono_;
+      ceres::LossFunction* loss = p.loss.Get(robust);
       if (p.stereo) {
         problem.AddResidualBlock(new optim::StereoBaCost(rig_, p.target), loss, pose, point);
       } else {

@@ -6,12 +6,12 @@
 
 #include <array>
 #include <cmath>
-#include <memory>
 #include <vector>
 
 #include "slam/common/error.h"
 #include "slam/optim/reprojection_cost.h"
 #include "slam/optim/se3.h"
+#include "slam/optim/weighted_loss.h"
 
 namespace pcr {
 namespace {
@@ -88,21 +88,11 @@ PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_wo
   optim::LeftSe3Manifold manifold;
   ceres::HuberLoss huber_mono(std::sqrt(options.chi2_mono));
   ceres::HuberLoss huber_stereo(std::sqrt(options.chi2_stereo));
-  // weight * rho(chi2) for observations the filter down-weighted (built once, per kernel).
-  std::vector<std::unique_ptr<ceres::LossFunction>> scaled_robust(n), scaled_plain(n);
-  for (size_t i = 0; i < n; ++i) {
-    if (!prepared[i].usable || prepared[i].weight == 1.0) continue;
-    const ceres::LossFunction* huber = prepared[i].stereo ? &huber_stereo : &huber_mono;
-    scaled_robust[i] = std::make_unique<ceres::ScaledLoss>(huber, prepared[i].weight,
-                                                           ceres::DO_NOT_TAKE_OWNERSHIP);
-    scaled_plain[i] = std::make_unique<ceres::ScaledLoss>(nullptr, prepared[i].weight,
-                                                          ceres::DO_NOT_TAKE_OWNERSHIP);
-  }
-  auto loss = [&](size_t i, bool robust) -> ceres::LossFunction* {
-    if (prepared[i].weight != 1.0) return robust ? scaled_robust[i].get() : scaled_plain[i].get();
-    if (!robust) return nullptr;
-    return prepared[i].stereo ? &huber_stereo : &huber_mono;
-  };
+  // weight * rho(chi2) per observation (built once, used in every round).
+  std::vector<optim::WeightedLoss> losses;
+  losses.reserve(n);
+  for (const PreparedObservation& p : prepared)
+    losses.emplace_back(p.usable ? p.weight : 1.0, p.stereo ? &huber_stereo : &huber_mono);
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -131,10 +121,10 @@ PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_wo
         const PreparedObservation& p = prepared[i];
         const Eigen::Vector3d& x = observations[i].p_in_world;
         if (p.stereo) {
-          problem.AddResidualBlock(new optim::StereoPoseCost(rig, p.target, x), loss(i, robust),
-                                   pose.data());
+          problem.AddResidualBlock(new optim::StereoPoseCost(rig, p.target, x),
+                                   losses[i].Get(robust), pose.data());
         } else {
-          problem.AddResidualBlock(new optim::MonoPoseCost(rig, p.target, x), loss(i, robust),
+          problem.AddResidualBlock(new optim::MonoPoseCost(rig, p.target, x), losses[i].Get(robust),
                                    pose.data());
         }
       }

@@ -53,8 +53,7 @@ struct PoseOptimizationResult {
 //   when rounds >= 2. The first round's active set is the usable observations in front of the
 //   initial pose.
 // - Excluded observations and those with non-finite values, information <= 0 or weight <= 0 are
-// never
-//   used and are reported as outliers.
+//   never used and are reported as outliers.
 // - Deterministic: the same input gives bitwise the same output.
 // Throws ConfigError when the options or the rig are invalid.
 PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_world_init,
