@@ -59,6 +59,25 @@ double Observability(const Eigen::Matrix<double, kRows, 1>& shift,
   return std::clamp(norm / (options.observability_sigmas * sigma_dir), 0.0, 1.0);
 }
 
+// Covariance of the depth test's measurement about its static prediction (kRows = 2: the
+// previous pixel; 3: and the previous disparity). j: projection (and disparity) Jacobian at
+// p_prev = r p_cur + t; the previous measurement's own noise, the current pixel and depth noise
+// carried through the prediction, and the pose uncertainty.
+template <int kRows>
+Eigen::Matrix<double, kRows, kRows> DepthTestCovariance(
+    const Eigen::Matrix<double, kRows, 3>& j, const Eigen::Matrix3d& r,
+    const Eigen::Matrix<double, 3, 2>& d_point_d_uv, const Eigen::Vector3d& ray, double sigma_z,
+    const Eigen::Vector3d& p_prev, const PoseSigma& pose_sigma, const PointNoise& noise) {
+  const Eigen::Matrix<double, kRows, 3> jr = j * r;
+  const Eigen::Matrix<double, kRows, 2> j_uv = jr * d_point_d_uv;
+  const Eigen::Matrix<double, kRows, 1> j_z = jr * ray;
+  Eigen::Matrix<double, kRows, kRows> measured = Eigen::Matrix<double, kRows, kRows>::Zero();
+  measured(0, 0) = measured(1, 1) = noise.prev_sigma_px * noise.prev_sigma_px;
+  if constexpr (kRows == 3) measured(2, 2) = noise.disparity_sigma_px * noise.disparity_sigma_px;
+  return measured + noise.cur_sigma_px * noise.cur_sigma_px * j_uv * j_uv.transpose() +
+         sigma_z * sigma_z * j_z * j_z.transpose() + PoseCovariance<kRows>(j, p_prev, pose_sigma);
+}
+
 }  // namespace
 
 bool LkOptions::IsValid(std::string* why) const {
@@ -382,24 +401,18 @@ PointMotion ScorePointMotion(const PinholeCamera& camera, double bf,
     const Eigen::Vector3d p_prev = r * p_cur + t;
     if (!(p_prev.z() > 0.05)) return out;
     const Eigen::Matrix<double, 2, 3> j = ProjectionJacobian(camera, p_prev);
-    const Eigen::Matrix<double, 2, 3> jr = j * r;
     // Current pixel noise at fixed depth: d p_cur / d uv = depth * diag(1/fx, 1/fy) (top rows).
     Eigen::Matrix<double, 3, 2> d_point_d_uv = Eigen::Matrix<double, 3, 2>::Zero();
     d_point_d_uv(0, 0) = depth_m / camera.fx;
     d_point_d_uv(1, 1) = depth_m / camera.fy;
-    const Eigen::Matrix2d j_uv = jr * d_point_d_uv;
     // Depth noise from disparity noise: sigma_z = z^2 / bf * sigma_d, along the ray.
     const double sigma_z = depth_m * depth_m / bf * noise.disparity_sigma_px;
-    const Eigen::Vector2d j_z = jr * ray;
-    Eigen::Matrix2d cov =
-        prev_var * Eigen::Matrix2d::Identity() + cur_var * j_uv * j_uv.transpose() +
-        sigma_z * sigma_z * j_z * j_z.transpose() + PoseCovariance<2>(j, p_prev, pose_sigma);
     out.predicted_prev_uv_px = camera.Project(p_prev);
     const Eigen::Vector2d residual = prev_uv_px - out.predicted_prev_uv_px;
     out.test = MotionTest::kDepth;
     out.residual_px = residual.norm();
     // Observability: an object displaced by delta (current frame) between the frames was at
-    // p_cur - delta in the previous one, so its previous pixel moves by -J R delta.
+    // p_cur - delta in the previous one, so its previous measurement moves by -J R delta.
     const Eigen::Vector3d delta = object_displacement_m * travel_dir_in_cur;
     if (noise.prev_disparity_px > 0.0 && std::isfinite(noise.prev_disparity_px)) {
       // The previous frame's own disparity is a third measurement: a car ahead that keeps its
@@ -409,26 +422,21 @@ PointMotion ScorePointMotion(const PinholeCamera& camera, double bf,
       Eigen::Matrix3d j3;
       j3.topRows<2>() = j;
       j3.row(2) << 0.0, 0.0, -bf * inv_z * inv_z;
-      const Eigen::Matrix3d j3r = j3 * r;
-      const Eigen::Matrix<double, 3, 2> j3_uv = j3r * d_point_d_uv;
-      const Eigen::Vector3d j3_z = j3r * ray;
-      Eigen::Matrix3d cov3 = Eigen::Matrix3d::Zero();
-      cov3(0, 0) = prev_var;
-      cov3(1, 1) = prev_var;
-      cov3(2, 2) = noise.disparity_sigma_px * noise.disparity_sigma_px;
-      cov3 += cur_var * j3_uv * j3_uv.transpose() + sigma_z * sigma_z * j3_z * j3_z.transpose() +
-              PoseCovariance<3>(j3, p_prev, pose_sigma);
+      const Eigen::Matrix3d cov3 =
+          DepthTestCovariance<3>(j3, r, d_point_d_uv, ray, sigma_z, p_prev, pose_sigma, noise);
       const Eigen::Vector3d residual3(residual.x(), residual.y(),
                                       noise.prev_disparity_px - bf * inv_z);
       out.with_disparity = true;
       out.chi2 = Mahalanobis2<3>(residual3, cov3);
       out.static_prob = StaticProbabilityFromChi2(out.chi2, 3, options);
-      out.observability = Observability<3>(j3r * delta, cov3, options);
+      out.observability = Observability<3>(j3 * r * delta, cov3, options);
       return out;
     }
+    const Eigen::Matrix2d cov =
+        DepthTestCovariance<2>(j, r, d_point_d_uv, ray, sigma_z, p_prev, pose_sigma, noise);
     out.chi2 = Mahalanobis2<2>(residual, cov);
     out.static_prob = StaticProbabilityFromChi2(out.chi2, 2, options);
-    out.observability = Observability<2>(jr * delta, cov, options);
+    out.observability = Observability<2>(j * r * delta, cov, options);
     return out;
   }
 
