@@ -136,13 +136,13 @@ SlamSystem::KeypointFilterProvider DynamicRun::ForFrame(size_t i, const cv::Mat&
       if (options_.dump)
         summary->filter_dump.push_back(fmt::format(
             "{} {} {:.2f} {:.2f} {} {} {:.4f} {} {:.3f} {} {:.3f} {:.3f} {:.2f} {} {} {:.3f} "
-            "{:.2f} {:.2f}",
+            "{:.2f} {:.2f} {}",
             i, k, p.x, p.y, excluded ? 1 : 0, FilterReasonName(out.points[k].reason),
             out.points[k].score, truth, out.points[k].s_mask, out.points[k].has_motion ? 1 : 0,
             out.points[k].m_motion, out.points[k].observability, out.points[k].residual_px,
             out.points[k].instance, out.points[k].mask_depth_outlier ? 1 : 0,
             out.points[k].frame_static_prob, out.points[k].chi2,
-            stereo.depth_m.empty() ? -1.0f : stereo.depth_m[k]));
+            stereo.depth_m.empty() ? -1.0f : stereo.depth_m[k], out.points[k].ground ? 1 : 0));
     }
     return KeypointFilter{out.filter.weight, out.filter.excluded};
   };

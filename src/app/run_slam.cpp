@@ -197,7 +197,7 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
     std::ofstream dump(out_dir + "/filter_decisions.txt");
     dump << "# frame keypoint x_px y_px excluded reason score truth(moving|parked|static|-) s_mask "
             "has_motion m_motion observability residual_px instance mask_depth_outlier "
-            "frame_static_prob chi2 depth_m\n";
+            "frame_static_prob chi2 depth_m ground\n";
     for (const std::string& line : s.filter_dump) dump << line << "\n";
     if (!dump) throw InputError(out_dir + "/filter_decisions.txt", 0, "cannot write");
   }

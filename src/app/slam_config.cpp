@@ -86,6 +86,8 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("filter", "keep_masked_static_above", &f.scoring.keep_masked_static_above,
         "masked points with no motion seen (P(static) >= this) but blind tests: kept (> 1: off)");
   s.Add("filter", "remove_ground", &f.ground.remove_ground, "false: down-weight ground points");
+  s.Add("filter", "ground_motion_unreliable", &f.scoring.ground_motion_unreliable,
+        "motion on road outside masks (shadows): excluded as unreliable, not a moving object");
   s.Add("filter", "reference_speed_mps", &f.motion.reference_speed_mps,
         "motion the test must see before it confirms a point static");
   s.Add("filter", "lk_sigma_px", &f.lk_sigma_px);

@@ -670,7 +670,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
     }
   }
 
-  std::vector<uint8_t> seeds(n, 0), candidates(n, 0), weak(n, 0);
+  std::vector<uint8_t> seeds(n, 0), candidates(n, 0), weak(n, 0), road(n, 0);
   for (size_t i = 0; i < n; ++i) {
     KeypointDiagnostics& d = out.points[i];
     const Eigen::Vector2d uv(cur_uv[i].x, cur_uv[i].y);
@@ -694,7 +694,9 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
     const double score = StaticScore(terms, options_.scoring.weights);
     FilterReason reason =
         DecidePoint(terms, score, options_.scoring, options_.ground.remove_ground);
-    if (reason == FilterReason::kKept && votes[i].dynamic) reason = FilterReason::kVote;
+    road[i] = IsRoadPoint(terms, options_.scoring);
+    if (reason == FilterReason::kKept && votes[i].dynamic)
+      reason = road[i] ? FilterReason::kGroundMotion : FilterReason::kVote;
     d.s_mask = static_cast<float>(terms.s_mask);
     d.m_motion = static_cast<float>(terms.m_motion);
     d.has_motion = terms.has_motion;
@@ -720,7 +722,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   out.filter.excluded.resize(n);
   for (size_t i = 0; i < n; ++i) {
     KeypointDiagnostics& d = out.points[i];
-    if (joined[i]) d.reason = FilterReason::kCluster;
+    if (joined[i]) d.reason = road[i] ? FilterReason::kGroundMotion : FilterReason::kCluster;
     out.filter.excluded[i] = d.reason != FilterReason::kKept;
     out.filter.weight[i] = WeightFromScore(d.score, options_.scoring);
     ++out.reason_counts[static_cast<int>(d.reason)];

@@ -49,6 +49,8 @@ const char* FilterReasonName(FilterReason reason) {
       return "vote";
     case FilterReason::kCluster:
       return "cluster";
+    case FilterReason::kGroundMotion:
+      return "ground-motion";
   }
   return "unknown";
 }
@@ -288,11 +290,17 @@ FilterReason DecidePoint(const PointTerms& terms, double score, const ScoringOpt
   const bool motion = terms.has_motion && terms.m_motion < options.motion_evidence_below;
   const bool mask = terms.s_mask < options.mask_evidence_below;
   if (motion && mask) return FilterReason::kMaskMotion;
-  if (motion) return FilterReason::kMotion;
+  if (motion)
+    return IsRoadPoint(terms, options) ? FilterReason::kGroundMotion : FilterReason::kMotion;
   if (mask && terms.has_motion && terms.own_static_prob >= options.keep_masked_static_above)
     return FilterReason::kKept;  // no motion seen, none the images could show: weighted
   if (mask) return FilterReason::kMask;
   return FilterReason::kLowScore;
+}
+
+bool IsRoadPoint(const PointTerms& terms, const ScoringOptions& options) {
+  return options.ground_motion_unreliable && terms.ground &&
+         terms.s_mask >= options.mask_evidence_below;
 }
 
 float WeightFromScore(double score, const ScoringOptions& options) {

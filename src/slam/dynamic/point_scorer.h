@@ -33,8 +33,12 @@ enum class FilterReason : uint8_t {
   kEdge,     // within the outermost border pixels
   kVote,     // temporal vote for motion (kept by this frame's score)
   kCluster,  // same instance / 3-D cluster as a majority of motion-excluded points
+  // Motion evidence (own test, vote or cluster) on a road point outside every dynamic-class mask:
+  // the road does not move, so what moves there is a shadow, a reflection or a track slipping on
+  // road texture. Excluded as unreliable; not a moving object and no cluster seed.
+  kGroundMotion,
 };
-inline constexpr int kNumFilterReasons = 10;
+inline constexpr int kNumFilterReasons = 11;
 
 const char* FilterReasonName(FilterReason reason);
 // Reasons that mean "on a moving object": kMaskMotion, kMotion, kVote, kCluster.
@@ -64,6 +68,9 @@ struct ScoringOptions {
   // no more than the test's noise, and far points are the rotation's best constraints. > 1: off
   // (the mask decides).
   double keep_masked_static_above = 0.9;
+  // Motion on a road point (ground, no mask evidence) gives kGroundMotion rather than kMotion,
+  // kVote or kCluster. false: it is a moving object like any other.
+  bool ground_motion_unreliable = true;
   bool IsValid(std::string* why) const;
 };
 
@@ -79,6 +86,9 @@ struct PointTerms {
   bool ground = false;
   bool first_frame = false;  // no previous frame: no motion evidence anywhere yet
 };
+
+// A ground point without mask evidence, when ScoringOptions::ground_motion_unreliable.
+bool IsRoadPoint(const PointTerms& terms, const ScoringOptions& options);
 
 // Eq. 2, renormalised over the terms present (the motion term only when has_motion).
 double StaticScore(const PointTerms& terms, const ScoreWeights& weights);

@@ -89,6 +89,31 @@ TEST(FilterScorer, DecisionsAndReasons) {
   EXPECT_FALSE(IsMovingReason(FilterReason::kMask));
 }
 
+TEST(FilterScorer, MotionOnTheRoadOutsideMasksIsUnreliableNotMoving) {
+  const ScoringOptions o;
+  auto decide = [](const PointTerms& t, const ScoringOptions& options) {
+    return DecidePoint(t, StaticScore(t, options.weights), options, false);
+  };
+  PointTerms shadow = Terms(1.0, 0.02);  // a cyclist's shadow sliding over the road
+  shadow.ground = true;
+  shadow.g_ground = 0.7;
+  EXPECT_TRUE(IsRoadPoint(shadow, o));
+  EXPECT_EQ(decide(shadow, o), FilterReason::kGroundMotion);
+  EXPECT_FALSE(IsMovingReason(FilterReason::kGroundMotion));
+  EXPECT_STREQ(FilterReasonName(FilterReason::kGroundMotion), "ground-motion");
+  PointTerms tyre = shadow;  // a masked point at road level (a tyre) is the object's
+  tyre.s_mask = 0.1;
+  EXPECT_FALSE(IsRoadPoint(tyre, o));
+  EXPECT_EQ(decide(tyre, o), FilterReason::kMaskMotion);
+  PointTerms static_road = shadow;  // road without motion evidence: kept, down-weighted
+  static_road.m_motion = 0.95;
+  EXPECT_EQ(decide(static_road, o), FilterReason::kKept);
+  ScoringOptions off = o;
+  off.ground_motion_unreliable = false;
+  EXPECT_FALSE(IsRoadPoint(shadow, off));
+  EXPECT_EQ(decide(shadow, off), FilterReason::kMotion);
+}
+
 TEST(FilterScorer, InstanceSummaries) {
   // Instance 1 parked (observed static), 2 moving, 3 too little evidence, 4 static but blind.
   std::vector<uint16_t> instance;
