@@ -182,6 +182,7 @@ class GraphRun {
     std::atomic<int64_t> mask_ready_ns{-1};
     std::atomic<int64_t> slam_ns{0};       // summed stage calls of the SLAM path
     std::atomic<int64_t> inference_ns{0};  // the frame's segmentation call
+    std::atomic<int64_t> pose_ns{-1};      // tracking done: the frame's pose exists
   };
   struct Admission {
     int64_t release_ns = 0, admit_ns = 0;
@@ -436,8 +437,10 @@ PipelineResult GraphRun::Run() {
                 std::this_thread::sleep_for(
                     std::chrono::microseconds(std::llround(options_.tracking_delay_ms * 1e3)));
               return tracking_(filtered);
-            }))
+            })) {
+          clocks_[filtered->ticket.seq].pose_ns.store(NowNs());
           std::get<0>(ports).try_put(*out);
+        }
       });
   // Mapping (keyframes only; other frames pass through unprofiled) hands the token back once the
   // map holds frame k's edits. Loop closing will sit here: one more serial node between mapping
@@ -592,7 +595,11 @@ void GraphRun::Complete(const FrameResultPtr& result) {
     const Admission& a = admissions_[static_cast<size_t>(t.seq)];
     r.release_ns = a.release_ns;
     r.admit_ns = a.admit_ns;
-    r.latency_ms = NsToMs(done - (realtime_ ? a.release_ns : a.admit_ns));
+    const int64_t start = realtime_ ? a.release_ns : a.admit_ns;
+    const int64_t pose = clock.pose_ns.load();
+    r.pose_ns = pose >= 0 ? pose : done;
+    r.latency_ms = NsToMs(r.pose_ns - start);
+    r.retire_ms = NsToMs(done - start);
     r.segmentation = result->segmentation;
     if (options_.adaptive) {
       const QualityLevel before = controller_.level();
@@ -654,10 +661,11 @@ PipelineResult GraphRun::Collect() {
   s.inferences_busy = inferences_busy_.load();
   s.max_in_flight_observed = max_observed_in_flight_;
   s.profile_threads = profiler_.num_threads();
-  TimingSeries latency, busy;
+  TimingSeries latency, retire, busy;
   int64_t last_done = 0;
   for (const FrameRecord& f : out.frames) {
     latency.Add(f.latency_ms);
+    retire.Add(f.retire_ms);
     busy.Add(f.busy_ms);
     last_done = std::max(last_done, f.done_ns);
     switch (f.mask) {
@@ -674,6 +682,7 @@ PipelineResult GraphRun::Collect() {
     ++s.quality_frames[static_cast<size_t>(f.quality)];
   }
   s.latency = latency.Summarize();
+  s.retire = retire.Summarize();
   s.busy = busy.Summarize();
   s.wall_s = static_cast<double>(last_done) * 1e-9;
   s.fps = s.wall_s > 0 ? static_cast<double>(out.frames.size()) / s.wall_s : 0.0;

@@ -51,9 +51,11 @@ struct FrameRecord {
   int num_excluded = 0;
   FrameOutput output;
   // Nanoseconds since the start of the run: released by the source (camera time in realtime),
-  // admitted into the graph, pose available (mapping done).
-  int64_t release_ns = 0, admit_ns = 0, done_ns = 0;
+  // admitted into the graph, pose available (tracking done), retired (mapping done: the map holds
+  // the frame's edits and its in-flight token is back).
+  int64_t release_ns = 0, admit_ns = 0, pose_ns = 0, done_ns = 0;
   double latency_ms = 0;  // realtime: release -> pose; otherwise admission -> pose
+  double retire_ms = 0;   // the same start -> retired (a keyframe's local mapping included)
   double busy_ms = 0;     // max(T_slam, T_inference) + T_sync, the controller's input
 };
 
@@ -75,9 +77,10 @@ struct PipelineStats {
   size_t inferences_busy = 0;  // realtime: frame not segmented, network busy
   size_t late_results = 0;     // inference finished after its frame went on
   size_t max_in_flight_observed = 0;
-  double wall_s = 0;  // start to the last pose
-  double fps = 0;     // completed frames / wall_s
-  TimingSummary latency;
+  double wall_s = 0;      // start to the last pose
+  double fps = 0;         // completed frames / wall_s
+  TimingSummary latency;  // to the pose
+  TimingSummary retire;   // to the frame's retirement (local mapping included)
   TimingSummary busy;  // per frame max(T_slam, T_inference) + T_sync (Eq. 8), the controller input
   std::map<std::string, StageStats> stages;
   std::array<size_t, nodes::kNumQualityLevels> quality_frames{};  // indexed by QualityLevel

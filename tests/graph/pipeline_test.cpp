@@ -168,6 +168,26 @@ TEST(PipelineTest, InFlightBoundIsNeverExceeded) {
   for (const auto& [name, st] : r.stats.stages) EXPECT_LE(st.max_queue_depth, 2u) << name;
 }
 
+TEST(PipelineTest, LatencyEndsAtThePoseAndRetirementAfterLocalMapping) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 6);
+  PipelineOptions options = Options(Policy::kSequential, 1);
+  constexpr double kMappingMs = 80;  // a slow local mapping after every frame's tracking
+  options.stage_hook = [](std::string_view stage, int64_t) {
+    if (stage == kStageMapping)
+      std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(kMappingMs)));
+  };
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  ASSERT_EQ(r.frames.size(), 6u);
+  for (const FrameRecord& f : r.frames) {
+    EXPECT_GE(f.pose_ns, f.admit_ns);
+    EXPECT_GE(f.done_ns - f.pose_ns, static_cast<int64_t>(kMappingMs * 1e6));
+    EXPECT_NEAR(f.retire_ms - f.latency_ms, static_cast<double>(f.done_ns - f.pose_ns) * 1e-6,
+                1e-6);
+  }
+  EXPECT_GE(r.stats.retire.p50_ms, r.stats.latency.p50_ms + kMappingMs);
+}
+
 TEST(PipelineTest, UnreadableImageStopsTheRunAndKeepsEarlierPoses) {
   const std::string copy = test::CopyClip(Seq06(), 12);
   {
