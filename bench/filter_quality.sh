@@ -16,7 +16,8 @@ work=${2:-$(mktemp -d /tmp/pcr_filter_quality.XXXXXX)}
 bin=$build/src/pcr_orb
 shared=${PCR_SHARED_DIR:-$(cd .. && pwd)/shared}
 model=$shared/models/yolov8n-seg_coco_224x640.onnx
-counts=(1980 1990 2000 2010 2020)
+# PCR_FQ_COUNTS="1950 1960 ..." averages over other feature counts (more counts, less noise).
+read -r -a counts <<<"${PCR_FQ_COUNTS:-1980 1990 2000 2010 2020}"
 mkdir -p "$work"
 [ -d "$work/heavy" ] || "$bin" synth --out "$work/heavy" --frames 300 --movers 40 --parked 10 \
   --lead-gap 5 --seed 1 >/dev/null
