@@ -95,6 +95,8 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("filter", "temporal_window_frames", &f.voting.window_frames, "Eq. 4 window");
   s.Add("filter", "vote_threshold", &f.voting.dynamic_threshold, "log-odds of 'moving'");
   s.Add("filter", "instance_memory_frames", &f.instance_memory.max_age_frames);
+  s.Add("filter", "instance_informative_observability", &f.instances.informative_observability,
+        "instance verdicts: blind points below this do not count (0: all observed points)");
   s.Add("filter", "cross_check_depth_motion", &f.cross_check_depth_motion);
   s.Add("filter", "keep_first_frame_masks", &f.keep_first_frame_masks);
   s.Add("filter", "use_previous_disparity", &f.use_previous_disparity,

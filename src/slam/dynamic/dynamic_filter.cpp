@@ -695,7 +695,10 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
     FilterReason reason =
         DecidePoint(terms, score, options_.scoring, options_.ground.remove_ground);
     road[i] = IsRoadPoint(terms, options_.scoring);
-    if (reason == FilterReason::kKept && votes[i].dynamic)
+    // A vote does not exclude an unresolved margin point (beside a mask, no depth to tell the
+    // object from the background): background there earns votes while the object covers it or
+    // drags its track, and keeps them after the object has passed.
+    if (reason == FilterReason::kKept && votes[i].dynamic && margin[i] != 2)
       reason = road[i] ? FilterReason::kGroundMotion : FilterReason::kVote;
     d.s_mask = static_cast<float>(terms.s_mask);
     d.m_motion = static_cast<float>(terms.m_motion);

@@ -92,6 +92,9 @@ bool InstanceMotionOptions::IsValid(std::string* why) const {
         moving_min_fraction <= 1.0)) {
     return Fail(why, "need 0 <= static_max_moving_fraction < moving_min_fraction <= 1");
   }
+  if (!(informative_observability >= 0.0 && informative_observability <= 1.0)) {
+    return Fail(why, "informative_observability in [0, 1]");
+  }
   if (!(static_min_observability >= 0.0 && static_min_observability <= 1.0)) {
     return Fail(why, "static_min_observability in [0, 1]");
   }
@@ -328,7 +331,9 @@ std::vector<InstanceMotion> SummarizeInstances(std::span<const uint16_t> instanc
     ++out[k].num_points;
     if (!observed[i]) continue;
     ++out[k].num_observed;
-    if (static_prob[i] < options.moving_below) ++out[k].num_moving;
+    const bool moving = static_prob[i] < options.moving_below;
+    if (moving) ++out[k].num_moving;
+    if (moving || observability[i] >= options.informative_observability) ++out[k].num_informative;
     probs[k].push_back(static_prob[i]);
     obs[k].push_back(observability[i]);
   }
@@ -337,12 +342,15 @@ std::vector<InstanceMotion> SummarizeInstances(std::span<const uint16_t> instanc
     if (m.num_observed == 0) continue;
     m.median_static_prob = Median(probs[k]);
     m.median_observability = Median(obs[k]);
+    if (m.num_informative >= options.min_evidence &&
+        m.num_moving >= options.moving_min_fraction * m.num_informative) {
+      m.state = InstanceState::kMoving;
+      continue;
+    }
     if (m.num_observed < options.min_evidence) continue;
     const double moving_fraction = static_cast<double>(m.num_moving) / m.num_observed;
-    if (moving_fraction >= options.moving_min_fraction) {
-      m.state = InstanceState::kMoving;
-    } else if (moving_fraction <= options.static_max_moving_fraction &&
-               m.median_observability >= options.static_min_observability) {
+    if (moving_fraction <= options.static_max_moving_fraction &&
+        m.median_observability >= options.static_min_observability) {
       m.state = InstanceState::kStatic;
     }
   }

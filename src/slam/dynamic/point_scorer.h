@@ -103,7 +103,11 @@ struct InstanceMotionOptions {
   double moving_below = 0.5;                // a point's static probability below: moving
   double static_max_moving_fraction = 0.2;  // static: at most this fraction moving ...
   double static_min_observability = 0.5;    // ... and median observability at least this
-  double moving_min_fraction = 0.5;         // moving: at least this fraction moving
+  double moving_min_fraction = 0.5;         // moving: at least this fraction moving ...
+  // ... of the informative points: those whose test shows motion or had at least this
+  // observability (a blind test that sees no motion says nothing; counted, it would outvote the
+  // points that can see the object move). 0: every observed point.
+  double informative_observability = 0.3;
   bool IsValid(std::string* why) const;
 };
 
@@ -113,6 +117,7 @@ struct InstanceMotion {
   int num_points = 0;
   int num_observed = 0;
   int num_moving = 0;
+  int num_informative = 0;  // observed and moving, or observability >= informative_observability
   double median_static_prob = 0.5;
   double median_observability = 0.0;
   InstanceState state = InstanceState::kUnknown;

@@ -275,6 +275,67 @@ TEST(FilterScene, MovingShadowOnTheRoadIsUnreliableNotAMovingObject) {
   EXPECT_EQ(off_moving, off_excluded);  // all of them called moving
 }
 
+TEST(FilterScene, VoteEarnedUnderAPassingMaskDoesNotExcludeAnUnresolvedMarginPoint) {
+  // Far background points without depth (z = 80 m) that the crossing box's mask covers in frames
+  // 0-2 and that sit just left of it in frame 3, in the dilated margin: under the mask they take
+  // the moving instance's verdict and its vote; in frame 3 nothing can tell them from the box's
+  // edge (no depth), and the vote earned under the mask must not exclude them.
+  auto frames = test::BuildFilterScene({});
+  const PinholeCamera cam = test::KittiRig().left;
+  auto moving_box = [](const test::FilterSceneFrame& f) {  // the leftmost box: the crossing car
+    cv::Rect2f best;
+    for (const Instance& inst : f.segmentation.instances) {
+      if (best.width == 0 || inst.box_px.x < best.x) best = inst.box_px;
+    }
+    return best;
+  };
+  const cv::Rect2f box3 = moving_box(frames[3]);
+  ASSERT_GT(box3.width, 50.0f);
+  std::vector<Eigen::Vector3d> world;
+  for (int j = 0; j < 6; ++j) {
+    const Eigen::Vector2d uv(box3.x - 3.0, box3.y + 8.0 + 7.0 * j);
+    world.push_back(frames[3].world_from_cam * cam.Unproject(uv, 80.0));
+  }
+  std::vector<size_t> first(frames.size());
+  for (size_t k = 0; k < 4; ++k) {
+    test::FilterSceneFrame& f = frames[k];
+    first[k] = f.keypoints.size();
+    for (size_t j = 0; j < world.size(); ++j) {
+      const Eigen::Vector3d p = f.world_from_cam.inverse() * world[j];
+      const Eigen::Vector2d uv = cam.Project(p);
+      f.keypoints.emplace_back(static_cast<float>(uv.x()), static_cast<float>(uv.y()), 7.0f);
+      f.keypoints.back().octave = 0;
+      f.depth_m.push_back(-1.0f);
+      f.ids.push_back(1'000'000 + static_cast<int64_t>(j));
+      cv::Point2f prev(-1.0f, -1.0f);
+      if (k > 0) {
+        const Eigen::Vector2d before =
+            cam.Project(frames[k - 1].world_from_cam.inverse() * world[j]);
+        prev = cv::Point2f(static_cast<float>(before.x()), static_cast<float>(before.y()));
+      }
+      f.prev_uv_px.push_back(prev);
+      f.kinds.push_back(PointKind::kStatic);
+      f.p_in_cam.push_back(p);
+      if (k < 3) {
+        EXPECT_TRUE(moving_box(f).contains(f.keypoints.back().pt)) << "frame " << k;
+      }
+    }
+  }
+  frames.resize(4);
+  const RunResult r = RunScene(frames, {});
+  const float threshold = static_cast<float>(DynamicFilterOptions{}.voting.dynamic_threshold);
+  int unresolved = 0;
+  for (size_t j = 0; j < world.size(); ++j) {
+    const size_t i = first[3] + j;
+    const KeypointDiagnostics& d = r.outputs[3].points[i];
+    if (d.instance != 0 || d.s_mask >= 1.0f) continue;  // not a margin point after all
+    ++unresolved;
+    EXPECT_GE(d.vote_log_odds, threshold) << j;  // the vote from under the mask is there ...
+    EXPECT_FALSE(r.outputs[3].filter.excluded[i]) << j << " " << FilterReasonName(d.reason);
+  }
+  EXPECT_GE(unresolved, 4);
+}
+
 TEST(FilterScene, WorksWithoutSegmentation) {
   const auto frames = test::BuildFilterScene({});
   RunOptions run;

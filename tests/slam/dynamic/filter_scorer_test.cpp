@@ -143,6 +143,33 @@ TEST(FilterScorer, InstanceSummaries) {
   EXPECT_EQ(s[4].state, InstanceState::kUnknown);  // static-looking but unobservable
 }
 
+TEST(FilterScorer, BlindPointsDoNotOutvoteAMovingInstance) {
+  // A car driving ahead: 5 points with depth see it move, 12 without depth (epipolar test, blind
+  // to motion along the travel direction) see nothing. 5 of 17 observed is under half.
+  std::vector<uint16_t> instance(17, 1);
+  std::vector<uint8_t> observed(17, 1);
+  std::vector<float> prob(17, 0.8f), obs(17, 0.02f);
+  for (int i = 0; i < 5; ++i) {
+    prob[i] = 0.01f;
+    obs[i] = 1.0f;
+  }
+  const auto s = SummarizeInstances(instance, 1, observed, prob, obs, {});
+  EXPECT_EQ(s[1].num_observed, 17);
+  EXPECT_EQ(s[1].num_informative, 5);
+  EXPECT_EQ(s[1].state, InstanceState::kMoving);
+  InstanceMotionOptions all_count;
+  all_count.informative_observability = 0.0;  // every observed point votes: outvoted
+  EXPECT_EQ(SummarizeInstances(instance, 1, observed, prob, obs, all_count)[1].state,
+            InstanceState::kUnknown);
+  // Too few informative points for a verdict.
+  std::fill(prob.begin() + 2, prob.begin() + 5, 0.8f);
+  std::fill(obs.begin() + 2, obs.begin() + 5, 0.02f);
+  EXPECT_EQ(SummarizeInstances(instance, 1, observed, prob, obs, {})[1].state,
+            InstanceState::kUnknown);
+  all_count.informative_observability = 1.5;
+  EXPECT_FALSE(all_count.IsValid(nullptr));
+}
+
 TEST(FilterScorer, MaskMembershipByDepth) {
   // Instance 1 at ~15 m (box 100..200 x 100..200), plus points seen through / around it.
   std::vector<cv::Point2f> uv;
