@@ -5,7 +5,7 @@
 //   bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400]
 //                [--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2]
 //                [--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8]
-//                [--max-keyframes N] [--trim] [--heap-policy on|off]
+//                [--max-keyframes N] [--trim] [--heap-policy on|off] [--mmap-threshold BYTES]
 //
 // Frames are rendered on the fly in memory by the synthetic world (src/sim) inside the source's
 // loaders; nothing is written to disk. The world is built on the loop route for --world-frames
@@ -64,6 +64,7 @@ struct Args {
   int max_keyframes = 0;    // mapping.max_keyframes: 0 unbounded, else a bounded map
   bool trim = false;        // return freed heap to the system after each sample (malloc_trim)
   bool heap_policy = true;  // graph/heap.h: fixed mmap threshold, capped arenas, periodic trim
+  size_t mmap_threshold = pcr::graph::HeapPolicy{}.mmap_threshold_bytes;  // with the policy
 };
 
 Args ParseArgs(int argc, char** argv) {
@@ -110,12 +111,14 @@ Args ParseArgs(int argc, char** argv) {
       const std::string v = value();
       if (v != "on" && v != "off") throw std::invalid_argument("--heap-policy: on or off");
       a.heap_policy = v == "on";
+    } else if (arg == "--mmap-threshold") {
+      a.mmap_threshold = std::stoull(value());
     } else if (arg == "-h" || arg == "--help") {
       std::printf(
           "bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400] "
           "[--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2] "
           "[--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8] "
-          "[--max-keyframes N] [--trim] [--heap-policy on|off]\n");
+          "[--max-keyframes N] [--trim] [--heap-policy on|off] [--mmap-threshold BYTES]\n");
       std::exit(0);
     } else {
       throw std::invalid_argument("unknown argument " + arg);
@@ -279,7 +282,11 @@ struct Sample {
 int main(int argc, char** argv) {
   try {
     const Args args = ParseArgs(argc, argv);
-    if (args.heap_policy) pcr::graph::ConfigureHeap();  // as pcr_orb does
+    if (args.heap_policy) {  // as pcr_orb does
+      pcr::graph::HeapPolicy policy;
+      policy.mmap_threshold_bytes = args.mmap_threshold;
+      pcr::graph::ConfigureHeap(policy);
+    }
     spdlog::set_level(spdlog::level::warn);
     const auto start = std::chrono::steady_clock::now();
     auto seconds = [&] {

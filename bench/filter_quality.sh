@@ -4,7 +4,8 @@
 #   bench/filter_quality.sh [BUILD_DIR] [WORK_DIR]
 #
 # Inputs: a generated heavy-traffic street (300 frames, 40 movers incl. a van 5 m ahead,
-# 10 parked cars: 20% of keypoints on moving objects), a generated static street (300 frames,
+# 10 parked cars: 20% of keypoints on moving objects), the same traffic with the ego car at
+# 3 m/s (congested), a generated static street (300 frames,
 # parked cars only), KITTI 06 (51 stereo frames) and raw drive 0005 (91 frames, tracking labels)
 # from ../shared. ATE on one run moves by +-30% with any perturbation of the point set (e.g.
 # 1990 instead of 2000 ORB features on the static street: 0.062 vs 0.030 m), so every ATE here is
@@ -21,6 +22,10 @@ read -r -a counts <<<"${PCR_FQ_COUNTS:-1980 1990 2000 2010 2020}"
 mkdir -p "$work"
 [ -d "$work/heavy" ] || "$bin" synth --out "$work/heavy" --frames 300 --movers 40 --parked 10 \
   --lead-gap 5 --seed 1 >/dev/null
+# Congested: the same traffic at 3 m/s (the ego car crawls in a queue), where the movers do bias
+# the unfiltered pose.
+[ -d "$work/congested" ] || "$bin" synth --out "$work/congested" --frames 300 --speed 3 --movers 40 \
+  --parked 10 --lead-gap 5 --seed 1 >/dev/null
 [ -d "$work/static" ] || "$bin" synth --out "$work/static" --frames 300 --movers 0 --seed 1 >/dev/null
 
 stat() {  # stat OUT_DIR -> "ate precision recall parked_kept moving_fraction"
@@ -57,6 +62,8 @@ mkdir -p "$work/runs"
 results=()
 results+=("$(run_set heavy-off "$work/heavy/sequences/00" --filter off)")
 results+=("$(run_set heavy-truth80 "$work/heavy/sequences/00" --filter on --segmenter truth --truth-miss-rate 0.2)")
+results+=("$(run_set congested-off "$work/congested/sequences/00" --filter off)")
+results+=("$(run_set congested-tr80 "$work/congested/sequences/00" --filter on --segmenter truth --truth-miss-rate 0.2)")
 results+=("$(run_set static-off "$work/static/sequences/00" --filter off)")
 results+=("$(run_set static-truth "$work/static/sequences/00" --filter on --segmenter truth)")
 results+=("$(run_set static-none "$work/static/sequences/00" --filter on --segmenter none)")
@@ -86,6 +93,7 @@ import sys; r={l.split()[0]: float(l.split()[1]) for l in sys.stdin if l.strip()
 a, b = '$1', '$2'
 print(f'{b} / {a}: {r[b] / r[a]:.3f}' if a in r and b in r else '')"; }
 printf '%s\n' "${results[@]}" | ratio heavy-off heavy-truth80
+printf '%s\n' "${results[@]}" | ratio congested-off congested-tr80
 printf '%s\n' "${results[@]}" | ratio static-off static-truth
 printf '%s\n' "${results[@]}" | ratio static-off static-none
 printf '%s\n' "${results[@]}" | ratio kitti06-off kitti06-none
