@@ -9,8 +9,6 @@
 namespace pcr::app {
 
 int Main(int argc, char** argv) {
-  // Long runs: big per-frame buffers go back to the system when freed (graph/heap.h).
-  graph::ConfigureHeap();
   CLI::App app{
       "PCR-ORB: stereo/monocular visual SLAM with dynamic-point filtering for driving scenes"};
   app.set_version_flag("--version", std::string(kVersion));
@@ -19,7 +17,17 @@ int Main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
       ->capture_default_str();
-  app.parse_complete_callback([&] { spdlog::set_level(spdlog::level::from_str(log_level)); });
+  // Long runs: capped malloc arenas, optionally a fixed mmap threshold (graph/heap.h).
+  graph::HeapPolicy heap;
+  app.add_option(
+         "--mmap-threshold", heap.mmap_threshold_bytes,
+         "bytes from which malloc maps blocks on their own, returned when freed (0: glibc's "
+         "dynamic threshold; 131072 keeps RSS lower but slows YOLO on the CPU)")
+      ->capture_default_str();
+  app.parse_complete_callback([&] {
+    spdlog::set_level(spdlog::level::from_str(log_level));
+    graph::ConfigureHeap(heap);
+  });
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
 
   AddRunCommand(app);
