@@ -6,6 +6,7 @@
 //                [--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2]
 //                [--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8]
 //                [--max-keyframes N] [--trim] [--heap-policy on|off] [--mmap-threshold BYTES]
+//                [--trim-every N]
 //
 // Frames are rendered on the fly in memory by the synthetic world (src/sim) inside the source's
 // loaders; nothing is written to disk. The world is built on the loop route for --world-frames
@@ -65,6 +66,7 @@ struct Args {
   bool trim = false;        // return freed heap to the system after each sample (malloc_trim)
   bool heap_policy = true;  // graph/heap.h: fixed mmap threshold, capped arenas, periodic trim
   size_t mmap_threshold = pcr::graph::HeapPolicy{}.mmap_threshold_bytes;  // with the policy
+  int trim_every = pcr::graph::PipelineOptions{}.trim_heap_every;         // with the policy
 };
 
 Args ParseArgs(int argc, char** argv) {
@@ -111,6 +113,8 @@ Args ParseArgs(int argc, char** argv) {
       const std::string v = value();
       if (v != "on" && v != "off") throw std::invalid_argument("--heap-policy: on or off");
       a.heap_policy = v == "on";
+    } else if (arg == "--trim-every") {
+      a.trim_every = std::stoi(value());
     } else if (arg == "--mmap-threshold") {
       a.mmap_threshold = std::stoull(value());
     } else if (arg == "-h" || arg == "--help") {
@@ -118,7 +122,8 @@ Args ParseArgs(int argc, char** argv) {
           "bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400] "
           "[--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2] "
           "[--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8] "
-          "[--max-keyframes N] [--trim] [--heap-policy on|off] [--mmap-threshold BYTES]\n");
+          "[--max-keyframes N] [--trim] [--heap-policy on|off] [--mmap-threshold BYTES] "
+          "[--trim-every N]\n");
       std::exit(0);
     } else {
       throw std::invalid_argument("unknown argument " + arg);
@@ -376,7 +381,7 @@ int main(int argc, char** argv) {
     options.policy = pcr::graph::Policy::kPipelined;
     options.threads = args.threads;
     options.max_in_flight = args.max_in_flight;
-    if (!args.heap_policy) options.trim_heap_every = 0;
+    options.trim_heap_every = args.heap_policy ? args.trim_every : 0;
     options.on_frame = [&](size_t done, size_t, const pcr::FrameOutput& out) {
       int64_t file_now = 0;
       const int64_t rss_now = ResidentBytes(&file_now);
