@@ -189,7 +189,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   std::vector<uint16_t> instance(n, 0);  // dynamic-class instances only
   std::vector<uint8_t> sky_instance(n, 0);
   std::vector<uint8_t> mask_outlier(n, 0);
-  std::vector<uint8_t> margin(n, 0);
+  std::vector<uint8_t> margin(n, kNotMargin);
   std::vector<double> instance_speed_mps(1, 0.0);  // per instance: reference speed, 0: default
   int num_instances = 0;
   if (seg) {
@@ -232,7 +232,8 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
     margin = std::move(membership.margin);
     for (size_t i = 0; i < n; ++i) {
       if (mask_outlier[i]) confidence[i] = 0.0f;
-      if (margin[i] == 2) confidence[i] *= options_.mask_depth.unresolved_margin_scale;
+      if (margin[i] == kMarginUnresolved)
+        confidence[i] *= options_.mask_depth.unresolved_margin_scale;
     }
   }
   out.timing.mask_ms = MsSince(stage);
@@ -454,7 +455,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
   // road, not the car.
   if (out.ground_plane) {
     for (size_t i = 0; i < n; ++i) {
-      if (margin[i] == 1 && has_depth[i] &&
+      if (margin[i] == kMarginJoined && has_depth[i] &&
           IsGroundPoint(*out.ground_plane, points[i], bf, options_.ground)) {
         confidence[i] *= options_.mask_depth.ground_margin_scale;
         if (confidence[i] < options_.mask_depth.margin_min_confidence) instance[i] = 0;
@@ -698,7 +699,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
     // A vote does not exclude an unresolved margin point (beside a mask, no depth to tell the
     // object from the background): background there earns votes while the object covers it or
     // drags its track, and keeps them after the object has passed.
-    if (reason == FilterReason::kKept && votes[i].dynamic && margin[i] != 2)
+    if (reason == FilterReason::kKept && votes[i].dynamic && margin[i] != kMarginUnresolved)
       reason = road[i] ? FilterReason::kGroundMotion : FilterReason::kVote;
     d.s_mask = static_cast<float>(terms.s_mask);
     d.m_motion = static_cast<float>(terms.m_motion);

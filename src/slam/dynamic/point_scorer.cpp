@@ -196,7 +196,7 @@ MaskMembership ResolveMaskMembership(std::span<const cv::Point2f> uv_px,
   MaskMembership out;
   out.instance.assign(instance.begin(), instance.end());
   out.depth_outlier.assign(n, 0);
-  out.margin.assign(n, 0);
+  out.margin.assign(n, kNotMargin);
   if (!options.enabled || n == 0) return out;
   const size_t num = boxes.size();
   std::vector<std::vector<double>> depths(num + 1);
@@ -240,11 +240,11 @@ MaskMembership ResolveMaskMembership(std::span<const cv::Point2f> uv_px,
     }
     if (best > 0) {
       out.instance[i] = static_cast<uint16_t>(best);
-      out.margin[i] = 1;
+      out.margin[i] = kMarginJoined;
     } else if (any_depth_model) {
       out.depth_outlier[i] = 1;
     } else if (first > 0) {
-      out.margin[i] = 2;
+      out.margin[i] = kMarginUnresolved;
     }
   }
   return out;

@@ -177,12 +177,17 @@ struct MaskDepthOptions {
   bool IsValid(std::string* why) const;
 };
 
+// MaskMembership::margin values.
+enum MarginKind : uint8_t {
+  kNotMargin = 0,
+  kMarginJoined = 1,      // in the dilated margin, joined an instance by its depth
+  kMarginUnresolved = 2,  // in the margin, no depth to decide with
+};
+
 struct MaskMembership {
   std::vector<uint16_t> instance;      // per keypoint: dynamic-class instance id, 0: none
   std::vector<uint8_t> depth_outlier;  // per keypoint: the mask does not apply (depth)
-  // Per keypoint: 1 = in the dilated margin and joined an instance by its depth; 2 = in the
-  // margin, unresolved (no depth to decide with); 0 = not a margin point.
-  std::vector<uint8_t> margin;
+  std::vector<uint8_t> margin;         // per keypoint: a MarginKind
 };
 
 // Instance membership of the keypoints under MaskDepthOptions. instance[i]: the dynamic-class

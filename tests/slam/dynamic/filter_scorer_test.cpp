@@ -199,11 +199,11 @@ TEST(FilterScorer, MaskMembershipByDepth) {
   EXPECT_EQ(m.depth_outlier[8], 1);
   EXPECT_EQ(m.depth_outlier[9], 1);
   EXPECT_EQ(m.instance[10], 1);
-  EXPECT_EQ(m.margin[10], 1);
+  EXPECT_EQ(m.margin[10], kMarginJoined);
   EXPECT_EQ(m.depth_outlier[11], 1);
   EXPECT_EQ(m.instance[12], 0);
-  EXPECT_EQ(m.margin[12], 2);
-  EXPECT_EQ(m.margin[0], 0);
+  EXPECT_EQ(m.margin[12], kMarginUnresolved);
+  EXPECT_EQ(m.margin[0], kNotMargin);
   EXPECT_EQ(m.instance[13], 0);
   EXPECT_EQ(m.depth_outlier[13], 0);
   EXPECT_EQ(m.instance[14], 0);
