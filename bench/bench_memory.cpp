@@ -64,7 +64,7 @@ struct Args {
   double speed_mps = 8.0;   // 0: a parked ego car (control run: no new keyframes are needed)
   int max_keyframes = 0;    // mapping.max_keyframes: 0 unbounded, else a bounded map
   bool trim = false;        // return freed heap to the system after each sample (malloc_trim)
-  bool heap_policy = true;  // graph/heap.h: fixed mmap threshold, capped arenas, periodic trim
+  bool heap_policy = true;  // graph/heap.h: capped arenas, periodic trim, --mmap-threshold
   size_t mmap_threshold = pcr::graph::HeapPolicy{}.mmap_threshold_bytes;  // with the policy
   int trim_every = pcr::graph::PipelineOptions{}.trim_heap_every;         // with the policy
 };
@@ -137,10 +137,9 @@ Args ParseArgs(int argc, char** argv) {
   return a;
 }
 
-// Resident set size in bytes (/proc/self/statm, second field, in pages).
-// Resident bytes of the process; file_bytes: the part backed by files (code and data of the
-// program and its libraries, paged in as code paths first run), the rest is anonymous memory
-// (heap, stacks): what the run holds.
+// Resident bytes of the process (/proc/self/statm, in pages); file_bytes: the part backed by files
+// (code and data of the program and its libraries, paged in as code paths first run), the rest is
+// anonymous memory (heap, stacks): what the run holds.
 int64_t ResidentBytes(int64_t* file_bytes = nullptr) {
   std::ifstream statm("/proc/self/statm");
   int64_t size_pages = 0, resident_pages = 0, shared_pages = 0;

@@ -77,7 +77,7 @@ struct PipelineStats {
   size_t inferences_busy = 0;  // realtime: frame not segmented, network busy
   size_t late_results = 0;     // inference finished after its frame went on
   size_t max_in_flight_observed = 0;
-  double wall_s = 0;      // start to the last pose
+  double wall_s = 0;      // start to the last retirement
   double fps = 0;         // completed frames / wall_s
   TimingSummary latency;  // to the pose
   TimingSummary retire;   // to the frame's retirement (local mapping included)
