@@ -2,7 +2,10 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
 #include <random>
+#include <system_error>
+#include <vector>
 
 namespace pcr::test {
 
@@ -13,12 +16,46 @@ std::string SharedDir() {
 
 std::string SharedPath(const std::string& relative) { return SharedDir() + "/" + relative; }
 
+namespace {
+
+// The directories MakeTempDir created in this process, removed at exit (each CI run used to
+// leave about 25 MB of sequences and outputs under /tmp).
+class TempDirs {
+ public:
+  ~TempDirs() {
+    if (const char* keep = std::getenv("PCR_KEEP_TEST_DIRS"); keep && *keep && *keep != '0') return;
+    for (const auto& dir : dirs_) {
+      std::error_code ec;
+      std::filesystem::remove_all(dir, ec);
+    }
+  }
+  void Add(const std::filesystem::path& dir) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    dirs_.push_back(dir);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<std::filesystem::path> dirs_;
+};
+
+TempDirs& CreatedDirs() {
+  static TempDirs dirs;
+  return dirs;
+}
+
+}  // namespace
+
 std::string MakeTempDir(const std::string& prefix) {
   namespace fs = std::filesystem;
+  TempDirs& created = CreatedDirs();  // constructed before any directory exists
   std::random_device rd;
   for (int attempt = 0; attempt < 100; ++attempt) {
     fs::path p = fs::temp_directory_path() / (prefix + "_" + std::to_string(rd()));
-    if (fs::create_directories(p)) return p.string();
+    if (fs::create_directories(p)) {
+      created.Add(p);
+      return p.string();
+    }
   }
   throw std::runtime_error("cannot create a temporary directory for " + prefix);
 }

@@ -8,7 +8,8 @@ namespace pcr::test {
 std::string SharedDir();
 // SharedDir() + "/" + relative.
 std::string SharedPath(const std::string& relative);
-// A fresh empty directory under the system temp dir, removed at process exit is NOT guaranteed.
+// A fresh empty directory under the system temp dir. It is removed, with everything in it, when
+// the test process exits normally; PCR_KEEP_TEST_DIRS=1 in the environment keeps it for a look.
 std::string MakeTempDir(const std::string& prefix);
 
 }  // namespace pcr::test
