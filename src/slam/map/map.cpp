@@ -154,6 +154,16 @@ void Map::ErasePoint(MapPointId id) {
   touched_points_.erase(id);
 }
 
+void Map::CompactReplacements() {
+  std::unordered_map<MapPointId, MapPointId> compact;
+  for (const auto& [from, into] : replaced_by_) {
+    const MapPointId live = Resolve(into);
+    if (live.valid()) compact.emplace(from, live);
+  }
+  replaced_by_ = std::move(compact);
+  replacements_after_compaction_ = replaced_by_.size();
+}
+
 void Map::MergePoint(MapPointId from, MapPointId into) {
   from = Resolve(from);
   into = Resolve(into);
@@ -465,6 +475,8 @@ MapApplyResult Map::Apply(const MapDelta& delta) {
       keyframes_.at(parent).children.insert(new_keyframe_id);
     }
   }
+  // At most doubling since the last compaction (1024 entries at least): amortised O(1) per merge.
+  if (replaced_by_.size() > 2 * replacements_after_compaction_ + 1024) CompactReplacements();
   touched_points_.clear();
   touched_keyframes_.clear();
   return result;

@@ -141,6 +141,11 @@ class Map {
 
   // The live point that id was merged into (id itself when live); invalid when erased.
   MapPointId Resolve(MapPointId id) const;
+  // Merged point ids the map remembers for Resolve. Apply forgets those whose point is gone (they
+  // resolve to invalid either way) and points the rest straight at their live point whenever the
+  // count has doubled since the last time, so the memory follows the live map, not the length of
+  // the run (bench_memory, map bounded to 60 keyframes: 54751 entries after 800 frames before).
+  size_t num_replacements() const { return replaced_by_.size(); }
   // The live keyframe nearest to id along the spanning tree (id itself when live), or invalid.
   KeyframeId ResolveKeyframe(KeyframeId id) const;
   // Pose of a live or erased keyframe (erased ones keep their pose relative to their parent).
@@ -161,6 +166,7 @@ class Map {
   void ErasePoint(MapPointId id);
   void MergePoint(MapPointId from, MapPointId into);
   void EraseKeyframe(KeyframeId id);
+  void CompactReplacements();
   void RefreshPoint(MapPoint& point) const;
   void UpdateConnections(KeyframeId id);
   static void SortCovisible(Keyframe& keyframe);
@@ -168,6 +174,7 @@ class Map {
   std::map<KeyframeId, Keyframe> keyframes_;
   std::map<MapPointId, MapPoint> points_;
   std::unordered_map<MapPointId, MapPointId> replaced_by_;
+  size_t replacements_after_compaction_ = 0;
   std::map<KeyframeId, ErasedKeyframe> erased_keyframes_;
   int64_t next_point_id_ = 0;
   int64_t next_keyframe_index_ = 0;

@@ -305,5 +305,42 @@ TEST(MapDelta, EmptyAndAppend) {
   EXPECT_THROW(a.Append(b), std::invalid_argument);
 }
 
+// A long run merges points all the time while older points are culled or forgotten with their
+// keyframes: the merged ids the map remembers must follow the live map, not the run's length.
+TEST(MapReplacements, MergedIdsOfErasedPointsAreForgotten) {
+  Map map;
+  constexpr int kRounds = 60, kPairs = 100;
+  std::vector<MapPointId> from_prev, into_prev;
+  for (int r = 0; r < kRounds; ++r) {
+    MapDelta d = NewKeyframeDelta(TinyFrame(r, 2 * kPairs));
+    for (int i = 0; i < 2 * kPairs; ++i)
+      d.new_points.push_back(Point({i * 0.1, r * 0.1, 10}, {{KeyframeId(r), i}}));
+    const MapApplyResult created = map.Apply(d);
+    ASSERT_EQ(created.new_point_ids.size(), 2u * kPairs);
+    // Each new point i merges into new point kPairs + i; the previous round's points go.
+    MapDelta edits;
+    std::vector<MapPointId> from, into;
+    for (int i = 0; i < kPairs; ++i) {
+      from.push_back(created.new_point_ids[i]);
+      into.push_back(created.new_point_ids[kPairs + i]);
+      edits.merges.push_back({from.back(), into.back()});
+    }
+    edits.removed_points = into_prev;
+    EXPECT_EQ(map.Apply(edits).num_merged, kPairs);
+    for (int i = 0; i < kPairs; ++i) {
+      ASSERT_EQ(map.Resolve(from[i]), into[i]) << "round " << r;
+      if (r > 0) {
+        ASSERT_FALSE(map.Resolve(from_prev[i]).valid()) << "round " << r;
+      }
+    }
+    from_prev = from;
+    into_prev = into;
+  }
+  // 6000 merges; 100 of them still lead to a live point. Compaction runs when the count has
+  // doubled (1024 entries at least), so at most about 2 x 100 + 1024 + one round remain.
+  EXPECT_LE(map.num_replacements(), 2u * kPairs + 1024u + kPairs);
+  EXPECT_GE(map.num_replacements(), static_cast<size_t>(kPairs));
+}
+
 }  // namespace
 }  // namespace pcr
