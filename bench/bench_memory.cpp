@@ -21,21 +21,19 @@
 // Columns: RSS (VmRSS from /proc/self/statm), mean and anon (per-frame means since the previous
 // sample of RSS and of its anonymous part: without the file-backed pages of the program and its
 // libraries, which code paths page in as they first run), peak, heap (bytes malloc has handed out
-// and not got back, mallinfo2 uordblks + hblkhd), the map's keyframes and points, and the last
-// frame's tracking. To tell the map's growth from the rest, the heap is fitted against the keyframe
-// count, and --speed 0 (the ego car stands still, so the map needs no new keyframes while the
-// movers keep moving) is the control run of everything but the map.
+// and not got back: glibc's mallinfo2 uordblks + hblkhd, jemalloc's stats.allocated), the map's
+// keyframes and points, and the last frame's tracking. To tell the map's growth from the rest, the
+// heap is fitted against the keyframe count, and --speed 0 (the ego car stands still, so the map
+// needs no new keyframes while the movers keep moving) is the control run of everything but the
+// map.
 #include <fmt/format.h>
-#include <malloc.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -63,7 +61,7 @@ struct Args {
   int movers = 6, parked = 8;
   double speed_mps = 8.0;   // 0: a parked ego car (control run: no new keyframes are needed)
   int max_keyframes = 0;    // mapping.max_keyframes: 0 unbounded, else a bounded map
-  bool trim = false;        // return freed heap to the system after each sample (malloc_trim)
+  bool trim = false;        // return freed heap to the system after each sample (TrimHeap)
   bool heap_policy = true;  // graph/heap.h: capped arenas, periodic trim, --mmap-threshold
   size_t mmap_threshold = pcr::graph::HeapPolicy{}.mmap_threshold_bytes;  // with the policy
   int trim_every = pcr::graph::PipelineOptions{}.trim_heap_every;         // with the policy
@@ -137,17 +135,7 @@ Args ParseArgs(int argc, char** argv) {
   return a;
 }
 
-// Resident bytes of the process (/proc/self/statm, in pages); file_bytes: the part backed by files
-// (code and data of the program and its libraries, paged in as code paths first run), the rest is
-// anonymous memory (heap, stacks): what the run holds.
-int64_t ResidentBytes(int64_t* file_bytes = nullptr) {
-  std::ifstream statm("/proc/self/statm");
-  int64_t size_pages = 0, resident_pages = 0, shared_pages = 0;
-  statm >> size_pages >> resident_pages >> shared_pages;
-  const int64_t page = sysconf(_SC_PAGESIZE);
-  if (file_bytes) *file_bytes = shared_pages * page;
-  return resident_pages * page;
-}
+using pcr::graph::ResidentBytes;
 
 double MiB(int64_t bytes) { return static_cast<double>(bytes) / (1024.0 * 1024.0); }
 
@@ -289,7 +277,10 @@ int main(int argc, char** argv) {
     if (args.heap_policy) {  // as pcr_orb does
       pcr::graph::HeapPolicy policy;
       policy.mmap_threshold_bytes = args.mmap_threshold;
-      pcr::graph::ConfigureHeap(policy);
+      if (!pcr::graph::ConfigureHeap(policy)) {
+        std::fprintf(stderr, "bench_memory: --mmap-threshold has no effect under %s\n",
+                     pcr::graph::AllocatorName().c_str());
+      }
     }
     spdlog::set_level(spdlog::level::warn);
     const auto start = std::chrono::steady_clock::now();
@@ -334,10 +325,11 @@ int main(int argc, char** argv) {
     std::printf(
         "bench_memory: %d frames of a synthetic loop (%dx%d, world of %d frames, lap %d frames "
         "= %.0f m, wrap jump %.2f m), pipelined, %d threads, %d in flight, segmenter %s, filter "
-        "%s; warm-up %d frames\n",
+        "%s; warm-up %d frames; %s\n",
         args.frames, synth.width_px, synth.height_px, args.world_frames, lap,
         lap * synth.speed_mps / synth.rate_hz, lap_jump_m, args.threads, args.max_in_flight,
-        args.segmenter.c_str(), args.filter ? "on" : "off", args.warmup);
+        args.segmenter.c_str(), args.filter ? "on" : "off", args.warmup,
+        pcr::graph::AllocatorName().c_str());
     std::printf("%6s %7s %9s %9s %9s %9s %9s %5s %7s %7s %9s\n", "frame", "time s", "RSS MiB",
                 "mean MiB", "anon MiB", "peak MiB", "heap MiB", "kf", "points", "tracked",
                 "status");
@@ -351,7 +343,7 @@ int main(int argc, char** argv) {
       Sample s;
       s.frame = frame;
       s.t_s = seconds();
-      if (args.trim) malloc_trim(0);  // glibc keeps freed arenas resident otherwise
+      if (args.trim) pcr::graph::TrimHeap();  // freed pages stay resident otherwise
       s.rss = ResidentBytes();
       s.rss_peak = std::max(window_peak, s.rss);
       s.rss_mean = window_count > 0 ? static_cast<int64_t>(window_sum / window_count) : s.rss;
@@ -360,8 +352,7 @@ int main(int argc, char** argv) {
       window_sum = 0;
       window_anon_sum = 0;
       window_count = 0;
-      const struct mallinfo2 heap = mallinfo2();
-      s.heap = static_cast<int64_t>(heap.uordblks + heap.hblkhd);
+      s.heap = pcr::graph::HeapInUseBytes();
       if (out) {
         s.keyframes = out->num_keyframes;
         s.map_points = out->num_map_points;

@@ -27,3 +27,11 @@ function(pcr_test name dir)
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ENVIRONMENT
                        "PCR_SHARED_DIR=${PCR_SHARED_DIR}")
 endfunction()
+
+# pcr_use_allocator(TARGET): an executable that runs whole sequences links jemalloc, when the
+# build found it (PCR_HAVE_JEMALLOC), ahead of the C library so that it serves malloc and new.
+function(pcr_use_allocator target)
+  if(PCR_HAVE_JEMALLOC)
+    target_link_libraries(${target} PRIVATE ${PCR_JEMALLOC_LIBRARY})
+  endif()
+endfunction()

@@ -17,16 +17,21 @@ int Main(int argc, char** argv) {
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
       ->capture_default_str();
-  // Long runs: capped malloc arenas, optionally a fixed mmap threshold (graph/heap.h).
+  // Long runs: jemalloc where the build linked it; under glibc's malloc, capped arenas and
+  // optionally a fixed mmap threshold (graph/heap.h).
   graph::HeapPolicy heap;
-  app.add_option(
-         "--mmap-threshold", heap.mmap_threshold_bytes,
-         "bytes from which malloc maps blocks on their own, returned when freed (0: glibc's "
-         "dynamic threshold; 131072 keeps RSS lower but slows YOLO on the CPU)")
+  app.add_option("--mmap-threshold", heap.mmap_threshold_bytes,
+                 "glibc malloc only: bytes from which malloc maps blocks on their own, returned "
+                 "when freed (0: glibc's dynamic threshold; 131072 keeps RSS lower but slows "
+                 "YOLO on the CPU)")
       ->capture_default_str();
   app.parse_complete_callback([&] {
     spdlog::set_level(spdlog::level::from_str(log_level));
-    graph::ConfigureHeap(heap);
+    if (!graph::ConfigureHeap(heap)) {
+      spdlog::warn("--mmap-threshold {} has no effect: the process allocator is {}",
+                   heap.mmap_threshold_bytes, graph::AllocatorName());
+    }
+    spdlog::debug("allocator: {}", graph::AllocatorName());
   });
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
 

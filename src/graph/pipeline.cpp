@@ -687,6 +687,9 @@ PipelineResult GraphRun::Collect() {
   s.wall_s = static_cast<double>(last_done) * 1e-9;
   s.fps = s.wall_s > 0 ? static_cast<double>(out.frames.size()) / s.wall_s : 0.0;
   s.quality_changes = changes_;
+  s.resident_bytes = ResidentBytes();
+  s.peak_resident_bytes = PeakResidentBytes();
+  s.allocator = AllocatorName();
 
   // Stage timings and queue waits from the profile. Input ready = end of the upstream stages of
   // the same frame (admission for preprocess; the mask emission for the filter).

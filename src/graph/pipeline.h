@@ -86,6 +86,10 @@ struct PipelineStats {
   std::array<size_t, nodes::kNumQualityLevels> quality_frames{};  // indexed by QualityLevel
   std::vector<QualityChange> quality_changes;
   int profile_threads = 0;
+  // Process memory when the run ended (graph/heap.h; -1 where /proc is not readable): resident
+  // bytes and the peak since the process started (VmHWM: model loading included).
+  int64_t resident_bytes = -1, peak_resident_bytes = -1;
+  std::string allocator;  // AllocatorName()
 };
 
 struct PipelineResult {

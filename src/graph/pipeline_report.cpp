@@ -71,6 +71,10 @@ nlohmann::json StatsToJson(const PipelineStats& s) {
   nlohmann::json j;
   j["policy"] = s.policy;
   j["threads"] = s.threads;
+  j["memory"] = {
+      {"resident_mib", s.resident_bytes >= 0 ? s.resident_bytes / 1048576.0 : -1.0},
+      {"peak_resident_mib", s.peak_resident_bytes >= 0 ? s.peak_resident_bytes / 1048576.0 : -1.0},
+      {"allocator", s.allocator}};
   j["max_in_flight"] = s.max_in_flight;
   j["rate"] = s.rate;
   j["adaptive"] = s.adaptive;
@@ -127,6 +131,10 @@ std::string FormatPipelineStats(const PipelineStats& s) {
       s.latency.p95_ms, s.latency.p99_ms, s.retire.p99_ms);
   o << fmt::format("masks: {} fresh, {} stale, {} skipped ({} late, {} busy)\n", s.masks_fresh,
                    s.masks_stale, s.masks_skipped, s.masks_late, s.inferences_busy);
+  if (s.resident_bytes >= 0) {
+    o << fmt::format("memory: {:.1f} MiB resident at the end, peak {:.1f} MiB ({})\n",
+                     s.resident_bytes / 1048576.0, s.peak_resident_bytes / 1048576.0, s.allocator);
+  }
   if (s.adaptive) {
     o << fmt::format(
         "quality: high {}, medium {}, low {} frames; {} changes (period {:.1f} ms, busy p50 "

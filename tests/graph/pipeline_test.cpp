@@ -13,6 +13,7 @@
 #include <set>
 #include <thread>
 
+#include "graph/heap.h"
 #include "graph/pipeline_report.h"
 #include "kitti_clip.h"
 #include "slam/common/error.h"
@@ -392,7 +393,12 @@ TEST(PipelineTest, WritesTraceAndChart) {
   const nlohmann::json stats = StatsToJson(r.stats);
   EXPECT_EQ(stats["frames"]["completed"], 4);
   EXPECT_EQ(stats["stages"]["tracking"]["count"], 4);
-  EXPECT_FALSE(FormatPipelineStats(r.stats).empty());
+  // The process held at least the four frames' images (2 x 1226 x 370 bytes each) at its peak.
+  EXPECT_GT(stats["memory"]["resident_mib"].get<double>(), 4 * 2 * 1226 * 370 / 1048576.0);
+  EXPECT_GE(stats["memory"]["peak_resident_mib"].get<double>(),
+            stats["memory"]["resident_mib"].get<double>());
+  EXPECT_EQ(stats["memory"]["allocator"], AllocatorName());
+  EXPECT_NE(FormatPipelineStats(r.stats).find("memory: "), std::string::npos);
   std::filesystem::remove_all(dir);
 }
 
