@@ -15,10 +15,15 @@
 // and timing.png are written to DIR/<row>/.
 //
 // CPU bound: OpenCV's parallel backend (TBB here) lets a single stage use several cores (the DNN
-// forward pass scales ~1.85x on 2 threads, the LK flow of the filter too), so stage times of the
-// sequential run are not CPU work. The benchmark therefore also runs the sequential policy on ONE
-// thread (OpenCV, TBB and Ceres capped to 1): its per-stage means are CPU work per call, and their
-// per-frame sum divided by `threads` is the wall time per frame of a perfectly packed pipeline.
+// forward pass, the LK flow of the filter), so stage times of the sequential run are not CPU
+// work. In the pipelined run every stage runs OpenCV on its own thread: its per-stage means are
+// CPU work per call under the load of that run, their per-frame sum divided by `threads` is the
+// wall time per frame of a perfectly packed pipeline, and the serial nodes (segmenter, filter,
+// tracking + mapping) bound it too. The benchmark also runs the sequential policy on ONE thread
+// (OpenCV, TBB and Ceres capped to 1), the synchronous reference of YOLO + ORB-SLAM forks. (On
+// this project's 2-vCPU VM a lone busy thread runs slower while the other vCPU idles: the
+// 1-thread sequential run went from 4.0 to 5.8 fps with a busy loop on the other vCPU, so its
+// stage means overstate the CPU work of a loaded machine.)
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <sys/resource.h>
@@ -36,6 +41,7 @@
 #include "app/run_slam.h"
 #include "eval/association.h"
 #include "eval/evaluation.h"
+#include "graph/heap.h"
 #include "graph/pipeline.h"
 #include "graph/pipeline_report.h"
 #include "io/dataset.h"
@@ -208,10 +214,10 @@ int main(int argc, char** argv) {
 
     std::printf(
         "bench_pipeline: %s, frames %zu..%zu (%zu), %d threads, %d in flight, %s, filter %s, "
-        "realtime rate %.3g\n",
+        "realtime rate %.3g, %s\n",
         dataset.name.c_str(), range.first, range.end - 1, source.size(), args.threads,
         args.max_in_flight, segmenter_name.c_str(), args.filter ? "on (multi-stage)" : "off",
-        args.rate);
+        args.rate, pcr::graph::AllocatorName().c_str());
     std::printf("load average before: %s\n", LoadAverage().c_str());
 
     std::vector<Row> rows;
@@ -294,56 +300,54 @@ int main(int argc, char** argv) {
         "pose for realtime; ret p99: the same to retirement, a keyframe's local mapping included; "
         "cpu%%: process CPU time / (wall x threads))\n");
 
-    // Per-stage times: wall per call in the sequential run (stages may use several cores), CPU
-    // work per call from the 1-thread run, CPU work per frame = that times calls per frame.
-    std::printf("\n%-11s %6s %12s %12s %12s\n", "stage", "calls", "seq ms/call", "1thr ms/call",
-                "cpu ms/frame");
-    const double frames_one = static_cast<double>(std::max<size_t>(1, one.stats.frames_completed));
+    // Per-stage times: wall per call in the sequential run (OpenCV's loops there use every
+    // core), in the pipelined run (each stage runs OpenCV on its own thread, so its wall time is
+    // its CPU work, taken under the same load as the throughput it explains) and in the 1-thread
+    // run (the synchronous reference: one core for everything).
+    std::printf("\n%-11s %6s %12s %12s %12s %13s\n", "stage", "calls", "seq ms/call",
+                "pipe ms/call", "1thr ms/call", "pipe ms/frame");
+    const double frames_pipe =
+        static_cast<double>(std::max<size_t>(1, pipe.stats.frames_completed));
     double cpu_per_frame_ms = 0, serial_chain_ms = 0, segment_ms = 0, filter_ms = 0;
+    auto mean_of = [](const Row& row, const char* stage) -> std::string {
+      const auto it = row.stats.stages.find(stage);
+      return it == row.stats.stages.end() ? std::string("-") : Fixed(it->second.time.mean_ms, 1);
+    };
     for (const char* stage :
          {pcr::graph::kStagePreprocess, pcr::graph::kStageOrbLeft, pcr::graph::kStageOrbRight,
           pcr::graph::kStageSegment, pcr::graph::kStageStereo, pcr::graph::kStageFilter,
           pcr::graph::kStageTracking, pcr::graph::kStageMapping}) {
-      const auto a = seq.stats.stages.find(stage);
-      const auto b = one.stats.stages.find(stage);
-      if (a == seq.stats.stages.end() && b == one.stats.stages.end()) continue;
-      const bool has_b = b != one.stats.stages.end();
-      const double per_frame = has_b ? b->second.time.total_ms / frames_one : 0.0;
+      const auto p = pipe.stats.stages.find(stage);
+      const bool has_p = p != pipe.stats.stages.end();
+      const double per_frame = has_p ? p->second.time.total_ms / frames_pipe : 0.0;
       cpu_per_frame_ms += per_frame;
       const std::string name = stage;
       // Serial nodes: tracking and mapping share the token (one chain); the filter and (outside
-      // realtime) the segmenter are serial nodes of their own. Their wall time per frame uses the
-      // 2-thread timing of the sequential run (what they take when they get both cores).
-      const double seq_per_frame =
-          a != seq.stats.stages.end()
-              ? a->second.time.total_ms /
-                    static_cast<double>(std::max<size_t>(1, seq.stats.frames_completed))
-              : 0.0;
+      // realtime) the segmenter are serial nodes of their own.
       if (name == pcr::graph::kStageTracking || name == pcr::graph::kStageMapping)
-        serial_chain_ms += seq_per_frame;
-      if (name == pcr::graph::kStageSegment) segment_ms = seq_per_frame;
-      if (name == pcr::graph::kStageFilter) filter_ms = seq_per_frame;
-      std::printf("%-11s %6zu %12s %12s %12.1f\n", stage,
-                  a != seq.stats.stages.end() ? a->second.time.count : 0,
-                  Fixed(a != seq.stats.stages.end() ? a->second.time.mean_ms : 0, 1,
-                        a != seq.stats.stages.end())
-                      .c_str(),
-                  Fixed(has_b ? b->second.time.mean_ms : 0, 1, has_b).c_str(), per_frame);
+        serial_chain_ms += per_frame;
+      if (name == pcr::graph::kStageSegment) segment_ms = per_frame;
+      if (name == pcr::graph::kStageFilter) filter_ms = per_frame;
+      std::printf("%-11s %6zu %12s %12s %12s %13.1f\n", stage, has_p ? p->second.time.count : 0,
+                  mean_of(seq, stage).c_str(), mean_of(pipe, stage).c_str(),
+                  mean_of(one, stage).c_str(), per_frame);
     }
-    std::printf("%-11s %6s %12s %12s %12.1f\n", "sum", "", "", "", cpu_per_frame_ms);
+    std::printf("%-11s %6s %12s %12s %12s %13.1f\n", "sum", "", "", "", "", cpu_per_frame_ms);
 
     const double seq_fps = seq.stats.fps;
-    std::printf("\nthroughput ratio pipelined/sequential: %.2f (%.2f / %.2f fps)\n",
-                seq_fps > 0 ? pipe.stats.fps / seq_fps : 0.0, pipe.stats.fps, seq_fps);
+    std::printf(
+        "\nthroughput ratio pipelined/sequential: %.2f (%.2f / %.2f fps); against the "
+        "1-thread synchronous reference: %.2f\n",
+        seq_fps > 0 ? pipe.stats.fps / seq_fps : 0.0, pipe.stats.fps, seq_fps,
+        one.stats.fps > 0 ? pipe.stats.fps / one.stats.fps : 0.0);
     const double ideal_fps = cpu_per_frame_ms > 0 ? 1000.0 * args.threads / cpu_per_frame_ms : 0;
     const double serial_ms = std::max({serial_chain_ms, segment_ms, filter_ms});
     const double serial_fps = serial_ms > 0 ? 1000.0 / serial_ms : 0;
     const double bound_fps = serial_fps > 0 ? std::min(ideal_fps, serial_fps) : ideal_fps;
     std::printf(
-        "CPU bound: %.1f ms CPU work per frame (1-thread stage means) / %d cores = %.2f fps "
-        "ideal pipelined (ratio %.2f); slowest serial node %.1f ms/frame (tracking+mapping "
-        "%.1f, filter %.1f, segment %.1f) = %.2f fps; bound %.2f fps (ratio %.2f), pipelined "
-        "reaches %.0f%% of it\n",
+        "CPU bound of the pipelined run: %.1f ms of stage work per frame / %d cores = %.2f fps "
+        "(ratio %.2f); slowest serial node %.1f ms/frame (tracking+mapping %.1f, filter %.1f, "
+        "segment %.1f) = %.2f fps; bound %.2f fps (ratio %.2f), pipelined reaches %.0f%% of it\n",
         cpu_per_frame_ms, args.threads, ideal_fps, seq_fps > 0 ? ideal_fps / seq_fps : 0.0,
         serial_ms, serial_chain_ms, filter_ms, segment_ms, serial_fps, bound_fps,
         seq_fps > 0 ? bound_fps / seq_fps : 0.0,
