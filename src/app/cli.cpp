@@ -27,7 +27,7 @@ int Main(int argc, char** argv) {
       ->capture_default_str();
   app.parse_complete_callback([&] {
     spdlog::set_level(spdlog::level::from_str(log_level));
-    if (!graph::ConfigureHeap(heap)) {
+    if (!graph::ConfigureHeap(heap) && heap.mmap_threshold_bytes > 0) {
       spdlog::warn("--mmap-threshold {} has no effect: the process allocator is {}",
                    heap.mmap_threshold_bytes, graph::AllocatorName());
     }
