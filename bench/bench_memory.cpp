@@ -25,7 +25,9 @@
 // keyframes and points, and the last frame's tracking. To tell the map's growth from the rest, the
 // heap is fitted against the keyframe count, and --speed 0 (the ego car stands still, so the map
 // needs no new keyframes while the movers keep moving) is the control run of everything but the
-// map.
+// map. --per-frame writes one CSV row per frame as it retires (resident, anonymous and heap MiB,
+// whether it was a keyframe, its local BA and mapping ms, keyframes, map points, tracked points):
+// where a peak comes from.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -65,6 +67,7 @@ struct Args {
   bool heap_policy = true;  // graph/heap.h: capped arenas, periodic trim, --mmap-threshold
   size_t mmap_threshold = pcr::graph::HeapPolicy{}.mmap_threshold_bytes;  // with the policy
   int trim_every = pcr::graph::PipelineOptions{}.trim_heap_every;         // with the policy
+  std::string per_frame;  // CSV of every frame's memory and map work (empty: none)
 };
 
 Args ParseArgs(int argc, char** argv) {
@@ -115,13 +118,15 @@ Args ParseArgs(int argc, char** argv) {
       a.trim_every = std::stoi(value());
     } else if (arg == "--mmap-threshold") {
       a.mmap_threshold = std::stoull(value());
+    } else if (arg == "--per-frame") {
+      a.per_frame = value();
     } else if (arg == "-h" || arg == "--help") {
       std::printf(
           "bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400] "
           "[--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2] "
           "[--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8] "
           "[--max-keyframes N] [--trim] [--heap-policy on|off] [--mmap-threshold BYTES] "
-          "[--trim-every N]\n");
+          "[--trim-every N] [--per-frame FILE.csv]\n");
       std::exit(0);
     } else {
       throw std::invalid_argument("unknown argument " + arg);
@@ -372,9 +377,23 @@ int main(int argc, char** argv) {
     options.threads = args.threads;
     options.max_in_flight = args.max_in_flight;
     options.trim_heap_every = args.heap_policy ? args.trim_every : 0;
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> per_frame(nullptr, std::fclose);
+    if (!args.per_frame.empty()) {
+      per_frame.reset(std::fopen(args.per_frame.c_str(), "w"));
+      if (!per_frame) throw std::runtime_error("cannot write " + args.per_frame);
+      std::fprintf(per_frame.get(),
+                   "frame,rss_mib,anon_mib,heap_mib,keyframe,ba_ms,mapping_ms,keyframes,"
+                   "map_points,tracked\n");
+    }
     options.on_frame = [&](size_t done, size_t, const pcr::FrameOutput& out) {
       int64_t file_now = 0;
       const int64_t rss_now = ResidentBytes(&file_now);
+      if (per_frame) {
+        std::fprintf(per_frame.get(), "%zu,%.2f,%.2f,%.2f,%d,%.1f,%.1f,%zu,%zu,%d\n", done,
+                     MiB(rss_now), MiB(rss_now - file_now), MiB(pcr::graph::HeapInUseBytes()),
+                     out.keyframe_inserted ? 1 : 0, out.mapping.ba_ms, out.times_ms.local_mapping,
+                     out.num_keyframes, out.num_map_points, out.num_tracked);
+      }
       window_peak = std::max(window_peak, rss_now);
       window_sum += static_cast<double>(rss_now);
       window_anon_sum += static_cast<double>(rss_now - file_now);
