@@ -68,6 +68,7 @@ struct Args {
   size_t mmap_threshold = pcr::graph::HeapPolicy{}.mmap_threshold_bytes;  // with the policy
   int trim_every = pcr::graph::PipelineOptions{}.trim_heap_every;         // with the policy
   std::string per_frame;  // CSV of every frame's memory and map work (empty: none)
+  bool trim_after_keyframe = pcr::graph::PipelineOptions{}.trim_heap_after_keyframe;
 };
 
 Args ParseArgs(int argc, char** argv) {
@@ -120,13 +121,17 @@ Args ParseArgs(int argc, char** argv) {
       a.mmap_threshold = std::stoull(value());
     } else if (arg == "--per-frame") {
       a.per_frame = value();
+    } else if (arg == "--trim-after-keyframe") {
+      const std::string v = value();
+      if (v != "on" && v != "off") throw std::invalid_argument("--trim-after-keyframe: on or off");
+      a.trim_after_keyframe = v == "on";
     } else if (arg == "-h" || arg == "--help") {
       std::printf(
           "bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400] "
           "[--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2] "
           "[--max-in-flight 4] [--seed 1] [--movers 6] [--parked 8] [--speed 8] "
           "[--max-keyframes N] [--trim] [--heap-policy on|off] [--mmap-threshold BYTES] "
-          "[--trim-every N] [--per-frame FILE.csv]\n");
+          "[--trim-every N] [--trim-after-keyframe on|off] [--per-frame FILE.csv]\n");
       std::exit(0);
     } else {
       throw std::invalid_argument("unknown argument " + arg);
@@ -377,6 +382,7 @@ int main(int argc, char** argv) {
     options.threads = args.threads;
     options.max_in_flight = args.max_in_flight;
     options.trim_heap_every = args.heap_policy ? args.trim_every : 0;
+    options.trim_heap_after_keyframe = args.heap_policy && args.trim_after_keyframe;
     std::unique_ptr<std::FILE, int (*)(std::FILE*)> per_frame(nullptr, std::fclose);
     if (!args.per_frame.empty()) {
       per_frame.reset(std::fopen(args.per_frame.c_str(), "w"));

@@ -32,6 +32,9 @@ struct PipelineArgs {
   std::string filter = "off";  // on: the multi-stage DynamicFilter scores keypoints
   double rate = 1.0, mask_deadline_ms = 10, delay_ms = 0;
   int threads = 2, max_in_flight = 4, waiting = 1;
+  int trim_every = graph::PipelineOptions{}.trim_heap_every;
+  std::string trim_after_keyframe =
+      graph::PipelineOptions{}.trim_heap_after_keyframe ? "on" : "off";
 };
 
 nodes::FrameSource SourceFromDataset(const Dataset& dataset, const RunConfig& config,
@@ -78,6 +81,8 @@ graph::PipelineOptions ToPipelineOptions(const PipelineArgs& a) {
   o.mask_deadline_ms = a.mask_deadline_ms;
   o.adaptive = a.adaptive == "on";
   o.tracking_delay_ms = a.delay_ms;
+  o.trim_heap_every = a.trim_every;
+  o.trim_heap_after_keyframe = a.trim_after_keyframe == "on";
   std::string why;
   if (!o.IsValid(&why)) throw ConfigError("pipeline options: " + why);
   return o;
@@ -95,7 +100,9 @@ nlohmann::json OptionsJson(const PipelineArgs& a) {
           {"filter", a.filter},
           {"model", a.model},
           {"model_high", a.model_high},
-          {"delay_ms", a.delay_ms}};
+          {"delay_ms", a.delay_ms},
+          {"trim_every", a.trim_every},
+          {"trim_after_keyframe", a.trim_after_keyframe}};
 }
 
 void RunPipelineCommand(const PipelineArgs& args) {
@@ -216,6 +223,13 @@ void AddPipelineCommand(CLI::App& app) {
   cmd->add_option("--frames", args->frames, "frame range A:B (B exclusive)");
   cmd->add_option("--config", args->config, "YAML configuration (see config/*.yaml)");
   cmd->add_option("--set", args->overrides, "override one key: section.key=value (repeatable)");
+  cmd->add_option("--trim-every", args->trim_every,
+                  "hand free heap pages back to the system every N frames (0: never)")
+      ->capture_default_str();
+  cmd->add_option("--trim-after-keyframe", args->trim_after_keyframe,
+                  "also right after each keyframe's local mapping: on or off")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   cmd->add_option("--delay-ms", args->delay_ms,
                   "testing: artificial delay added to every tracking call")
       ->capture_default_str();

@@ -453,6 +453,7 @@ PipelineResult GraphRun::Run() {
         const bool keyframe = nodes::MappingNode::NeedsMapping(*tracked);
         if (auto out = Guarded(
                 kStageMapping, tracked->ticket, [&] { return mapping_(tracked); }, keyframe)) {
+          if (keyframe && options_.trim_heap_after_keyframe) TrimHeap();
           TsanRelease(slam_);  // the map edits of this frame, before the token goes back
           std::get<1>(ports).try_put(Token{0});
           std::get<0>(ports).try_put(*out);
