@@ -79,6 +79,12 @@ Args ParseArgs(int argc, char** argv) {
       if (i + 1 >= argc) throw std::invalid_argument(arg + " needs a value");
       return argv[++i];
     };
+    // An on|off option's value.
+    auto on_off = [&]() {
+      const std::string v = value();
+      if (v != "on" && v != "off") throw std::invalid_argument(arg + " must be on or off");
+      return v == "on";
+    };
     if (arg == "--frames") {
       a.frames = std::stoi(value());
     } else if (arg == "--warmup") {
@@ -92,9 +98,7 @@ Args ParseArgs(int argc, char** argv) {
     } else if (arg == "--segmenter") {
       a.segmenter = value();
     } else if (arg == "--filter") {
-      const std::string v = value();
-      if (v != "on" && v != "off") throw std::invalid_argument("--filter must be on or off");
-      a.filter = v == "on";
+      a.filter = on_off();
     } else if (arg == "--threads") {
       a.threads = std::stoi(value());
     } else if (arg == "--max-in-flight") {
@@ -112,9 +116,7 @@ Args ParseArgs(int argc, char** argv) {
     } else if (arg == "--trim") {
       a.trim = true;
     } else if (arg == "--heap-policy") {
-      const std::string v = value();
-      if (v != "on" && v != "off") throw std::invalid_argument("--heap-policy: on or off");
-      a.heap_policy = v == "on";
+      a.heap_policy = on_off();
     } else if (arg == "--trim-every") {
       a.trim_every = std::stoi(value());
     } else if (arg == "--mmap-threshold") {
@@ -122,9 +124,7 @@ Args ParseArgs(int argc, char** argv) {
     } else if (arg == "--per-frame") {
       a.per_frame = value();
     } else if (arg == "--trim-after-keyframe") {
-      const std::string v = value();
-      if (v != "on" && v != "off") throw std::invalid_argument("--trim-after-keyframe: on or off");
-      a.trim_after_keyframe = v == "on";
+      a.trim_after_keyframe = on_off();
     } else if (arg == "-h" || arg == "--help") {
       std::printf(
           "bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400] "
@@ -287,7 +287,7 @@ int main(int argc, char** argv) {
     if (args.heap_policy) {  // as pcr_orb does
       pcr::graph::HeapPolicy policy;
       policy.mmap_threshold_bytes = args.mmap_threshold;
-      if (!pcr::graph::ConfigureHeap(policy)) {
+      if (!pcr::graph::ConfigureHeap(policy) && args.mmap_threshold > 0) {
         std::fprintf(stderr, "bench_memory: --mmap-threshold has no effect under %s\n",
                      pcr::graph::AllocatorName().c_str());
       }
