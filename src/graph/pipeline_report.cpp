@@ -65,16 +65,18 @@ double TickStep(double span, int count) {
   return 10 * p;
 }
 
+// Bytes in MiB; -1 stays -1 (not known).
+double MiB(int64_t bytes) { return bytes >= 0 ? static_cast<double>(bytes) / 1048576.0 : -1.0; }
+
 }  // namespace
 
 nlohmann::json StatsToJson(const PipelineStats& s) {
   nlohmann::json j;
   j["policy"] = s.policy;
   j["threads"] = s.threads;
-  j["memory"] = {
-      {"resident_mib", s.resident_bytes >= 0 ? s.resident_bytes / 1048576.0 : -1.0},
-      {"peak_resident_mib", s.peak_resident_bytes >= 0 ? s.peak_resident_bytes / 1048576.0 : -1.0},
-      {"allocator", s.allocator}};
+  j["memory"] = {{"resident_mib", MiB(s.resident_bytes)},
+                 {"peak_resident_mib", MiB(s.peak_resident_bytes)},
+                 {"allocator", s.allocator}};
   j["max_in_flight"] = s.max_in_flight;
   j["rate"] = s.rate;
   j["adaptive"] = s.adaptive;
@@ -133,7 +135,7 @@ std::string FormatPipelineStats(const PipelineStats& s) {
                    s.masks_stale, s.masks_skipped, s.masks_late, s.inferences_busy);
   if (s.resident_bytes >= 0) {
     o << fmt::format("memory: {:.1f} MiB resident at the end, peak {:.1f} MiB ({})\n",
-                     s.resident_bytes / 1048576.0, s.peak_resident_bytes / 1048576.0, s.allocator);
+                     MiB(s.resident_bytes), MiB(s.peak_resident_bytes), s.allocator);
   }
   if (s.adaptive) {
     o << fmt::format(
