@@ -67,7 +67,7 @@ SE3 MakePose(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation
   return pose;
 }
 
-std::vector<std::string> CameraImages(const fs::path& camera_dir) {
+std::vector<std::string> CameraDataImages(const fs::path& camera_dir) {
   std::error_code ec;
   if (!fs::is_directory(camera_dir / "data", ec)) return {};
   return ListFiles((camera_dir / "data").string(), ".png");
@@ -203,12 +203,12 @@ Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams) {
   dataset.left_paths = ListFiles((left_dir / "data").string(), ".png");
   if (dataset.left_paths.empty())
     throw InputError((left_dir / "data").string(), 0, "no PNG images");
-  dataset.right_paths = CameraImages(dir / right_name);
+  dataset.right_paths = CameraDataImages(dir / right_name);
   if (!dataset.right_paths.empty() && dataset.right_paths.size() != dataset.left_paths.size())
     throw InputError((dir / right_name / "data").string(), 0,
                      std::to_string(dataset.right_paths.size()) + " images but " + left_name +
                          " has " + std::to_string(dataset.left_paths.size()));
-  dataset.left_color_paths = color ? dataset.left_paths : CameraImages(dir / "image_02");
+  dataset.left_color_paths = color ? dataset.left_paths : CameraDataImages(dir / "image_02");
   if (dataset.left_color_paths.size() != dataset.left_paths.size())
     dataset.left_color_paths.clear();
 

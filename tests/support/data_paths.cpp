@@ -1,9 +1,13 @@
 #include "support/data_paths.h"
 
+#include <gtest/gtest.h>
+
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <random>
+#include <sstream>
 #include <system_error>
 #include <vector>
 
@@ -15,6 +19,20 @@ std::string SharedDir() {
 }
 
 std::string SharedPath(const std::string& relative) { return SharedDir() + "/" + relative; }
+
+std::vector<double> CalibRow(const std::string& path, const std::string& key) {
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(key, 0) != 0) continue;
+    std::istringstream ss(line.substr(key.size()));
+    std::vector<double> p(12);
+    for (double& v : p) ss >> v;
+    if (ss) return p;
+  }
+  ADD_FAILURE() << "no " << key << " line in " << path;
+  return std::vector<double>(12, 0.0);
+}
 
 namespace {
 

@@ -1,6 +1,7 @@
 #pragma once
 // Paths of the shared KITTI data and models (../shared beside the checkout).
 #include <string>
+#include <vector>
 
 namespace pcr::test {
 
@@ -11,5 +12,9 @@ std::string SharedPath(const std::string& relative);
 // A fresh empty directory under the system temp dir. It is removed, with everything in it, when
 // the test process exits normally; PCR_KEEP_TEST_DIRS=1 in the environment keeps it for a look.
 std::string MakeTempDir(const std::string& prefix);
+
+// The 12 numbers after `key` (e.g. "P0:" or "P_rect_02:") on its line of a KITTI calibration
+// file; a test failure and zeros when the file or the line is missing.
+std::vector<double> CalibRow(const std::string& path, const std::string& key);
 
 }  // namespace pcr::test

@@ -18,15 +18,15 @@ namespace {
 
 using optim::ReprojectionTarget;
 
-struct PreparedObservation {
+struct PreparedPoseObservation {
   bool usable = false;
   bool stereo = false;
   double weight = 1;          // the filter's confidence, scales the robust cost
   ReprojectionTarget target;  // sqrt_info of the measurement noise alone
 };
 
-PreparedObservation Prepare(const StereoRig& rig, const PoseObservation& obs) {
-  PreparedObservation prepared;
+PreparedPoseObservation Prepare(const StereoRig& rig, const PoseObservation& obs) {
+  PreparedPoseObservation prepared;
   if (obs.excluded || !obs.p_in_world.allFinite() || !obs.uv_px.allFinite() ||
       !std::isfinite(obs.information) || !(obs.information > 0) || !std::isfinite(obs.weight) ||
       !(obs.weight > 0) || !std::isfinite(obs.u_right_px))
@@ -40,7 +40,7 @@ PreparedObservation Prepare(const StereoRig& rig, const PoseObservation& obs) {
   return prepared;
 }
 
-optim::ReprojectionCheck Check(const StereoRig& rig, const PreparedObservation& prepared,
+optim::ReprojectionCheck Check(const StereoRig& rig, const PreparedPoseObservation& prepared,
                                const double* pose_params, const Eigen::Vector3d& p_in_world) {
   return prepared.stereo
              ? optim::CheckReprojection<3>(rig, prepared.target, pose_params, p_in_world.data())
@@ -71,7 +71,7 @@ PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_wo
   if (!rig.IsValid(&why)) throw ConfigError("OptimizePose rig: " + why);
 
   const size_t n = observations.size();
-  std::vector<PreparedObservation> prepared(n);
+  std::vector<PreparedPoseObservation> prepared(n);
   for (size_t i = 0; i < n; ++i) prepared[i] = Prepare(rig, observations[i]);
 
   std::array<double, optim::kPoseParamSize> pose;
@@ -91,7 +91,7 @@ PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_wo
   // weight * rho(chi2) per observation (built once, used in every round).
   std::vector<optim::WeightedLoss> losses;
   losses.reserve(n);
-  for (const PreparedObservation& p : prepared)
+  for (const PreparedPoseObservation& p : prepared)
     losses.emplace_back(p.usable ? p.weight : 1.0, p.stereo ? &huber_stereo : &huber_mono);
   ceres::Problem::Options problem_options;
   problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -118,7 +118,7 @@ PoseOptimizationResult OptimizePose(const StereoRig& rig, const SE3& cam_from_wo
       problem.AddParameterBlock(pose.data(), optim::kPoseParamSize, &manifold);
       for (size_t i = 0; i < n; ++i) {
         if (!active[i]) continue;
-        const PreparedObservation& p = prepared[i];
+        const PreparedPoseObservation& p = prepared[i];
         const Eigen::Vector3d& x = observations[i].p_in_world;
         if (p.stereo) {
           problem.AddResidualBlock(new optim::StereoPoseCost(rig, p.target, x),

@@ -5,11 +5,12 @@
 #include "slam/common/camera.h"
 #include "slam/common/error.h"
 #include "slam/common/pose.h"
+#include "support/test_helpers.h"
 
 namespace pcr {
 namespace {
 
-PinholeCamera KittiCamera() { return {718.856, 718.856, 607.1928, 185.2157, 1241, 376}; }
+using test::KittiCamera;
 
 TEST(PinholeCamera, ProjectUnprojectRoundTrip) {
   const PinholeCamera cam = KittiCamera();

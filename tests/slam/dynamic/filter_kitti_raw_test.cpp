@@ -31,19 +31,8 @@ std::string DriveDir() {
   return test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync");
 }
 
-std::vector<double> CalibRow(const std::string& key) {
-  const std::string path = test::SharedPath("data/kitti_raw/2011_09_26/calib_cam_to_cam.txt");
-  std::ifstream in(path);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind(key, 0) != 0) continue;
-    std::istringstream ss(line.substr(key.size()));
-    std::vector<double> p(12);
-    for (double& v : p) ss >> v;
-    if (ss) return p;
-  }
-  ADD_FAILURE() << "no " << key << " in " << path;
-  return std::vector<double>(12, 0.0);
+std::string CamToCam() {
+  return test::SharedPath("data/kitti_raw/2011_09_26/calib_cam_to_cam.txt");
 }
 
 struct Label {
@@ -128,7 +117,8 @@ struct RawRun {
 };
 
 RawRun RunDrive(bool with_yolo) {
-  const std::vector<double> p0 = CalibRow("P_rect_00:"), p1 = CalibRow("P_rect_01:");
+  const std::vector<double> p0 = test::CalibRow(CamToCam(), "P_rect_00:");
+  const std::vector<double> p1 = test::CalibRow(CamToCam(), "P_rect_01:");
   StereoRig rig;
   const std::vector<Label> labels = ReadLabels();
   const OrbExtractor extractor{OrbOptions{}};

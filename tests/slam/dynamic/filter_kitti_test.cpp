@@ -25,20 +25,6 @@ namespace {
 
 std::string SequenceDir() { return test::SharedPath("data/kitti/sequences/06"); }
 
-std::vector<double> CalibRow(const std::string& key) {
-  std::ifstream in(SequenceDir() + "/calib.txt");
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind(key, 0) != 0) continue;
-    std::istringstream ss(line.substr(key.size()));
-    std::vector<double> p(12);
-    for (double& v : p) ss >> v;
-    if (ss) return p;
-  }
-  ADD_FAILURE() << "no " << key << " line in " << SequenceDir() << "/calib.txt";
-  return std::vector<double>(12, 0.0);
-}
-
 SE3 GroundTruthPose(int frame) {
   std::ifstream in(test::SharedPath("data/kitti/poses/06.txt"));
   std::string line;
@@ -68,7 +54,9 @@ struct KittiFrame {
 const std::vector<KittiFrame>& Frames(StereoRig* rig_out) {
   static StereoRig rig;
   static const std::vector<KittiFrame> frames = [] {
-    const std::vector<double> p0 = CalibRow("P0:"), p1 = CalibRow("P1:");
+    const std::string calib = SequenceDir() + "/calib.txt";
+    const std::vector<double> p0 = test::CalibRow(calib, "P0:");
+    const std::vector<double> p1 = test::CalibRow(calib, "P1:");
     const OrbExtractor extractor{OrbOptions{}};
     std::vector<KittiFrame> out;
     for (int index = 8; index <= 11; ++index) {

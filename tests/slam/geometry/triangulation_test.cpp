@@ -4,10 +4,12 @@
 
 #include <random>
 
+#include "support/test_helpers.h"
+
 namespace pcr {
 namespace {
 
-PinholeCamera KittiCamera() { return {718.856, 718.856, 607.1928, 185.2157, 1241, 376}; }
+using test::KittiCamera;
 
 SE3 Pose(const Eigen::Vector3d& omega_rad, const Eigen::Vector3d& t) {
   SE3 pose = SE3::Identity();

@@ -8,11 +8,12 @@
 
 #include "slam/common/error.h"
 #include "slam/geometry/se3.h"
+#include "support/test_helpers.h"
 
 namespace pcr {
 namespace {
 
-PinholeCamera KittiCamera() { return {718.856, 718.856, 607.1928, 185.2157, 1241, 376}; }
+using test::KittiCamera;
 
 // Matched observations of a synthetic scene; the reference camera frame is the world frame.
 struct Scene {

@@ -8,7 +8,7 @@
 namespace pcr {
 namespace {
 
-SE3 TruePose(int i) { return test::CamFromWorld({0.05 * i, 0.0, 1.0 * i}, 0.01 * i); }
+using test::TruePose;
 
 // A map built from the synthetic scene with perfect data association: keyframes at the given
 // poses, every keypoint of an already mapped scene point associated, and (optionally) a new

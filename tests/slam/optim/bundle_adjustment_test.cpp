@@ -9,6 +9,7 @@
 
 #include "optim_test_scene.h"
 #include "slam/common/error.h"
+#include "support/test_helpers.h"
 
 namespace pcr {
 namespace {
@@ -20,11 +21,9 @@ using optim_test::KittiRig;
 using optim_test::MakeBaScene;
 using optim_test::RotationErrorRad;
 
-constexpr double kDegToRad = M_PI / 180.0;
+using test::kDegToRad;
 
-bool BitwiseEqual(const SE3& a, const SE3& b) {
-  return (a.matrix().array() == b.matrix().array()).all();
-}
+using test::BitwiseEqual;
 
 // Root mean square of the whitened residual per degree of freedom over the given observations.
 double WhitenedRms(const StereoRig& rig, const std::vector<SE3>& cam_from_world,

@@ -7,6 +7,7 @@
 
 #include "optim_test_scene.h"
 #include "slam/common/error.h"
+#include "support/test_helpers.h"
 
 namespace pcr {
 namespace {
@@ -19,11 +20,9 @@ using optim_test::PoseScene;
 using optim_test::PoseSceneOptions;
 using optim_test::RotationErrorRad;
 
-constexpr double kDegToRad = M_PI / 180.0;
+using test::kDegToRad;
 
-bool BitwiseEqual(const SE3& a, const SE3& b) {
-  return (a.matrix().array() == b.matrix().array()).all();
-}
+using test::BitwiseEqual;
 
 TEST(PoseOptimizerTest, NoiseFreeRecoversExactPose) {
   const StereoRig rig = KittiRig();

@@ -14,6 +14,7 @@
 #include "slam/common/timing.h"
 #include "slam/system/slam_system.h"
 #include "support/data_paths.h"
+#include "support/test_helpers.h"
 
 namespace pcr {
 namespace {
@@ -26,7 +27,7 @@ struct RunSummary {
   StageTimings timings;
 };
 
-bool Verbose() { return std::getenv("PCR_SLAM_VERBOSE") != nullptr; }
+using test::Verbose;
 
 RunSummary RunDataset(const Dataset& data, size_t max_frames = 0) {
   SlamSystem slam(data.rig, SlamOptions{});
@@ -91,14 +92,7 @@ void PrintTimings(const char* name, const RunSummary& s) {
   }
 }
 
-bool SameTrajectory(const Trajectory& a, const Trajectory& b) {
-  if (a.size() != b.size()) return false;
-  for (size_t i = 0; i < a.size(); ++i)
-    if (a[i].frame_index != b[i].frame_index ||
-        !(a[i].world_from_cam.matrix().array() == b[i].world_from_cam.matrix().array()).all())
-      return false;
-  return true;
-}
+using test::SameTrajectory;
 
 TEST(KittiEndToEnd, Sequence06StereoTracksAccuratelyAndDeterministically) {
   const std::string dir = test::SharedPath("data/kitti/sequences/06");

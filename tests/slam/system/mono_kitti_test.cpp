@@ -14,6 +14,7 @@
 #include "slam/common/timing.h"
 #include "slam/system/slam_system.h"
 #include "support/data_paths.h"
+#include "support/test_helpers.h"
 
 namespace pcr {
 namespace {
@@ -27,7 +28,7 @@ struct MonoRun {
   StageTimings timings;
 };
 
-bool Verbose() { return std::getenv("PCR_SLAM_VERBOSE") != nullptr; }
+using test::Verbose;
 
 MonoRun RunMono(const Dataset& data, size_t num_frames) {
   SlamSystem slam(data.rig, SlamOptions{}, SlamMode::kMonocular);
@@ -86,14 +87,7 @@ double AteRmseSim3(const Trajectory& estimate, const Trajectory& ground_truth) {
   return eval::ComputeApe(reference, eval::TransformTrajectory(est, s)).trans_m.rmse;
 }
 
-bool SameTrajectory(const Trajectory& a, const Trajectory& b) {
-  if (a.size() != b.size()) return false;
-  for (size_t i = 0; i < a.size(); ++i)
-    if (a[i].frame_index != b[i].frame_index ||
-        !(a[i].world_from_cam.matrix().array() == b[i].world_from_cam.matrix().array()).all())
-      return false;
-  return true;
-}
+using test::SameTrajectory;
 
 void Report(const char* name, const MonoRun& run, const Trajectory& gt, size_t frames) {
   const Trajectory gt_cut(gt.begin(), gt.begin() + static_cast<std::ptrdiff_t>(frames));

@@ -8,11 +8,12 @@
 #include "slam/common/error.h"
 #include "slam/map/synthetic_scene.h"
 #include "slam/tracking/tracker.h"
+#include "support/test_helpers.h"
 
 namespace pcr {
 namespace {
 
-SE3 TruePose(int i) { return test::CamFromWorld({0.05 * i, 0.0, 1.0 * i}, 0.01 * i); }
+using test::TruePose;
 
 StereoRig MonoRig() {
   StereoRig rig = test::KittiLikeRig();
@@ -32,9 +33,7 @@ double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
 }
 
-double RotationErrorDeg(const SE3& a, const SE3& b) {
-  return Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle() * 180.0 / M_PI;
-}
+using test::RotationErrorDeg;
 
 TEST(MonoInitializerOptions, DefaultsAreValidAndBadValuesRejected) {
   std::string why;

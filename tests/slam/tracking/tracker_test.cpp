@@ -5,6 +5,7 @@
 #include "slam/common/error.h"
 #include "slam/map/stereo_points.h"
 #include "slam/map/synthetic_scene.h"
+#include "support/test_helpers.h"
 
 namespace pcr {
 namespace {
@@ -13,11 +14,9 @@ double TranslationError(const SE3& a, const SE3& b) {
   return (a.inverse().translation() - b.inverse().translation()).norm();
 }
 
-double RotationErrorDeg(const SE3& a, const SE3& b) {
-  return Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle() * 180.0 / M_PI;
-}
+using test::RotationErrorDeg;
 
-SE3 TruePose(int i) { return test::CamFromWorld({0.05 * i, 0.0, 1.0 * i}, 0.01 * i); }
+using test::TruePose;
 
 // Inserts the tracked frame as a keyframe with its associations and new stereo points (what
 // the system and the local mapper do, without triangulation or bundle adjustment).
