@@ -34,6 +34,23 @@ std::vector<double> CalibRow(const std::string& path, const std::string& key) {
   return std::vector<double>(12, 0.0);
 }
 
+SE3 KittiPose(const std::string& path, int frame) {
+  std::ifstream in(path);
+  std::string line;
+  for (int i = 0; std::getline(in, line); ++i) {
+    if (i != frame) continue;
+    std::istringstream ss(line);
+    Eigen::Matrix<double, 3, 4, Eigen::RowMajor> m;
+    for (int k = 0; k < 12; ++k) ss >> m.data()[k];
+    SE3 pose = SE3::Identity();
+    pose.linear() = m.leftCols<3>();
+    pose.translation() = m.col(3);
+    return pose;
+  }
+  ADD_FAILURE() << "no line " << frame + 1 << " in " << path;
+  return SE3::Identity();
+}
+
 namespace {
 
 // The directories MakeTempDir created in this process, removed at exit (each CI run used to

@@ -3,6 +3,8 @@
 #include <string>
 #include <vector>
 
+#include "slam/common/pose.h"
+
 namespace pcr::test {
 
 // Root of ../shared (PCR_SHARED_DIR in the environment overrides the build-time default).
@@ -16,5 +18,9 @@ std::string MakeTempDir(const std::string& prefix);
 // The 12 numbers after `key` (e.g. "P0:" or "P_rect_02:") on its line of a KITTI calibration
 // file; a test failure and zeros when the file or the line is missing.
 std::vector<double> CalibRow(const std::string& path, const std::string& key);
+
+// world_from_cam of the given frame (0-based line) of a KITTI poses file (3x4 row-major per
+// line); a test failure and the identity when the file has no such line.
+SE3 KittiPose(const std::string& path, int frame);
 
 }  // namespace pcr::test

@@ -26,20 +26,7 @@ namespace {
 std::string SequenceDir() { return test::SharedPath("data/kitti/sequences/06"); }
 
 SE3 GroundTruthPose(int frame) {
-  std::ifstream in(test::SharedPath("data/kitti/poses/06.txt"));
-  std::string line;
-  for (int i = 0; std::getline(in, line); ++i) {
-    if (i != frame) continue;
-    std::istringstream ss(line);
-    Eigen::Matrix<double, 3, 4, Eigen::RowMajor> m;
-    for (int k = 0; k < 12; ++k) ss >> m.data()[k];
-    SE3 pose = SE3::Identity();
-    pose.linear() = m.leftCols<3>();
-    pose.translation() = m.col(3);
-    return pose;
-  }
-  ADD_FAILURE() << "no pose for frame " << frame;
-  return SE3::Identity();
+  return test::KittiPose(test::SharedPath("data/kitti/poses/06.txt"), frame);
 }
 
 struct KittiFrame {

@@ -34,23 +34,8 @@ PinholeCamera ReadCamera(int width_px, int height_px) {
   return {};
 }
 
-// world_from_cam of the given frame from poses/07.txt (3x4 row-major per line).
 SE3 ReadPose(int frame) {
-  const std::string path = test::SharedPath("data/kitti/poses/07.txt");
-  std::ifstream in(path);
-  std::string line;
-  for (int i = 0; std::getline(in, line); ++i) {
-    if (i != frame) continue;
-    std::istringstream ss(line);
-    Eigen::Matrix<double, 3, 4, Eigen::RowMajor> m;
-    for (int k = 0; k < 12; ++k) ss >> m.data()[k];
-    SE3 pose = SE3::Identity();
-    pose.linear() = m.leftCols<3>();
-    pose.translation() = m.col(3);
-    return pose;
-  }
-  ADD_FAILURE() << "no line " << frame + 1 << " in " << path;
-  return SE3::Identity();
+  return test::KittiPose(test::SharedPath("data/kitti/poses/07.txt"), frame);
 }
 
 struct KittiRun {
