@@ -206,6 +206,8 @@ class GraphRun {
     s.orb_features = slam.orb.num_features;
     s.segmenter = nodes::SegmenterSlot::kFast;
     s.inference_every = 1;
+    s.optical_flow = true;
+    s.min_keyframe_interval_s = 0;
     s.ba_max_iterations = slam.mapping.bundle_adjustment.max_iterations;
     return s;
   }

@@ -114,6 +114,7 @@ KeypointFilter DynamicFilterScorer::Score(const ScoringInput& input) {
   f.depth_m = input.stereo.depth_m;
   f.rig = rig_;
   f.scale_factor = scale_factor_;
+  f.lk = input.ticket.settings.optical_flow;
   f.segmentation =
       input.mask.status == MaskStatus::kSkipped ? nullptr : input.mask.segmentation.get();
   FilterOutput out = filter_.Process(f);

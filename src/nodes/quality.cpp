@@ -35,6 +35,8 @@ bool QualitySettings::IsValid(std::string* why) const {
     return Fail(why, "inference_every must be in [1, 1000]");
   if (ba_max_iterations < 1 || ba_max_iterations > 1000)
     return Fail(why, "ba_max_iterations must be in [1, 1000]");
+  if (!(min_keyframe_interval_s >= 0 && min_keyframe_interval_s <= 60))
+    return Fail(why, "min_keyframe_interval_s must be in [0, 60]");
   return true;
 }
 

@@ -27,17 +27,21 @@ struct QualitySettings {
   int inference_every = 1;     // segment every n-th frame at this level (>= 1)
   bool optical_flow = true;    // LK flow in the dynamic filter (its scorer)
   int ba_max_iterations = 10;  // cap of local BA iterations for keyframes made at this level
+  // Keyframes at most this often at this level (seconds; 0: as the SLAM options decide), unless
+  // tracking is weak: local mapping holds the map token, so a burst of keyframes (one per frame,
+  // 60-160 ms of mapping each) delays every frame behind it.
+  double min_keyframe_interval_s = 0;
   bool IsValid(std::string* why) const;
   bool operator==(const QualitySettings&) const = default;
 };
 
 // The three levels, defaults as in the issue: High = YOLO 384x1280 every frame, 2000 features,
-// LK flow on; Medium = YOLO 224x640; Low = inference every second frame, 1200 features, fewer BA
-// iterations.
+// LK flow on; Medium = YOLO 224x640; Low = inference every second frame, 1200 features, no LK
+// flow, fewer BA iterations, at most 5 keyframes a second.
 struct QualityLevels {
   QualitySettings high{2000, SegmenterSlot::kAccurate, 1, true, 10};
   QualitySettings medium{2000, SegmenterSlot::kFast, 1, true, 10};
-  QualitySettings low{1200, SegmenterSlot::kFast, 2, false, 5};
+  QualitySettings low{1200, SegmenterSlot::kFast, 2, false, 5, 0.2};
   const QualitySettings& At(QualityLevel level) const;
   bool IsValid(std::string* why) const;
 };

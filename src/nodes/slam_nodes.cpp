@@ -15,7 +15,8 @@ TrackedPtr TrackingNode::operator()(const FilteredPtr& filtered) {
   msg->frame = slam_->BuildFrame(filtered->ticket.t_ns, stereo.left->features, stereo.stereo,
                                  filtered->filter);
   msg->tracking = slam_->Track(msg->frame, filtered->ticket.frame_index);
-  msg->keyframe = slam_->DecideKeyframe(msg->tracking);
+  msg->keyframe =
+      slam_->DecideKeyframe(msg->tracking, filtered->ticket.settings.min_keyframe_interval_s);
 
   FrameOutput& out = msg->output;
   const TrackingResult& tracking = msg->tracking;

@@ -254,7 +254,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
         observed[i] = 1;
       }
     }
-  } else if (options_.use_lk) {
+  } else if (options_.use_lk && input.lk) {
     cur_pyramid = BuildLkPyramid(image, options_.lk);
     std::vector<cv::Mat> given_previous;
     const std::vector<cv::Mat>* prev_pyramid = nullptr;

@@ -132,6 +132,10 @@ struct FilterInput {
   const Segmentation* segmentation = nullptr;  // not owned; nullptr: no segmentation
   std::optional<SE3> cur_from_prev;            // motion prior (previous -> current camera)
   double scale_factor = 1.2;                   // pyramid scale between octaves
+  // false: no LK flow for this frame even where the options ask for it (a time-constrained
+  // scheduler's choice, QualitySettings::optical_flow): keypoints without matched positions
+  // get no motion term, and the next frame's LK has no previous pyramid to start from.
+  bool lk = true;
 };
 
 struct KeypointDiagnostics {

@@ -1,5 +1,6 @@
 #include "slam/system/slam_system.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -149,7 +150,8 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
   return result;
 }
 
-KeyframeDecision SlamSystem::DecideKeyframe(const TrackingResult& tracking) const {
+KeyframeDecision SlamSystem::DecideKeyframe(const TrackingResult& tracking,
+                                            double min_interval_s) const {
   if (tracking.status != TrackingStatus::kOk ||
       tracking.method == TrackingMethod::kInitialisation) {
     KeyframeDecision d;
@@ -157,7 +159,11 @@ KeyframeDecision SlamSystem::DecideKeyframe(const TrackingResult& tracking) cons
         tracking.method == TrackingMethod::kInitialisation ? "initial keyframe" : "not tracking";
     return d;
   }
-  return ShouldInsertKeyframe(tracking.keyframe_input, options_.keyframe);
+  if (min_interval_s <= options_.keyframe.min_interval_s)
+    return ShouldInsertKeyframe(tracking.keyframe_input, options_.keyframe);
+  KeyframeDecisionOptions options = options_.keyframe;
+  options.min_interval_s = std::min(min_interval_s, options.max_interval_s);
+  return ShouldInsertKeyframe(tracking.keyframe_input, options);
 }
 
 MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking,

@@ -114,7 +114,9 @@ class SlamSystem {
   // the frame (and, at a monocular initialisation, its reference frame) for
   // RefinedTrajectory().
   TrackingResult Track(const FramePtr& frame, int64_t frame_index);
-  KeyframeDecision DecideKeyframe(const TrackingResult& tracking) const;
+  // min_interval_s > 0 raises the options' minimum keyframe interval for this decision (a
+  // scheduler under time pressure).
+  KeyframeDecision DecideKeyframe(const TrackingResult& tracking, double min_interval_s = 0) const;
   // Inserts the tracked frame as a keyframe and runs local mapping on it (ba_max_iterations > 0:
   // caps this keyframe's local BA, e.g. a scheduler's low-quality level).
   MappingResult InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking,

@@ -214,6 +214,25 @@ TEST(FilterApi, LucasKanadeModeTracksRenderedMotion) {
   DynamicFilter fresh;
   const FilterOutput none = fresh.Process(first);
   EXPECT_EQ(none.num_tracked, 0);
+  // The same pair with the flow switched off for the second frame (the low quality level of
+  // the pipeline): nothing tracked, the square not flagged as moving; the frame after it has no
+  // previous pyramid to track from either, and tracking resumes on the one after that.
+  DynamicFilter no_flow;
+  no_flow.Process(first);
+  FilterInput second_no_lk = second;
+  second_no_lk.lk = false;
+  const FilterOutput skipped = no_flow.Process(second_no_lk);
+  EXPECT_EQ(skipped.num_tracked, 0);
+  int skipped_flagged = 0;
+  for (size_t i = 0; i < keypoints.size(); ++i)
+    skipped_flagged += on_square[i] && IsMovingReason(skipped.points[i].reason) ? 1 : 0;
+  EXPECT_EQ(skipped_flagged, 0);
+  FilterInput third = first;
+  third.frame_index = 2;
+  EXPECT_EQ(no_flow.Process(third).num_tracked, 0);
+  FilterInput fourth = second;
+  fourth.frame_index = 3;
+  EXPECT_GT(no_flow.Process(fourth).num_tracked, 0.9 * keypoints.size());
 }
 
 }  // namespace

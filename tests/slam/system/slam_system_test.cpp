@@ -36,6 +36,31 @@ TEST(SlamOptions, DefaultsAreValidAndErrorsNameTheSection) {
   EXPECT_THROW(SlamSystem(Rig(), bad), ConfigError);
 }
 
+// A scheduler under time pressure (the pipeline's low quality level) can space keyframes
+// further apart than the options do; weak tracking still inserts one.
+TEST(SlamSystem, KeyframeDecisionTakesALongerMinimumInterval) {
+  const SlamSystem slam(Rig(), SlamOptions{});
+  TrackingResult tracking;
+  tracking.status = TrackingStatus::kOk;
+  tracking.method = TrackingMethod::kMotionModel;
+  KeyframeDecisionInput& in = tracking.keyframe_input;
+  in.reference_tracked_points = 400;
+  in.tracked_points = 250;  // below 0.75 x the reference, above the weak-tracking ratio
+  in.tracked_close = 200;
+  in.total_points = 1500;
+  in.keyframes_in_map = 10;
+  in.seconds_since_last_keyframe = 0.1;
+  EXPECT_TRUE(slam.DecideKeyframe(tracking).insert) << slam.DecideKeyframe(tracking).reason;
+  EXPECT_TRUE(slam.DecideKeyframe(tracking, 0.05).insert);
+  const KeyframeDecision spaced = slam.DecideKeyframe(tracking, 0.2);
+  EXPECT_FALSE(spaced.insert) << spaced.reason;
+  in.seconds_since_last_keyframe = 0.25;
+  EXPECT_TRUE(slam.DecideKeyframe(tracking, 0.2).insert);
+  in.seconds_since_last_keyframe = 0.1;
+  in.tracked_points = 60;  // weak: below 0.25 x the reference
+  EXPECT_TRUE(slam.DecideKeyframe(tracking, 0.2).insert);
+}
+
 TEST(SlamSystem, RejectsMonocularRigsInStereoModeAndSizelessRigs) {
   StereoRig mono = Rig();
   mono.baseline_m = 0;
