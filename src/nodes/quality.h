@@ -29,7 +29,7 @@ struct QualitySettings {
   int ba_max_iterations = 10;  // cap of local BA iterations for keyframes made at this level
   // Keyframes at most this often at this level (seconds; 0: as the SLAM options decide), unless
   // tracking is weak: local mapping holds the map token, so a burst of keyframes (one per frame,
-  // 60-160 ms of mapping each) delays every frame behind it.
+  // 55-160 ms of mapping each on drive 0005) delays every frame behind it.
   double min_keyframe_interval_s = 0;
   bool IsValid(std::string* why) const;
   bool operator==(const QualitySettings&) const = default;
