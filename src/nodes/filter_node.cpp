@@ -118,6 +118,7 @@ KeypointFilter DynamicFilterScorer::Score(const ScoringInput& input) {
   f.segmentation =
       input.mask.status == MaskStatus::kSkipped ? nullptr : input.mask.segmentation.get();
   FilterOutput out = filter_.Process(f);
+  last_tracked_ = out.num_tracked;
   return KeypointFilter{std::move(out.filter.weight), std::move(out.filter.excluded)};
 }
 

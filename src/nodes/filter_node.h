@@ -37,11 +37,15 @@ class DynamicFilterScorer final : public FrameScorer {
                       const DynamicFilterOptions& options = {});
   KeypointFilter Score(const ScoringInput& input) override;
   std::string Name() const override { return "dynamic-filter"; }
+  // Keypoints of the last scored frame that the filter's LK flow tracked into the previous
+  // image (0 when the frame's quality settings switched the flow off).
+  int last_tracked() const { return last_tracked_; }
 
  private:
   StereoRig rig_;
   double scale_factor_;
   DynamicFilter filter_;
+  int last_tracked_ = 0;
 };
 
 struct MaskScorerOptions {

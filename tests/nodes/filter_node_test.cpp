@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include "nodes/segment_node.h"
 #include "slam/common/error.h"
 
@@ -130,6 +132,41 @@ TEST(MaskScorerTest, ExcludesConfidentPixelsAndWeightsTheRest) {
   const KeypointFilter none = scorer.Score(input);
   EXPECT_TRUE(none.excluded.empty());
   EXPECT_TRUE(none.weight.empty());
+}
+
+// The pipeline's quality level reaches the dynamic filter: a frame whose settings switch the
+// optical flow off is scored without LK (the low level), the same frame with it on tracks.
+TEST(DynamicFilterScorerTest, TheTicketsOpticalFlowSettingSwitchesLkOff) {
+  cv::Mat texture(400, 700, CV_8UC1);
+  cv::RNG rng(3);
+  rng.fill(texture, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(texture, texture, cv::Size(0, 0), 1.5);
+  std::vector<cv::Point2f> points;
+  for (int v = 40; v < 330; v += 25)
+    for (int u = 40; u < 600; u += 25) points.emplace_back(static_cast<float>(u), v);
+  auto frame = [&](int64_t seq, int shift_px, bool flow) {
+    StereoPtr stereo = StereoWithKeypoints(seq, points);
+    auto images = std::const_pointer_cast<ImagesMsg>(stereo->images);
+    images->left = texture(cv::Rect(20 + shift_px, 20, 640, 360)).clone();
+    auto ticketed = std::make_shared<StereoMsg>(*stereo);
+    ticketed->ticket.settings.optical_flow = flow;
+    return ticketed;
+  };
+  StereoRig rig;
+  rig.left = {500, 500, 320, 180, 640, 360};
+  rig.baseline_m = 0.5;
+  MaskMsg no_mask;
+  for (const bool flow : {true, false}) {
+    DynamicFilterScorer scorer(rig, 1.2);
+    for (int64_t seq = 0; seq < 2; ++seq) {
+      const StereoPtr s = frame(seq, static_cast<int>(seq) * 3, flow || seq == 0);
+      scorer.Score(ScoringInput{s->ticket, *s->images, s->left->features, s->stereo, no_mask});
+    }
+    if (flow)
+      EXPECT_GT(scorer.last_tracked(), static_cast<int>(0.8 * points.size()));
+    else
+      EXPECT_EQ(scorer.last_tracked(), 0);
+  }
 }
 
 class FixedScorer final : public FrameScorer {
