@@ -159,10 +159,9 @@ KeyframeDecision SlamSystem::DecideKeyframe(const TrackingResult& tracking,
         tracking.method == TrackingMethod::kInitialisation ? "initial keyframe" : "not tracking";
     return d;
   }
-  if (min_interval_s <= options_.keyframe.min_interval_s)
-    return ShouldInsertKeyframe(tracking.keyframe_input, options_.keyframe);
   KeyframeDecisionOptions options = options_.keyframe;
-  options.min_interval_s = std::min(min_interval_s, options.max_interval_s);
+  options.min_interval_s =
+      std::max(options.min_interval_s, std::min(min_interval_s, options.max_interval_s));
   return ShouldInsertKeyframe(tracking.keyframe_input, options);
 }
 
