@@ -88,11 +88,13 @@ TEST(MaskCarryTest, SkipsWithoutSegmenterTooOldOrDisabled) {
   EXPECT_THROW(MaskCarry(MaskCarryOptions{true, 0}), ConfigError);
 }
 
-// A stereo message with keypoints at given pixels (no descriptors needed by the filter).
-StereoPtr StereoWithKeypoints(int64_t seq, const std::vector<cv::Point2f>& points) {
+// A stereo message with keypoints at given pixels (no descriptors needed by the filter) over the
+// given left image (a blank 6 x 4 one when empty).
+StereoPtr StereoWithKeypoints(int64_t seq, const std::vector<cv::Point2f>& points,
+                              const cv::Mat& left_image = cv::Mat()) {
   auto images = std::make_shared<ImagesMsg>();
   images->ticket = Ticket(seq);
-  images->left = cv::Mat::zeros(4, 6, CV_8UC1);
+  images->left = left_image.empty() ? cv::Mat::zeros(4, 6, CV_8UC1) : left_image;
   images->right = images->left.clone();
   auto left = std::make_shared<FeaturesMsg>();
   left->ticket = images->ticket;
@@ -144,14 +146,6 @@ TEST(DynamicFilterScorerTest, TheTicketsOpticalFlowSettingSwitchesLkOff) {
   std::vector<cv::Point2f> points;
   for (int v = 40; v < 330; v += 25)
     for (int u = 40; u < 600; u += 25) points.emplace_back(static_cast<float>(u), v);
-  auto frame = [&](int64_t seq, int shift_px, bool flow) {
-    StereoPtr stereo = StereoWithKeypoints(seq, points);
-    auto images = std::const_pointer_cast<ImagesMsg>(stereo->images);
-    images->left = texture(cv::Rect(20 + shift_px, 20, 640, 360)).clone();
-    auto ticketed = std::make_shared<StereoMsg>(*stereo);
-    ticketed->ticket.settings.optical_flow = flow;
-    return ticketed;
-  };
   StereoRig rig;
   rig.left = {500, 500, 320, 180, 640, 360};
   rig.baseline_m = 0.5;
@@ -159,8 +153,12 @@ TEST(DynamicFilterScorerTest, TheTicketsOpticalFlowSettingSwitchesLkOff) {
   for (const bool flow : {true, false}) {
     DynamicFilterScorer scorer(rig, 1.2);
     for (int64_t seq = 0; seq < 2; ++seq) {
-      const StereoPtr s = frame(seq, static_cast<int>(seq) * 3, flow || seq == 0);
-      scorer.Score(ScoringInput{s->ticket, *s->images, s->left->features, s->stereo, no_mask});
+      const int shift_px = 3 * static_cast<int>(seq);
+      const StereoPtr s =
+          StereoWithKeypoints(seq, points, texture(cv::Rect(20 + shift_px, 20, 640, 360)).clone());
+      FrameTicket ticket = s->ticket;
+      ticket.settings.optical_flow = flow || seq == 0;
+      scorer.Score(ScoringInput{ticket, *s->images, s->left->features, s->stereo, no_mask});
     }
     if (flow)
       EXPECT_GT(scorer.last_tracked(), static_cast<int>(0.8 * points.size()));
