@@ -8,6 +8,7 @@
 #include <fstream>
 #include <numeric>
 #include <opencv2/core/cuda.hpp>
+#include <opencv2/dnn.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <sstream>
@@ -18,127 +19,6 @@
 
 namespace pcr {
 namespace {
-
-// ---- Minimal protobuf wire-format walker (just enough of onnx.proto to find the input dims) ----
-
-struct WireField {
-  uint32_t number = 0;
-  int wire_type = 0;
-  uint64_t varint = 0;            // wire type 0
-  const uint8_t* data = nullptr;  // wire type 2
-  size_t size = 0;                // wire type 2
-};
-
-class WireReader {
- public:
-  WireReader(const uint8_t* begin, size_t size) : begin_(begin), p_(begin), end_(begin + size) {}
-
-  // Next field, false at the end; throws std::invalid_argument on malformed input.
-  bool Next(WireField* f) {
-    if (p_ == end_) return false;
-    const uint64_t key = Varint();
-    f->number = static_cast<uint32_t>(key >> 3);
-    f->wire_type = static_cast<int>(key & 7);
-    if (f->number == 0 || (key >> 3) > 0x1FFFFFFF) Fail("bad field number");
-    switch (f->wire_type) {
-      case 0:
-        f->varint = Varint();
-        break;
-      case 1:
-        Skip(8);
-        break;
-      case 2: {
-        const uint64_t len = Varint();
-        if (len > static_cast<uint64_t>(end_ - p_)) Fail("length past the end");
-        f->data = p_;
-        f->size = static_cast<size_t>(len);
-        p_ += len;
-        break;
-      }
-      case 5:
-        Skip(4);
-        break;
-      default:
-        Fail("unsupported wire type " + std::to_string(f->wire_type));
-    }
-    return true;
-  }
-
- private:
-  uint64_t Varint() {
-    uint64_t value = 0;
-    for (int shift = 0; shift < 64; shift += 7) {
-      if (p_ == end_) Fail("truncated varint");
-      const uint8_t byte = *p_++;
-      value |= static_cast<uint64_t>(byte & 0x7F) << shift;
-      if ((byte & 0x80) == 0) return value;
-    }
-    Fail("varint too long");
-    return 0;
-  }
-  void Skip(size_t n) {
-    if (n > static_cast<size_t>(end_ - p_)) Fail("truncated fixed-size field");
-    p_ += n;
-  }
-  [[noreturn]] void Fail(const std::string& what) const {
-    throw std::invalid_argument("protobuf " + what + " at byte " + std::to_string(p_ - begin_));
-  }
-
-  const uint8_t* begin_;
-  const uint8_t* p_;
-  const uint8_t* end_;
-};
-
-// Length-delimited sub-message of `f` as a reader.
-WireReader Sub(const WireField& f) { return WireReader(f.data, f.size); }
-
-std::string AsString(const WireField& f) {
-  return std::string(reinterpret_cast<const char*>(f.data), f.size);
-}
-
-// ValueInfoProto{name = 1, type = 2}; TypeProto{tensor_type = 1}; Tensor{shape = 2};
-// TensorShapeProto{dim = 1}; Dimension{dim_value = 1, dim_param = 2}.
-std::vector<int64_t> DimsOfValueInfo(const WireField& value_info) {
-  std::vector<int64_t> dims;
-  WireReader vi = Sub(value_info);
-  WireField f;
-  while (vi.Next(&f)) {
-    if (f.number != 2 || f.wire_type != 2) continue;
-    WireReader type = Sub(f);
-    WireField t;
-    while (type.Next(&t)) {
-      if (t.number != 1 || t.wire_type != 2) continue;
-      WireReader tensor = Sub(t);
-      WireField s;
-      while (tensor.Next(&s)) {
-        if (s.number != 2 || s.wire_type != 2) continue;
-        WireReader shape = Sub(s);
-        WireField d;
-        while (shape.Next(&d)) {
-          if (d.number != 1 || d.wire_type != 2) continue;
-          int64_t value = -1;
-          WireReader dim = Sub(d);
-          WireField v;
-          while (dim.Next(&v)) {
-            if (v.number == 1 && v.wire_type == 0) value = static_cast<int64_t>(v.varint);
-          }
-          dims.push_back(value > 0 ? value : -1);
-        }
-      }
-    }
-  }
-  return dims;
-}
-
-std::string NameOf(const WireField& message, uint32_t name_field) {
-  WireReader r = Sub(message);
-  WireField f;
-  std::string name;
-  while (r.Next(&f)) {
-    if (f.number == name_field && f.wire_type == 2) name = AsString(f);
-  }
-  return name;
-}
 
 // ---- Misc helpers ----
 
@@ -274,35 +154,6 @@ const std::vector<std::string>& CocoClassNames() {
                                                   "vase",          "scissors",     "teddy bear",
                                                   "hair drier",    "toothbrush"};
   return kNames;
-}
-
-// ---- ONNX input shape ----
-
-std::vector<int64_t> OnnxGraphInputShape(const std::vector<uint8_t>& model_bytes) {
-  // ModelProto{graph = 7}; GraphProto{initializer = 5 (TensorProto{name = 8}), input = 11}.
-  WireReader model(model_bytes.data(), model_bytes.size());
-  WireField f;
-  bool have_graph = false;
-  WireField graph;
-  while (model.Next(&f)) {
-    if (f.number == 7 && f.wire_type == 2) {
-      graph = f;
-      have_graph = true;
-    }
-  }
-  if (!have_graph) throw std::invalid_argument("no ONNX graph in the protobuf");
-  std::set<std::string> initializers;
-  std::vector<WireField> inputs;
-  WireReader g = Sub(graph);
-  while (g.Next(&f)) {
-    if (f.wire_type != 2) continue;
-    if (f.number == 5) initializers.insert(NameOf(f, 8));
-    if (f.number == 11) inputs.push_back(f);
-  }
-  for (const WireField& input : inputs) {
-    if (initializers.count(NameOf(input, 1)) == 0) return DimsOfValueInfo(input);
-  }
-  throw std::invalid_argument("the ONNX graph has no input");
 }
 
 // ---- Output layout ----
@@ -529,6 +380,74 @@ cv::Mat BlobFromLetterboxed(const cv::Mat& letterboxed_bgr, YoloOptions::Normali
   return blob;
 }
 
+namespace {
+
+// ---- OpenCV DNN engine ----
+
+class OpenCvDnnEngine final : public InferenceEngine {
+ public:
+  OpenCvDnnEngine(const std::vector<uint8_t>& bytes, cv::Size input_size, bool allow_cuda) {
+    try {
+      net_ = cv::dnn::readNetFromONNX(bytes);
+    } catch (const cv::Exception& e) {
+      throw std::invalid_argument("OpenCV " CV_VERSION " DNN cannot load this ONNX model: " +
+                                  OneLine(e.err));
+    }
+    if (net_.empty()) throw std::invalid_argument("OpenCV DNN loaded an empty network");
+    // Output shapes by OpenCV's shape inference at the model's input size (no forward pass).
+    output_names_ = net_.getUnconnectedOutLayersNames();
+    const cv::dnn::MatShape input_shape = {1, 3, input_size.height, input_size.width};
+    for (const std::string& name : output_names_) {
+      std::vector<cv::dnn::MatShape> in_shapes, out_shapes;
+      try {
+        net_.getLayerShapes(input_shape, net_.getLayerId(name), in_shapes, out_shapes);
+      } catch (const cv::Exception& e) {
+        throw std::invalid_argument("the layers do not accept the input size " +
+                                    ShapeString(input_shape) + ": " + OneLine(e.err));
+      }
+      if (out_shapes.size() != 1) {
+        throw std::invalid_argument("output layer " + name + " has " +
+                                    std::to_string(out_shapes.size()) + " outputs");
+      }
+      output_shapes_.push_back(out_shapes[0]);
+    }
+    if (allow_cuda && CudaDnnAvailable()) {
+      net_.setPreferableBackend(cv::dnn::DNN_BACKEND_CUDA);
+      net_.setPreferableTarget(cv::dnn::DNN_TARGET_CUDA);
+      backend_ = "opencv-dnn-cuda";
+    } else {
+      net_.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
+      net_.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
+      backend_ = "opencv-dnn-cpu";
+    }
+  }
+
+  std::vector<std::vector<int>> OutputShapes() const override { return output_shapes_; }
+
+  std::vector<cv::Mat> Forward(const cv::Mat& blob) override {
+    net_.setInput(blob);
+    std::vector<cv::Mat> raw;
+    net_.forward(raw, output_names_);
+    for (cv::Mat& m : raw) m = m.clone();  // raw aliases the network's buffers
+    return raw;
+  }
+
+  std::string Backend() const override { return backend_; }
+
+ private:
+  cv::dnn::Net net_;
+  std::vector<std::string> output_names_;
+  std::vector<std::vector<int>> output_shapes_;
+  std::string backend_;
+};
+
+}  // namespace
+
+std::unique_ptr<InferenceEngine> MakeOpenCvDnnEngine(const std::vector<uint8_t>& model_bytes,
+                                                     cv::Size input_size, bool allow_cuda) {
+  return std::make_unique<OpenCvDnnEngine>(model_bytes, input_size, allow_cuda);
+}
+
 // ---- YoloSegmenter ----
 
 YoloSegmenter::YoloSegmenter(const YoloOptions& options) : options_(options) {
@@ -563,37 +482,22 @@ YoloSegmenter::YoloSegmenter(const YoloOptions& options) : options_(options) {
   }
 
   try {
-    net_ = cv::dnn::readNetFromONNX(bytes);
-  } catch (const cv::Exception& e) {
-    throw InputError(path, 0,
-                     "OpenCV " CV_VERSION " DNN cannot load this ONNX model: " + OneLine(e.err));
+    engine_ = options_.engine_factory
+                  ? options_.engine_factory(bytes, input_size_)
+                  : MakeOpenCvDnnEngine(bytes, input_size_, options_.allow_cuda);
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(path, 0, OneLine(e.what()));
   }
-  if (net_.empty()) throw InputError(path, 0, "OpenCV DNN loaded an empty network");
-
-  // Output shapes by OpenCV's shape inference at the model's input size (no forward pass).
-  output_names_ = net_.getUnconnectedOutLayersNames();
-  const cv::dnn::MatShape input_shape = {1, 3, input_size_.height, input_size_.width};
-  std::vector<std::vector<int>> output_shapes;
-  for (const std::string& name : output_names_) {
-    std::vector<cv::dnn::MatShape> in_shapes, out_shapes;
-    try {
-      net_.getLayerShapes(input_shape, net_.getLayerId(name), in_shapes, out_shapes);
-    } catch (const cv::Exception& e) {
-      throw InputError(path, 0,
-                       "the layers do not accept the input size " + ShapeString(input_shape) +
-                           ": " + OneLine(e.err));
-    }
-    if (out_shapes.size() != 1) {
-      throw InputError(
-          path, 0,
-          "output layer " + name + " has " + std::to_string(out_shapes.size()) + " outputs");
-    }
-    output_shapes.push_back(out_shapes[0]);
-  }
+  if (!engine_) throw InputError(path, 0, "the inference engine factory returned no engine");
+  const std::vector<std::vector<int>> output_shapes = engine_->OutputShapes();
+  backend_ = engine_->Backend();
 
   class_names_ =
       options_.names_path.empty() ? CocoClassNames() : ReadClassNames(options_.names_path);
   layout_ = InspectYoloOutputs(output_shapes, static_cast<int>(class_names_.size()), path);
+  output_shapes_count_ = output_shapes.size();
   if (!layout_.has_prototypes()) {
     spdlog::warn(
         "YoloSegmenter: {} is a detection-only model (outputs {}); masks fall back to "
@@ -606,15 +510,6 @@ YoloSegmenter::YoloSegmenter(const YoloOptions& options) : options_(options) {
     }
   }
 
-  if (options_.allow_cuda && CudaDnnAvailable()) {
-    net_.setPreferableBackend(cv::dnn::DNN_BACKEND_CUDA);
-    net_.setPreferableTarget(cv::dnn::DNN_TARGET_CUDA);
-    backend_ = "opencv-dnn-cuda";
-  } else {
-    net_.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
-    net_.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
-    backend_ = "opencv-dnn-cpu";
-  }
   spdlog::info("YoloSegmenter: {} input {}x{}, outputs {}, {} classes, {} on {}", path,
                input_size_.width, input_size_.height, ShapesString(output_shapes),
                layout_.num_classes, layout_.has_prototypes() ? "masks" : "box masks", backend_);
@@ -636,12 +531,15 @@ cv::Mat YoloSegmenter::Preprocess(const cv::Mat& image, LetterboxInfo* letterbox
 }
 
 std::vector<cv::Mat> YoloSegmenter::Forward(const cv::Mat& blob) {
-  net_.setInput(blob);
-  std::vector<cv::Mat> raw;
-  net_.forward(raw, output_names_);
+  std::vector<cv::Mat> raw = engine_->Forward(blob);
+  if (raw.size() != output_shapes_count_) {
+    throw std::runtime_error("YoloSegmenter: the " + backend_ + " engine returned " +
+                             std::to_string(raw.size()) + " outputs, expected " +
+                             std::to_string(output_shapes_count_));
+  }
   std::vector<cv::Mat> out(2);
-  out[0] = raw.at(layout_.detection_output).clone();  // raw aliases the network's buffers
-  if (layout_.has_prototypes()) out[1] = raw.at(layout_.prototype_output).clone();
+  out[0] = raw[layout_.detection_output];
+  if (layout_.has_prototypes()) out[1] = raw[layout_.prototype_output];
   return out;
 }
 

@@ -10,15 +10,41 @@
 // that size gives the output shapes, which are checked before the first frame. Detection-only
 // models run with box-shaped masks (a warning is logged).
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <opencv2/core.hpp>
-#include <opencv2/dnn.hpp>
 #include <string>
 #include <vector>
 
 #include "slam/dynamic/mask_utils.h"
+#include "slam/dynamic/onnx_model.h"
 #include "slam/dynamic/segmenter.h"
 
 namespace pcr {
+
+// Runs a YOLOv8 network: a blob in, the raw output tensors out. OpenCV DNN is the default
+// engine; src/gpu provides one that runs the network on CUDA or on its CPU twin.
+// Thread-compatible: one Forward() at a time.
+class InferenceEngine {
+ public:
+  virtual ~InferenceEngine() = default;
+  // Shapes of the outputs (e.g. {1, 116, 2940} and {1, 32, 56, 160}), in the order Forward()
+  // returns them.
+  virtual std::vector<std::vector<int>> OutputShapes() const = 0;
+  // blob: CV_32F 1 x 3 x H x W at the size the engine was made for. Returns CV_32F tensors owned
+  // by the caller.
+  virtual std::vector<cv::Mat> Forward(const cv::Mat& blob) = 0;
+  virtual std::string Backend() const = 0;  // e.g. "opencv-dnn-cpu", "pcr-cuda:0 (...)"
+};
+
+// Makes an engine for the serialized ONNX model at a 1 x 3 x H x W input. Throws
+// std::invalid_argument (or InputError) saying why the model cannot run on it.
+using InferenceEngineFactory = std::function<std::unique_ptr<InferenceEngine>(
+    const std::vector<uint8_t>& model_bytes, cv::Size input_size)>;
+
+// OpenCV DNN (its CUDA backend when allow_cuda, OpenCV was built with CUDA and a GPU exists).
+std::unique_ptr<InferenceEngine> MakeOpenCvDnnEngine(const std::vector<uint8_t>& model_bytes,
+                                                     cv::Size input_size, bool allow_cuda);
 
 struct YoloOptions {
   std::string model_path;        // ONNX file
@@ -39,6 +65,7 @@ struct YoloOptions {
   // Used only when the model's input height/width are symbolic (a `dynamic=True` export).
   cv::Size dynamic_input_size{640, 640};
   bool allow_cuda = true;  // use the OpenCV DNN CUDA backend when OpenCV has it and a GPU exists
+  InferenceEngineFactory engine_factory;  // empty: OpenCV DNN
   DynamicClassPolicy classes;
 
   bool IsValid(std::string* why) const;
@@ -46,11 +73,6 @@ struct YoloOptions {
 
 // The 80 COCO class names in Ultralytics order (index = class id).
 const std::vector<std::string>& CocoClassNames();
-
-// Dims of the first graph input (not an initializer) of a serialized ONNX ModelProto; symbolic
-// or missing dims are -1. Throws std::invalid_argument when the bytes are not a ModelProto with a
-// graph input (bad protobuf wire format, no graph, no input).
-std::vector<int64_t> OnnxGraphInputShape(const std::vector<uint8_t>& model_bytes);
 
 // The layout of a YOLOv8 model's outputs, from their shapes.
 struct YoloOutputLayout {
@@ -150,10 +172,10 @@ class YoloSegmenter final : public Segmenter {
 
  private:
   YoloOptions options_;
-  cv::dnn::Net net_;
+  std::unique_ptr<InferenceEngine> engine_;
   cv::Size input_size_;
   YoloOutputLayout layout_;
-  std::vector<std::string> output_names_;
+  size_t output_shapes_count_ = 0;
   std::vector<std::string> class_names_;
   std::string backend_;
   YoloStageTimes last_times_;

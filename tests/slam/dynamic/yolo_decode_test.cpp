@@ -8,6 +8,7 @@
 #include "slam/common/error.h"
 #include "slam/dynamic/mask_utils.h"
 #include "slam/dynamic/yolo_segmenter.h"
+#include "support/onnx_writer.h"
 
 namespace pcr {
 namespace {
@@ -359,42 +360,11 @@ TEST(YoloOptions, ValidationCatchesBadValues) {
 
 // ---- ONNX input shape reader ----
 
-void Varint(std::vector<uint8_t>* out, uint64_t v) {
-  while (v >= 0x80) {
-    out->push_back(static_cast<uint8_t>(v | 0x80));
-    v >>= 7;
-  }
-  out->push_back(static_cast<uint8_t>(v));
-}
-std::vector<uint8_t> VarintField(int number, uint64_t v) {
-  std::vector<uint8_t> out;
-  Varint(&out, static_cast<uint64_t>(number) << 3);
-  Varint(&out, v);
-  return out;
-}
-std::vector<uint8_t> BytesField(int number, const std::vector<uint8_t>& payload) {
-  std::vector<uint8_t> out;
-  Varint(&out, (static_cast<uint64_t>(number) << 3) | 2);
-  Varint(&out, payload.size());
-  out.insert(out.end(), payload.begin(), payload.end());
-  return out;
-}
-std::vector<uint8_t> Str(const std::string& s) { return {s.begin(), s.end()}; }
-std::vector<uint8_t> Cat(std::initializer_list<std::vector<uint8_t>> parts) {
-  std::vector<uint8_t> out;
-  for (const auto& p : parts) out.insert(out.end(), p.begin(), p.end());
-  return out;
-}
-// ValueInfoProto with a tensor type of the given dims (-1 = symbolic "dyn").
-std::vector<uint8_t> ValueInfo(const std::string& name, const std::vector<int64_t>& dims) {
-  std::vector<uint8_t> shape;
-  for (int64_t d : dims) {
-    const auto dim = d >= 0 ? VarintField(1, static_cast<uint64_t>(d)) : BytesField(2, Str("dyn"));
-    shape = Cat({shape, BytesField(1, dim)});
-  }
-  const auto tensor = Cat({VarintField(1, 1), BytesField(2, shape)});
-  return Cat({BytesField(1, Str(name)), BytesField(2, BytesField(1, tensor))});
-}
+using test::BytesField;
+using test::Cat;
+using test::Str;
+using test::ValueInfo;
+using test::VarintField;
 
 TEST(YoloOnnx, InputShapeSkipsInitializersAndMarksSymbolicDims) {
   const auto initializer = Cat({VarintField(1, 3), BytesField(8, Str("w")), BytesField(9, {1, 2})});

@@ -1,0 +1,70 @@
+#pragma once
+// A reader for serialized ONNX models (the protobuf ModelProto, parsed from its wire format; no
+// protobuf library): the graph's nodes, attributes, initializers, inputs and outputs, enough to
+// lower a convolutional network for the executors in src/gpu and to read a model's input size.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace pcr {
+
+struct OnnxTensor {
+  enum DataType : int { kFloat = 1, kInt32 = 6, kInt64 = 7, kDouble = 11 };
+  std::string name;
+  int data_type = 0;  // TensorProto.DataType
+  std::vector<int64_t> dims;
+  std::vector<float> floats;  // kFloat and kDouble tensors
+  std::vector<int64_t> ints;  // kInt64 and kInt32 tensors
+  int64_t ElementCount() const;
+  bool is_float() const { return data_type == kFloat || data_type == kDouble; }
+  bool is_int() const { return data_type == kInt64 || data_type == kInt32; }
+};
+
+struct OnnxAttribute {
+  std::string name;
+  float f = 0.0f;
+  int64_t i = 0;
+  std::string s;
+  std::vector<int64_t> ints;
+  std::vector<float> floats;
+  std::vector<OnnxTensor> t;  // at most one: the `t` field (Constant's value)
+};
+
+struct OnnxNode {
+  std::string name, op_type, domain;
+  std::vector<std::string> inputs, outputs;  // an empty input name is an omitted optional input
+  std::vector<OnnxAttribute> attributes;
+
+  const OnnxAttribute* Find(const std::string& attribute) const;  // null when absent
+  int64_t Int(const std::string& attribute, int64_t fallback) const;
+  float Float(const std::string& attribute, float fallback) const;
+  std::string String(const std::string& attribute, const std::string& fallback) const;
+  std::vector<int64_t> Ints(const std::string& attribute) const;  // empty when absent
+};
+
+struct OnnxValueInfo {
+  std::string name;
+  int elem_type = 0;
+  std::vector<int64_t> dims;  // symbolic or missing dims are -1
+};
+
+struct OnnxModel {
+  int64_t opset = 0;            // of the default domain
+  std::vector<OnnxNode> nodes;  // topologically sorted, as ONNX requires
+  std::vector<OnnxTensor> initializers;
+  std::vector<OnnxValueInfo> inputs;  // graph inputs that are not initializers
+  std::vector<OnnxValueInfo> outputs;
+};
+
+// Throws std::invalid_argument (with the byte offset) when the bytes are not a well-formed
+// ModelProto with a graph, or a tensor keeps its data outside the file (external data) or in an
+// unsupported type, or its data size does not match its dims.
+OnnxModel ParseOnnxModel(const std::vector<uint8_t>& model_bytes);
+
+// Dims of the first graph input (not an initializer) of a serialized ONNX ModelProto; symbolic
+// or missing dims are -1. Reads only the graph's inputs and initializer names, not the weights.
+// Throws std::invalid_argument when the bytes are not a ModelProto with a graph input (bad
+// protobuf wire format, no graph, no input).
+std::vector<int64_t> OnnxGraphInputShape(const std::vector<uint8_t>& model_bytes);
+
+}  // namespace pcr
