@@ -1,0 +1,93 @@
+#include "gpu/net_engine.h"
+
+#include <spdlog/spdlog.h>
+
+#include <stdexcept>
+
+#include "gpu/executor.h"
+
+namespace pcr::gpu {
+namespace {
+
+// CUDA device index of "cuda" / "cuda:N", -1 for "twin"; throws for anything else.
+int DeviceIndex(const std::string& device) {
+  if (device == "twin") return -1;
+  if (device == "cuda") return 0;
+  if (device.rfind("cuda:", 0) == 0 && device.size() > 5 && device.size() < 9 &&
+      device.find_first_not_of("0123456789", 5) == std::string::npos) {
+    return std::stoi(device.substr(5));
+  }
+  throw std::invalid_argument("unknown inference device '" + device +
+                              "' (expected twin, cuda or cuda:N)");
+}
+
+class NetEngine final : public InferenceEngine {
+ public:
+  NetEngine(std::shared_ptr<const NetPlan> plan, std::unique_ptr<Executor> executor)
+      : plan_(std::move(plan)), executor_(std::move(executor)) {}
+
+  std::vector<std::vector<int>> OutputShapes() const override {
+    std::vector<std::vector<int>> shapes;
+    for (const PlanTensor& t : plan_->outputs) shapes.emplace_back(t.shape.begin(), t.shape.end());
+    return shapes;
+  }
+
+  std::vector<cv::Mat> Forward(const cv::Mat& blob) override {
+    const std::vector<int64_t>& in = plan_->input.shape;
+    const bool fits = blob.type() == CV_32F && blob.isContinuous() && blob.dims == 4 &&
+                      blob.size[0] == in[0] && blob.size[1] == in[1] && blob.size[2] == in[2] &&
+                      blob.size[3] == in[3];
+    if (!fits) throw std::invalid_argument("NetEngine: the blob does not match the model input");
+    std::vector<std::vector<float>> outputs = executor_->Run(blob.ptr<float>());
+    std::vector<cv::Mat> mats;
+    for (size_t i = 0; i < outputs.size(); ++i) {
+      const std::vector<int64_t>& s = plan_->outputs[i].shape;
+      const std::vector<int> dims(s.begin(), s.end());
+      cv::Mat m(static_cast<int>(dims.size()), dims.data(), CV_32F);
+      std::copy(outputs[i].begin(), outputs[i].end(), m.ptr<float>());
+      mats.push_back(m);
+    }
+    return mats;
+  }
+
+  std::string Backend() const override { return "pcr-" + executor_->Name(); }
+
+ private:
+  std::shared_ptr<const NetPlan> plan_;
+  std::unique_ptr<Executor> executor_;
+};
+
+}  // namespace
+
+bool IsNetEngineDevice(const std::string& device) {
+  try {
+    DeviceIndex(device);
+    return true;
+  } catch (const std::invalid_argument&) {
+    return false;
+  }
+}
+
+std::unique_ptr<InferenceEngine> MakeNetEngine(const std::vector<uint8_t>& model_bytes,
+                                               cv::Size input_size, const std::string& device) {
+  const int index = DeviceIndex(device);
+  auto plan = std::make_shared<const NetPlan>(
+      BuildNetPlan(model_bytes, input_size.height, input_size.width));
+  std::unique_ptr<Executor> executor =
+      index < 0 ? MakeTwinExecutor(plan) : MakeCudaExecutor(plan, index);
+  spdlog::info(
+      "NetEngine: {} steps ({} fused activations), {:.1f} MiB weights, {:.1f} MiB "
+      "activations, on {}",
+      plan->steps.size(), plan->fused_activations, ConstantFloats(*plan) * 4.0 / (1 << 20),
+      ActivationFloats(*plan) * 4.0 / (1 << 20), executor->Name());
+  return std::make_unique<NetEngine>(plan, std::move(executor));
+}
+
+InferenceEngineFactory NetEngineFactory(const std::string& device) {
+  DeviceIndex(device);  // reject a bad name now, not at the first model
+  return [device](const std::vector<uint8_t>& model_bytes, cv::Size input_size) {
+    return MakeNetEngine(model_bytes, input_size, device);
+  };
+}
+
+}  // namespace pcr::gpu

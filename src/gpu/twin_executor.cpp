@@ -1,0 +1,151 @@
+// The CPU twin of cuda_executor.cu: the same steps, the same per-element functions
+// (tensor_math.h), Eigen for the GEMMs.
+#include <Eigen/Core>
+#include <stdexcept>
+#include <type_traits>
+
+#include "gpu/executor.h"
+
+namespace pcr::gpu {
+namespace {
+
+using RowMajor = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// out (m x n) = a (m x k) * b (k x n), all row-major.
+void Gemm(const float* a, const float* b, float* out, int64_t m, int64_t k, int64_t n) {
+  Eigen::Map<const RowMajor> A(a, m, k);
+  Eigen::Map<const RowMajor> B(b, k, n);
+  Eigen::Map<RowMajor> C(out, m, n);
+  C.noalias() = A * B;
+}
+
+class TwinExecutor final : public Executor {
+ public:
+  explicit TwinExecutor(std::shared_ptr<const NetPlan> plan) : plan_(std::move(plan)) {
+    if (!plan_) throw std::invalid_argument("TwinExecutor: no plan");
+    storage_.resize(plan_->buffers.size());
+    for (size_t i = 0; i < plan_->buffers.size(); ++i) {
+      if (!plan_->buffers[i].constant())
+        storage_[i].resize(static_cast<size_t>(plan_->buffers[i].size));
+    }
+    scratch_.resize(static_cast<size_t>(plan_->scratch_size));
+  }
+
+  std::vector<std::vector<float>> Run(const float* input) override {
+    float* in = Buffer(plan_->input.buffer);
+    std::copy(input, input + plan_->buffers[plan_->input.buffer].size, in);
+    for (size_t s = 0; s < plan_->steps.size(); ++s) {
+      std::visit([this](const auto& step) { Execute(step); }, plan_->steps[s]);
+    }
+    std::vector<std::vector<float>> outputs;
+    for (const PlanTensor& t : plan_->outputs) {
+      int64_t count = 1;
+      for (int64_t d : t.shape) count *= d;
+      const float* data = Buffer(t.buffer);
+      outputs.emplace_back(data, data + count);
+    }
+    return outputs;
+  }
+
+  std::string Name() const override { return "cpu-twin"; }
+
+ private:
+  float* Buffer(int i) {
+    const PlanBuffer& b = plan_->buffers[i];
+    // Constant buffers are read-only; the steps never write them.
+    return b.constant() ? const_cast<float*>(b.data.data()) : storage_[i].data();
+  }
+  const float* Optional(int i) { return i < 0 ? nullptr : Buffer(i); }
+
+  void Execute(const ConvStep& s) {
+    const ConvGeometry& g = s.geometry;
+    const float* in = Buffer(s.in);
+    const float* col = in;
+    if (!IsPointwise(g)) {
+      const int64_t n = ColRows(g) * ColCols(g);
+      for (int64_t i = 0; i < n; ++i) scratch_[i] = Im2ColAt(in, g, i);
+      col = scratch_.data();
+    }
+    float* out = Buffer(s.out);
+    Gemm(Buffer(s.weight), col, out, g.c_out, ColRows(g), ColCols(g));
+    const float* bias = Optional(s.bias);
+    const int64_t plane = ColCols(g), n = plane * g.c_out;
+    for (int64_t i = 0; i < n; ++i) out[i] = BiasActivateAt(out, bias, plane, s.activation, i);
+  }
+
+  void Execute(const ConvTransposeStep& s) {
+    const ConvTransposeGeometry& g = s.geometry;
+    const int64_t taps = static_cast<int64_t>(g.c_out) * g.kh * g.kw;
+    const int64_t pixels = static_cast<int64_t>(g.h_in) * g.w_in;
+    Gemm(Buffer(s.weight), Buffer(s.in), scratch_.data(), taps, g.c_in, pixels);
+    float* out = Buffer(s.out);
+    const float* bias = Optional(s.bias);
+    const int64_t n = ConvTransposeOutCount(g);
+    for (int64_t i = 0; i < n; ++i) out[i] = ConvTransposeAt(scratch_.data(), bias, g, i);
+  }
+
+  void Execute(const UnaryStep& s) {
+    const float* in = Buffer(s.in);
+    float* out = Buffer(s.out);
+    for (int64_t i = 0; i < s.count; ++i) out[i] = Activate(in[i], s.activation);
+  }
+
+  void Execute(const BinaryStep& s) {
+    const float* a = Buffer(s.a);
+    const float* b = Buffer(s.b);
+    float* out = Buffer(s.out);
+    for (int64_t i = 0; i < s.count; ++i) out[i] = BinaryAt(a, b, s.geometry, i);
+  }
+
+  void Execute(const CopyStep& s) {
+    const float* in = Buffer(s.in);
+    float* out = Buffer(s.out);
+    const int64_t n = CopyCount(s.geometry);
+    for (int64_t i = 0; i < n; ++i) {
+      int64_t ii = 0, oi = 0;
+      CopyIndices(s.geometry, i, &ii, &oi);
+      out[oi] = in[ii];
+    }
+  }
+
+  void Execute(const MaxPoolStep& s) {
+    const PoolGeometry& g = s.geometry;
+    const float* in = Buffer(s.in);
+    float* out = Buffer(s.out);
+    const int64_t n = static_cast<int64_t>(g.channels) * g.h_out * g.w_out;
+    for (int64_t i = 0; i < n; ++i) out[i] = MaxPoolAt(in, g, i);
+  }
+
+  void Execute(const ResizeStep& s) {
+    const ResizeGeometry& g = s.geometry;
+    const float* in = Buffer(s.in);
+    float* out = Buffer(s.out);
+    const int64_t n = static_cast<int64_t>(g.channels) * g.h_out * g.w_out;
+    for (int64_t i = 0; i < n; ++i) out[i] = ResizeNearestAt(in, g, i);
+  }
+
+  void Execute(const TransposeStep& s) {
+    const float* in = Buffer(s.in);
+    float* out = Buffer(s.out);
+    for (int64_t i = 0; i < s.count; ++i) out[i] = TransposeAt(in, s.geometry, i);
+  }
+
+  void Execute(const SoftmaxStep& s) {
+    const float* in = Buffer(s.in);
+    float* out = Buffer(s.out);
+    const int64_t rows = s.geometry.outer * s.geometry.inner;
+    for (int64_t r = 0; r < rows; ++r) SoftmaxRow(in, out, s.geometry, r);
+  }
+
+  std::shared_ptr<const NetPlan> plan_;
+  std::vector<std::vector<float>> storage_;
+  std::vector<float> scratch_;
+};
+
+}  // namespace
+
+std::unique_ptr<Executor> MakeTwinExecutor(std::shared_ptr<const NetPlan> plan) {
+  return std::make_unique<TwinExecutor>(std::move(plan));
+}
+
+}  // namespace pcr::gpu
