@@ -13,6 +13,7 @@
 #include <opencv2/core.hpp>
 
 #include "app/commands.h"
+#include "app/inference.h"
 #include "app/progress.h"
 #include "app/run_slam.h"
 #include "eval/association.h"
@@ -29,6 +30,7 @@ struct PipelineArgs {
   std::string sequence, out = "out/pipeline", config, frames;
   std::vector<std::string> overrides;
   std::string policy = "pipelined", adaptive = "off", segmenter = "none", model, model_high;
+  std::string inference = "opencv";
   std::string filter = "off";  // on: the multi-stage DynamicFilter scores keypoints
   double rate = 1.0, mask_deadline_ms = 10, delay_ms = 0;
   int threads = 2, max_in_flight = 4, waiting = 1;
@@ -100,6 +102,7 @@ nlohmann::json OptionsJson(const PipelineArgs& a) {
           {"filter", a.filter},
           {"model", a.model},
           {"model_high", a.model_high},
+          {"inference", a.inference},
           {"delay_ms", a.delay_ms},
           {"trim_every", a.trim_every},
           {"trim_after_keyframe", a.trim_after_keyframe}};
@@ -120,6 +123,7 @@ void RunPipelineCommand(const PipelineArgs& args) {
     if (args.model.empty()) throw ConfigError("--segmenter yolo needs --model FILE.onnx");
     YoloOptions yolo;
     yolo.model_path = args.model;
+    ApplyInference(args.inference, &yolo);
     networks.push_back(std::make_unique<YoloSegmenter>(yolo));
     segmenters.fast = networks.back().get();
     if (!args.model_high.empty()) {
@@ -220,6 +224,7 @@ void AddPipelineCommand(CLI::App& app) {
                   "the fast model of the adaptive levels");
   cmd->add_option("--model-high", args->model_high,
                   "adaptive high-quality model (e.g. yolov8n-seg_coco_384x1280.onnx)");
+  cmd->add_option("--inference", args->inference, kInferenceHelp)->capture_default_str();
   cmd->add_option("--frames", args->frames, "frame range A:B (B exclusive)");
   cmd->add_option("--config", args->config, "YAML configuration (see config/*.yaml)");
   cmd->add_option("--set", args->overrides, "override one key: section.key=value (repeatable)");

@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "app/commands.h"
+#include "app/inference.h"
 #include "app/progress.h"
 #include "app/run_slam.h"
 #include "io/dataset.h"
@@ -33,6 +34,7 @@ void AddRunCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--model", args->dynamic.model_path,
                   "YOLOv8-seg ONNX model for --segmenter yolo");
+  cmd->add_option("--inference", args->dynamic.inference, kInferenceHelp)->capture_default_str();
   cmd->add_option_function<std::string>(
          "--filter", [args](const std::string& v) { args->dynamic.filter = v == "on"; },
          "multi-stage dynamic-point filter before tracking: on or off (default off)")

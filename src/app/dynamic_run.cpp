@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
+#include "app/inference.h"
 #include "app/truth_segmenter.h"
 #include "slam/common/error.h"
 #include "slam/dynamic/yolo_segmenter.h"
@@ -20,6 +21,7 @@ DynamicRun::DynamicRun(const Dataset& dataset, const DynamicRunOptions& options,
       throw ConfigError("--segmenter yolo needs --model FILE (a YOLOv8-seg ONNX export)");
     YoloOptions yolo;
     yolo.model_path = options_.model_path;
+    ApplyInference(options_.inference, &yolo);
     segmenter_ = std::make_unique<YoloSegmenter>(yolo);
   } else if (options_.segmenter == "truth") {
     TruthSegmenterOptions truth;

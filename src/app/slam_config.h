@@ -19,13 +19,14 @@ struct CameraOverride {
 
 // Dynamic-point filtering of a run (command-line options, not YAML).
 struct DynamicRunOptions {
-  std::string segmenter = "none";  // none | yolo | truth (synthetic sequences)
-  std::string model_path;          // YOLOv8-seg ONNX for --segmenter yolo
-  bool filter = false;             // run the multi-stage filter (Eq. 2) before tracking
-  bool dump = false;               // write per-keypoint decisions (filter_decisions.txt)
-  double truth_miss_rate = 0.0;    // --segmenter truth: emulated detector misses
-  std::string truth_labels;        // KITTI tracking label_02 file: score decisions against it
-  DynamicFilterOptions options;    // the filter's configuration (config section "filter")
+  std::string segmenter = "none";    // none | yolo | truth (synthetic sequences)
+  std::string model_path;            // YOLOv8-seg ONNX for --segmenter yolo
+  std::string inference = "opencv";  // --inference: opencv | twin | cuda[:N] | auto
+  bool filter = false;               // run the multi-stage filter (Eq. 2) before tracking
+  bool dump = false;                 // write per-keypoint decisions (filter_decisions.txt)
+  double truth_miss_rate = 0.0;      // --segmenter truth: emulated detector misses
+  std::string truth_labels;          // KITTI tracking label_02 file: score decisions against it
+  DynamicFilterOptions options;      // the filter's configuration (config section "filter")
 };
 
 struct RunConfig {
