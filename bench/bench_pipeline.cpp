@@ -6,7 +6,7 @@
 //
 //   bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N]
 //                  [--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none]
-//                  [--filter on|off] [--out DIR]
+//                  [--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]
 //
 // Default input: KITTI raw drive 0005 (stereo, moving vehicles and a cyclist) with the
 // YOLOv8n-seg 224x640 model (the fast level) and, for adaptive quality, the 384x1280 model (the
@@ -44,6 +44,7 @@
 #include <string>
 #include <vector>
 
+#include "app/inference.h"
 #include "app/run_slam.h"
 #include "eval/association.h"
 #include "eval/evaluation.h"
@@ -65,7 +66,7 @@ std::string SharedDir() {
 
 struct BenchArgs {
   std::string sequence = SharedDir() + "/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
-  std::string frames, segmenter = "yolo", model, model_high, out;
+  std::string frames, segmenter = "yolo", model, model_high, out, inference = "opencv";
   bool filter = true;
   int threads = 2, max_in_flight = 4;
   double rate = 1.0;
@@ -101,11 +102,13 @@ BenchArgs ParseArgs(int argc, char** argv) {
       a.filter = v == "on";
     } else if (arg == "--out") {
       a.out = value();
+    } else if (arg == "--inference") {
+      a.inference = value();
     } else if (arg == "-h" || arg == "--help") {
       std::printf(
           "bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N] "
           "[--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none] "
-          "[--filter on|off] [--out DIR]\n");
+          "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]\n");
       std::exit(0);
     } else if (!arg.empty() && arg[0] != '-') {
       a.sequence = arg;
@@ -213,13 +216,14 @@ int main(int argc, char** argv) {
       auto load = [&](const std::string& path) {
         pcr::YoloOptions options;
         options.model_path = path;
+        pcr::app::ApplyInference(args.inference, &options);
         networks.push_back(std::make_unique<pcr::YoloSegmenter>(options));
         networks.back()->Segment(first);
         return networks.back().get();
       };
       segmenters.fast = load(args.model);
-      segmenter_name = fmt::format("YOLOv8n-seg {}x{}", networks.back()->input_size().height,
-                                   networks.back()->input_size().width);
+      segmenter_name = fmt::format("YOLOv8n-seg {}x{} on {}", networks.back()->input_size().height,
+                                   networks.back()->input_size().width, networks.back()->backend());
       if (args.model_high != "none" && std::filesystem::is_regular_file(args.model_high)) {
         segmenters.accurate = load(args.model_high);
         segmenter_name +=

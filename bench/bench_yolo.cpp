@@ -1,7 +1,9 @@
 // YOLOv8n-seg stages per shipped model on the KITTI test frame, OpenCV with 2 threads:
 // preprocess (letterbox + blob), forward (OpenCV DNN), decode (threshold, NMS, masks, instance
 // map) and the dynamic-confidence map (dilation + smoothing).
-//   bench_yolo [--benchmark_filter=...]   (models and image from PCR_SHARED_DIR/models)
+//   bench_yolo [--inference opencv|twin|cuda[:N]|auto] [--benchmark_filter=...]
+//   (models and image from PCR_SHARED_DIR/models; --inference picks the engine of the forward
+//   pass, as in `pcr_orb pipeline`)
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
@@ -12,6 +14,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "app/inference.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
 namespace {
@@ -19,6 +22,11 @@ namespace {
 std::string SharedDir() {
   if (const char* env = std::getenv("PCR_SHARED_DIR"); env && *env) return env;
   return PCR_SHARED_DIR;
+}
+
+std::string& Inference() {
+  static std::string inference = "opencv";
+  return inference;
 }
 
 // One segmenter per model plus the intermediate results of one frame, so that each stage is
@@ -48,6 +56,7 @@ ModelState& State(const std::string& model) {
   ModelState& s = states[model];
   pcr::YoloOptions options;
   options.model_path = SharedDir() + "/models/" + model;
+  pcr::app::ApplyInference(Inference(), &options);
   s.segmenter = std::make_unique<pcr::YoloSegmenter>(options);
   s.blob = s.segmenter->Preprocess(Frame(), &s.letterbox);
   s.outputs = s.segmenter->Forward(s.blob);  // also warms the network up
@@ -93,6 +102,13 @@ void BM_Segment(benchmark::State& state, const std::string& model) {
 
 int main(int argc, char** argv) {
   cv::setNumThreads(2);
+  for (int i = 1; i + 1 < argc; ++i) {  // --inference VALUE, removed before Google Benchmark
+    if (std::string(argv[i]) != "--inference") continue;
+    Inference() = argv[i + 1];
+    for (int k = i; k + 2 <= argc; ++k) argv[k] = argv[k + 2];
+    argc -= 2;
+    break;
+  }
   const char* const kModels[] = {"yolov8n-seg_coco_640x640.onnx", "yolov8n-seg_coco_384x1280.onnx",
                                  "yolov8n-seg_coco_224x640.onnx"};
   for (const char* model : kModels) {

@@ -732,11 +732,80 @@ class Lowering {
   std::set<size_t> skipped_;
 };
 
+// Greedy interval allocation: tensors in order of first use; each takes the smallest free buffer
+// that is large enough, else a new one. A buffer is free once
+// the last step touching its tensor is strictly before the new tensor's first step.
+void ShareStorage(NetPlan* plan) {
+  const int n = static_cast<int>(plan->buffers.size());
+  std::vector<int> first(n, -1), last(n, -1);
+  for (int k = 0; k < static_cast<int>(plan->steps.size()); ++k) {
+    ForEachBuffer(plan->steps[k], [&](int& b) {
+      if (first[b] < 0) first[b] = k;
+      last[b] = k;
+    });
+  }
+  std::vector<bool> pinned(n, false);
+  pinned[plan->input.buffer] = true;
+  for (const PlanTensor& t : plan->outputs) pinned[t.buffer] = true;
+
+  std::vector<int> order;
+  for (int b = 0; b < n; ++b) {
+    if (!plan->buffers[b].constant() && !pinned[b] && first[b] >= 0) order.push_back(b);
+  }
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return first[a] < first[b]; });
+
+  std::vector<PlanBuffer> buffers;
+  std::vector<int> map(n, -1);
+  for (int b = 0; b < n; ++b) {  // constants, the input, outputs and unused buffers stay
+    if (plan->buffers[b].constant() || pinned[b] || first[b] < 0) {
+      map[b] = static_cast<int>(buffers.size());
+      buffers.push_back(std::move(plan->buffers[b]));
+    }
+  }
+  struct Slot {
+    int buffer;
+    int busy_until;
+  };
+  std::vector<Slot> slots;
+  for (int b : order) {
+    const int64_t size = plan->buffers[b].size;
+    int best = -1;
+    for (int i = 0; i < static_cast<int>(slots.size()); ++i) {
+      if (slots[i].busy_until >= first[b]) continue;
+      const int64_t have = buffers[slots[i].buffer].size;
+      if (best < 0) {
+        if (have >= size) best = i;
+        continue;
+      }
+      const int64_t best_have = buffers[slots[best].buffer].size;
+      const bool fits = have >= size, best_fits = best_have >= size;
+      if (fits && (!best_fits || have < best_have)) best = i;
+    }
+    if (best < 0) {
+      slots.push_back({static_cast<int>(buffers.size()), -1});
+      buffers.push_back(PlanBuffer{0, {}});
+      best = static_cast<int>(slots.size()) - 1;
+    }
+    PlanBuffer& target = buffers[slots[best].buffer];
+    target.size = std::max(target.size, size);
+    slots[best].busy_until = last[b];
+    map[b] = slots[best].buffer;
+  }
+  for (PlanStep& step : plan->steps) ForEachBuffer(step, [&](int& b) { b = map[b]; });
+  plan->input.buffer = map[plan->input.buffer];
+  for (PlanTensor& t : plan->outputs) t.buffer = map[t.buffer];
+  plan->buffers = std::move(buffers);
+}
+
 }  // namespace
 
-NetPlan BuildNetPlan(const std::vector<uint8_t>& model_bytes, int height, int width) {
+NetPlan BuildNetPlan(const std::vector<uint8_t>& model_bytes, int height, int width,
+                     bool share_storage) {
   const OnnxModel model = ParseOnnxModel(model_bytes);
-  return Lowering(model, height, width).Build();
+  NetPlan plan = Lowering(model, height, width).Build();
+  for (const PlanBuffer& b : plan.buffers) plan.tensors += b.constant() ? 0 : 1;
+  if (share_storage) ShareStorage(&plan);
+  return plan;
 }
 
 int64_t ActivationFloats(const NetPlan& plan) {

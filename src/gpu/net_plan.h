@@ -8,6 +8,7 @@
 // Identity is an alias: its output shares its input's buffer.
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -91,6 +92,7 @@ struct NetPlan {
   std::vector<PlanTensor> outputs;      // in the graph's output order
   int64_t scratch_size = 0;             // floats of scratch the largest conv needs
   int fused_activations = 0;            // Conv -> Sigmoid -> Mul chains folded into one step
+  int tensors = 0;  // computed tensors before storage sharing (each had its own buffer)
 };
 
 // Lowers the serialized ONNX model for an input of 1 x 3 x height x width. Throws
@@ -98,10 +100,42 @@ struct NetPlan {
 // supported set (Conv with group 1, ConvTranspose with kernel == stride, Sigmoid, Add, Sub, Mul,
 // Div, Concat, Split, Slice on one axis, MaxPool, Resize nearest, Reshape, Identity, Transpose,
 // Softmax, Constant) or when shapes do not agree.
-NetPlan BuildNetPlan(const std::vector<uint8_t>& model_bytes, int height, int width);
+//
+// With share_storage, computed tensors whose lifetimes (first to last step that touches them)
+// do not overlap share one buffer, so activation memory is a few of the largest tensors rather
+// than all of them; the input and the outputs keep buffers of their own. A step's output never
+// shares with its own inputs.
+NetPlan BuildNetPlan(const std::vector<uint8_t>& model_bytes, int height, int width,
+                     bool share_storage = true);
+
+// Calls f(int& buffer) for every buffer a step reads or writes (weights and biases included).
+template <typename F>
+void ForEachBuffer(PlanStep& step, F&& f);
 
 // Total floats of the plan's non-constant buffers and of its constants.
 int64_t ActivationFloats(const NetPlan& plan);
 int64_t ConstantFloats(const NetPlan& plan);
+
+template <typename F>
+void ForEachBuffer(PlanStep& step, F&& f) {
+  std::visit(
+      [&f](auto& s) {
+        using T = std::decay_t<decltype(s)>;
+        if constexpr (std::is_same_v<T, ConvStep> || std::is_same_v<T, ConvTransposeStep>) {
+          f(s.in);
+          f(s.weight);
+          if (s.bias >= 0) f(s.bias);
+          f(s.out);
+        } else if constexpr (std::is_same_v<T, BinaryStep>) {
+          f(s.a);
+          f(s.b);
+          f(s.out);
+        } else {
+          f(s.in);
+          f(s.out);
+        }
+      },
+      step);
+}
 
 }  // namespace pcr::gpu
