@@ -270,13 +270,7 @@ class Lowering {
     g.h_out = (g.h_in + 2 * g.pad_top - g.dilation_h * (g.kh - 1) - 1) / g.stride_h + 1;
     g.w_out = (g.w_in + 2 * g.pad_left - g.dilation_w * (g.kw - 1) - 1) / g.stride_w + 1;
     if (g.h_out <= 0 || g.w_out <= 0) Fail(n, "empty output");
-    int bias = -1;
-    if (HasInput(n, 2)) {
-      const Value& b = Float(n, 2);
-      if (!plan_.buffers[b.buffer].constant() || Count(b.shape) != g.c_out)
-        Fail(n, "bias must be a constant of c_out values");
-      bias = b.buffer;
-    }
+    const int bias = OptionalBias(n, g.c_out);
     const Shape out_shape = {1, g.c_out, g.h_out, g.w_out};
     ConvStep step{x.buffer, -1, w.buffer, bias, g, Activation::kNone};
     // Conv -> Sigmoid -> Mul(conv, sigmoid) is SiLU: one step instead of three.
@@ -292,6 +286,16 @@ class Lowering {
     step.out = mul ? Define(*mul, 0, out_shape) : Define(n, 0, out_shape);
     if (!IsPointwise(g)) plan_.scratch_size = std::max(plan_.scratch_size, ColRows(g) * ColCols(g));
     Emit(n, step);
+  }
+
+  // The constant bias (input 2) of a Conv or ConvTranspose, -1 when absent.
+  int OptionalBias(const OnnxNode& n, int c_out) const {
+    if (!HasInput(n, 2)) return -1;
+    const Value& b = Float(n, 2);
+    if (!plan_.buffers[b.buffer].constant() || Count(b.shape) != c_out) {
+      Fail(n, "bias must be a constant of c_out values");
+    }
+    return b.buffer;
   }
 
   bool FindSilu(size_t conv_index, size_t* sigmoid_index, size_t* mul_index) const {
@@ -357,13 +361,7 @@ class Lowering {
     for (int64_t c = 0; c < g.c_in; ++c) {
       for (int64_t t = 0; t < taps; ++t) packed[t * g.c_in + c] = src[c * taps + t];
     }
-    int bias = -1;
-    if (HasInput(n, 2)) {
-      const Value& b = Float(n, 2);
-      if (!plan_.buffers[b.buffer].constant() || Count(b.shape) != g.c_out)
-        Fail(n, "bias must be a constant of c_out values");
-      bias = b.buffer;
-    }
+    const int bias = OptionalBias(n, g.c_out);
     const int weight = ConstBuffer(std::move(packed));
     const int out = Define(n, 0,
                            Shape{1, g.c_out, static_cast<int64_t>(g.h_in) * g.kh,
