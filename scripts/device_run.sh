@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# The GPU check, on a machine with the NVIDIA driver and CUDA (the `device` tool's), from the
+# repository root, after scripts/device_pack.sh here. Two calls, each within the tool's 64 MiB:
+#   scripts/device_run.sh unpack    (carry .device/bin)  unpacks to $PCR_DEVICE_DIR, outside the
+#                                   checkout, so that it stays while the machine is warm
+#   scripts/device_run.sh check     (carry .device/data) runs, writing logs to $OUT:
+#     test_gpu (the CUDA executor against its CPU twin on the real model), bench_yolo's forward
+#     pass on cuda and on OpenCV DNN, and bench_pipeline (sequential, pipelined, realtime) with
+#     --inference cuda and opencv on the carried frames, 2 threads.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+dest=${PCR_DEVICE_DIR:-/root/pcr-gpu}
+out=${OUT:-.device/out}
+mkdir -p "$out"
+case "${1:-}" in
+  unpack)
+    mkdir -p "$(dirname "$dest")"
+    tar -C "$(dirname "$dest")" -xJf .device/bin/pcr-gpu.tar.xz && ls "$dest"
+    nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv
+    ;;
+  check)
+    [ -x "$dest/test_gpu" ] || { echo "run '$0 unpack' first (carry .device/bin)"; exit 2; }
+    export LD_LIBRARY_PATH="$dest/lib:/usr/local/cuda/lib64:/usr/local/cuda/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+    export PCR_SHARED_DIR="$PWD/.device/data"
+    seq="$PCR_SHARED_DIR/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"
+    model="$PCR_SHARED_DIR/models/yolov8n-seg_coco_224x640.onnx"
+    "$dest/test_gpu" --gtest_filter='YoloCuda*:NetPlan*:YoloTwin.Raw*' 2>&1 | tee "$out/test_gpu.log"
+    "$dest/bench_yolo" --inference cuda --benchmark_filter='(Forward|Segment)/224x640' 2>&1 |
+      tee "$out/bench_yolo_cuda.log"
+    "$dest/bench_yolo" --benchmark_filter='(Forward|Segment)/224x640' 2>&1 |
+      tee "$out/bench_yolo_opencv.log"
+    for inference in cuda opencv; do
+      "$dest/bench_pipeline" "$seq" --threads 2 --model "$model" --model-high none \
+        --inference "$inference" 2>&1 | tee "$out/bench_pipeline_$inference.log"
+    done
+    ;;
+  *)
+    echo "usage: $0 unpack|check"
+    exit 2
+    ;;
+esac
