@@ -163,6 +163,11 @@ class CudaExecutor final : public Executor {
   void Init() {
     if (!plan_) throw std::runtime_error("CUDA executor: null plan");
     Check(cudaSetDevice(device_), "cudaSetDevice");
+    // A host thread waiting for the GPU sleeps instead of spinning: the pipeline's CPU stages
+    // (ORB, filter, tracking) run on the same few cores meanwhile. The flag is the device's
+    // primary context's, for the whole process; a runtime that refuses to change it on an active
+    // context leaves the default (a warning-free fallback: only the waiting differs).
+    if (cudaSetDeviceFlags(cudaDeviceScheduleBlockingSync) != cudaSuccess) cudaGetLastError();
     cudaDeviceProp prop{};
     Check(cudaGetDeviceProperties(&prop, device_), "cudaGetDeviceProperties");
     name_ = "cuda:" + std::to_string(device_) + " (" + prop.name + ")";
