@@ -1,6 +1,7 @@
 #include "gpu/net_plan.h"
 
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <set>
@@ -802,6 +803,19 @@ NetPlan BuildNetPlan(const std::vector<uint8_t>& model_bytes, int height, int wi
   const OnnxModel model = ParseOnnxModel(model_bytes);
   NetPlan plan = Lowering(model, height, width).Build();
   for (const PlanBuffer& b : plan.buffers) plan.tensors += b.constant() ? 0 : 1;
+  // The kernels index in 32 bits (tensor_math.h).
+  constexpr int64_t kMaxElements = std::numeric_limits<int32_t>::max();
+  for (const PlanBuffer& b : plan.buffers) {
+    if (b.size > kMaxElements) {
+      throw std::invalid_argument("a tensor of " + std::to_string(b.size) +
+                                  " elements is beyond the executor's 32-bit indexing");
+    }
+  }
+  if (plan.scratch_size > kMaxElements) {
+    throw std::invalid_argument("a convolution's column matrix of " +
+                                std::to_string(plan.scratch_size) +
+                                " elements is beyond the executor's 32-bit indexing");
+  }
   if (share_storage) ShareStorage(&plan);
   return plan;
 }

@@ -5,7 +5,9 @@
 // element, so both executors produce the same numbers from the same code.
 //
 // Tensors are dense, row-major (NCHW for images), float32. Geometries are plain structs copied
-// into kernels by value; they hold no pointers.
+// into kernels by value; they hold no pointers. Index arithmetic is 32-bit (a 64-bit division is
+// several times slower on a CPU and emulated on a GPU): every tensor, column matrix and index
+// handed to these functions stays below 2^31 elements, which BuildNetPlan checks.
 #include <cmath>
 #include <cstdint>
 
@@ -76,25 +78,26 @@ PCR_HD inline bool IsPointwise(const ConvGeometry& g) {
 // Element `index` of the column matrix (row-major, ColRows x ColCols): row (c, ky, kx), column
 // (oy, ox); zero where the kernel tap falls into the padding.
 PCR_HD inline float Im2ColAt(const float* in, const ConvGeometry& g, int64_t index) {
-  const int64_t cols = ColCols(g);
-  const int64_t row = index / cols;
-  const int64_t col = index - row * cols;
-  const int kx = static_cast<int>(row % g.kw);
-  const int ky = static_cast<int>((row / g.kw) % g.kh);
-  const int c = static_cast<int>(row / (static_cast<int64_t>(g.kw) * g.kh));
-  const int ox = static_cast<int>(col % g.w_out);
-  const int oy = static_cast<int>(col / g.w_out);
+  const int cols = g.h_out * g.w_out;
+  const int i = static_cast<int>(index);
+  const int row = i / cols;
+  const int col = i - row * cols;
+  const int kx = row % g.kw;
+  const int ky = (row / g.kw) % g.kh;
+  const int c = row / (g.kw * g.kh);
+  const int oy = col / g.w_out;
+  const int ox = col - oy * g.w_out;
   const int y = oy * g.stride_h - g.pad_top + ky * g.dilation_h;
   const int x = ox * g.stride_w - g.pad_left + kx * g.dilation_w;
   if (y < 0 || y >= g.h_in || x < 0 || x >= g.w_in) return 0.0f;
-  return in[(static_cast<int64_t>(c) * g.h_in + y) * g.w_in + x];
+  return in[(c * g.h_in + y) * g.w_in + x];
 }
 
 // Epilogue of a GEMM whose output has `plane` elements per row (channel): adds the channel's
 // bias (bias may be null) and applies the activation. Element `index` of the c x plane output.
 PCR_HD inline float BiasActivateAt(const float* acc, const float* bias, int64_t plane,
                                    Activation act, int64_t index) {
-  const float b = bias ? bias[index / plane] : 0.0f;
+  const float b = bias ? bias[static_cast<int>(index) / static_cast<int>(plane)] : 0.0f;
   return Activate(acc[index] + b, act);
 }
 
@@ -115,14 +118,15 @@ PCR_HD inline float ConvTransposeAt(const float* taps, const float* bias,
                                     const ConvTransposeGeometry& g, int64_t index) {
   const int w_out = g.w_in * g.kw;
   const int h_out = g.h_in * g.kh;
-  const int x = static_cast<int>(index % w_out);
-  const int y = static_cast<int>((index / w_out) % h_out);
-  const int m = static_cast<int>(index / (static_cast<int64_t>(w_out) * h_out));
+  const int i = static_cast<int>(index);
+  const int x = i % w_out;
+  const int y = (i / w_out) % h_out;
+  const int m = i / (w_out * h_out);
   const int ix = x / g.kw, kx = x - ix * g.kw;
   const int iy = y / g.kh, ky = y - iy * g.kh;
-  const int64_t tap_row = (static_cast<int64_t>(m) * g.kh + ky) * g.kw + kx;
+  const int tap_row = (m * g.kh + ky) * g.kw + kx;
   const float b = bias ? bias[m] : 0.0f;
-  return taps[tap_row * g.h_in * g.w_in + static_cast<int64_t>(iy) * g.w_in + ix] + b;
+  return taps[tap_row * g.h_in * g.w_in + iy * g.w_in + ix] + b;
 }
 
 // ---- Element-wise ----
@@ -139,12 +143,14 @@ struct BinaryGeometry {
 
 PCR_HD inline float BinaryAt(const float* a, const float* b, const BinaryGeometry& g,
                              int64_t index) {
-  int64_t rest = index, ia = 0, ib = 0;
+  int rest = static_cast<int>(index), ia = 0, ib = 0;
   for (int d = g.rank - 1; d >= 0; --d) {
-    const int64_t i = rest % g.out_shape[d];
-    rest /= g.out_shape[d];
-    ia += i * g.a_strides[d];
-    ib += i * g.b_strides[d];
+    const int dim = static_cast<int>(g.out_shape[d]);
+    const int q = rest / dim;
+    const int i = rest - q * dim;
+    rest = q;
+    ia += i * static_cast<int>(g.a_strides[d]);
+    ib += i * static_cast<int>(g.b_strides[d]);
   }
   return ApplyBinary(a[ia], b[ib], g.op);
 }
@@ -164,11 +170,17 @@ PCR_HD inline int64_t CopyCount(const CopyGeometry& g) { return g.outer * g.coun
 // Flat input and output indices of block element `index` (index < CopyCount(g)).
 PCR_HD inline void CopyIndices(const CopyGeometry& g, int64_t index, int64_t* in_index,
                                int64_t* out_index) {
-  const int64_t i = index % g.inner;
-  const int64_t k = (index / g.inner) % g.count;
-  const int64_t o = index / (g.inner * g.count);
-  *in_index = (o * g.in_axis + g.in_offset + k * g.in_step) * g.inner + i;
-  *out_index = (o * g.out_axis + g.out_offset + k) * g.inner + i;
+  const int inner = static_cast<int>(g.inner), count = static_cast<int>(g.count);
+  const int j = static_cast<int>(index);
+  const int q = j / inner;
+  const int i = j - q * inner;
+  const int o = q / count;
+  const int k = q - o * count;
+  *in_index = (o * static_cast<int>(g.in_axis) + static_cast<int>(g.in_offset) +
+               k * static_cast<int>(g.in_step)) *
+                  inner +
+              i;
+  *out_index = (o * static_cast<int>(g.out_axis) + static_cast<int>(g.out_offset) + k) * inner + i;
 }
 
 // Max pooling over channels x h x w; padded taps are ignored.
@@ -178,9 +190,10 @@ struct PoolGeometry {
 };
 
 PCR_HD inline float MaxPoolAt(const float* in, const PoolGeometry& g, int64_t index) {
-  const int ox = static_cast<int>(index % g.w_out);
-  const int oy = static_cast<int>((index / g.w_out) % g.h_out);
-  const int64_t c = index / (static_cast<int64_t>(g.w_out) * g.h_out);
+  const int i = static_cast<int>(index);
+  const int ox = i % g.w_out;
+  const int oy = (i / g.w_out) % g.h_out;
+  const int c = i / (g.w_out * g.h_out);
   const float* plane = in + c * g.h_in * g.w_in;
   float best = -3.402823466e38f;
   for (int ky = 0; ky < g.kh; ++ky) {
@@ -189,7 +202,7 @@ PCR_HD inline float MaxPoolAt(const float* in, const PoolGeometry& g, int64_t in
     for (int kx = 0; kx < g.kw; ++kx) {
       const int x = ox * g.stride_w - g.pad_left + kx;
       if (x < 0 || x >= g.w_in) continue;
-      const float v = plane[static_cast<int64_t>(y) * g.w_in + x];
+      const float v = plane[y * g.w_in + x];
       best = v > best ? v : best;
     }
   }
@@ -204,9 +217,10 @@ struct ResizeGeometry {
 };
 
 PCR_HD inline float ResizeNearestAt(const float* in, const ResizeGeometry& g, int64_t index) {
-  const int ox = static_cast<int>(index % g.w_out);
-  const int oy = static_cast<int>((index / g.w_out) % g.h_out);
-  const int64_t c = index / (static_cast<int64_t>(g.w_out) * g.h_out);
+  const int i = static_cast<int>(index);
+  const int ox = i % g.w_out;
+  const int oy = (i / g.w_out) % g.h_out;
+  const int c = i / (g.w_out * g.h_out);
   int y = static_cast<int>(floorf(static_cast<float>(oy) / g.scale_h));
   int x = static_cast<int>(floorf(static_cast<float>(ox) / g.scale_w));
   y = y < g.h_in - 1 ? y : g.h_in - 1;
@@ -223,10 +237,12 @@ struct TransposeGeometry {
 };
 
 PCR_HD inline float TransposeAt(const float* in, const TransposeGeometry& g, int64_t index) {
-  int64_t rest = index, offset = 0;
+  int rest = static_cast<int>(index), offset = 0;
   for (int d = g.rank - 1; d >= 0; --d) {
-    offset += (rest % g.out_shape[d]) * g.in_strides[d];
-    rest /= g.out_shape[d];
+    const int dim = static_cast<int>(g.out_shape[d]);
+    const int q = rest / dim;
+    offset += (rest - q * dim) * static_cast<int>(g.in_strides[d]);
+    rest = q;
   }
   return in[offset];
 }
