@@ -14,8 +14,18 @@ namespace {
 
 using Shape = std::vector<int64_t>;
 
+// Elements of a shape; throws for a negative dim or a count past 2^40 (the executor indexes in
+// 32 bits; this bound only keeps the plan-time arithmetic from overflowing).
 int64_t Count(const Shape& s) {
-  return std::accumulate(s.begin(), s.end(), int64_t{1}, std::multiplies<int64_t>());
+  constexpr int64_t kLimit = int64_t{1} << 40;
+  int64_t n = 1;
+  for (int64_t d : s) {
+    if (d < 0 || d > kLimit)
+      throw std::invalid_argument("tensor dim " + std::to_string(d) + " out of range");
+    if (d != 0 && n > kLimit / d) throw std::invalid_argument("tensor of more than 2^40 elements");
+    n *= d;
+  }
+  return n;
 }
 
 std::string ShapeText(const Shape& s) {
@@ -35,6 +45,10 @@ struct Value {
   bool is_int = false;
   std::vector<int64_t> ints;
 };
+
+// Bounds on attributes and dims, so that the plan's int geometry cannot overflow.
+constexpr int64_t kMaxKernel = 4096;  // kernel sizes, strides, dilations, pads
+constexpr int64_t kMaxDim = 1 << 24;  // channels, heights, widths
 
 class Lowering {
  public:
@@ -67,6 +81,7 @@ class Lowering {
       if (skipped_.count(k)) continue;
       const OnnxNode& n = model_.nodes[k];
       if (!n.domain.empty() && n.domain != "ai.onnx") Fail(n, "custom domain '" + n.domain + "'");
+      if (n.outputs.empty() || n.outputs[0].empty()) Fail(n, "no output");
       const std::string& op = n.op_type;
       if (op == "Conv") {
         LowerConv(k);
@@ -221,9 +236,19 @@ class Lowering {
   }
 
   const Shape& Image(const OnnxNode& n, const Value& x) const {
+    for (int64_t d : x.shape) {
+      if (d < 1 || d > kMaxDim) Fail(n, "image dims out of range: " + ShapeText(x.shape));
+    }
     if (x.shape.size() != 4 || x.shape[0] != 1)
       Fail(n, "expected a 1xCxHxW input, got " + ShapeText(x.shape));
     return x.shape;
+  }
+
+  void CheckWeightDims(const OnnxNode& n, const Shape& w) const {
+    if (w[0] > kMaxDim || w[1] > kMaxDim || w[2] < 1 || w[2] > kMaxKernel || w[3] < 1 ||
+        w[3] > kMaxKernel) {
+      Fail(n, "weight dims out of range: " + ShapeText(w));
+    }
   }
 
   void Pads2d(const OnnxNode& n, int* top, int* left) const {
@@ -234,13 +259,25 @@ class Lowering {
     *top = *left = 0;
     if (pads.empty()) return;
     if (pads.size() != 4) Fail(n, "expected 4 pads");
+    for (int64_t p : pads) {
+      if (p < 0 || p > kMaxKernel) Fail(n, "pads out of range");
+    }
     *top = static_cast<int>(pads[0]);
     *left = static_cast<int>(pads[1]);
     if (pads[2] != pads[0] || pads[3] != pads[1]) Fail(n, "asymmetric padding is not supported");
   }
 
-  static std::vector<int64_t> Pair(const std::vector<int64_t>& v, int64_t fallback) {
-    return v.empty() ? std::vector<int64_t>{fallback, fallback} : v;
+  // A 2-D attribute (strides, dilations, kernel_shape): `fallback` twice when absent; each value
+  // in [1, kMaxKernel].
+  std::vector<int64_t> Pair(const OnnxNode& n, const std::string& attribute,
+                            int64_t fallback) const {
+    std::vector<int64_t> v = n.Ints(attribute);
+    if (v.empty()) v = {fallback, fallback};
+    if (v.size() != 2) Fail(n, "expected a 2-D " + attribute);
+    for (int64_t x : v) {
+      if (x < 1 || x > kMaxKernel) Fail(n, attribute + " out of range");
+    }
+    return v;
   }
 
   void LowerConv(size_t k) {
@@ -251,6 +288,7 @@ class Lowering {
     if (!plan_.buffers[w.buffer].constant() || w.shape.size() != 4)
       Fail(n, "weights must be a constant 4-D tensor");
     if (n.Int("group", 1) != 1) Fail(n, "grouped convolution is not supported");
+    CheckWeightDims(n, w.shape);
     if (w.shape[1] != xs[1])
       Fail(n, "weights " + ShapeText(w.shape) + " do not fit input " + ShapeText(xs));
     ConvGeometry g;
@@ -260,8 +298,8 @@ class Lowering {
     g.c_out = static_cast<int>(w.shape[0]);
     g.kh = static_cast<int>(w.shape[2]);
     g.kw = static_cast<int>(w.shape[3]);
-    const std::vector<int64_t> strides = Pair(n.Ints("strides"), 1);
-    const std::vector<int64_t> dilations = Pair(n.Ints("dilations"), 1);
+    const std::vector<int64_t> strides = Pair(n, "strides", 1);
+    const std::vector<int64_t> dilations = Pair(n, "dilations", 1);
     if (strides.size() != 2 || dilations.size() != 2) Fail(n, "expected 2-D strides and dilations");
     g.stride_h = static_cast<int>(strides[0]);
     g.stride_w = static_cast<int>(strides[1]);
@@ -336,6 +374,7 @@ class Lowering {
       Fail(n, "weights must be a constant c_in x c_out x kh x kw tensor");
     }
     if (n.Int("group", 1) != 1) Fail(n, "grouped ConvTranspose is not supported");
+    CheckWeightDims(n, w.shape);
     ConvTransposeGeometry g;
     g.c_in = static_cast<int>(xs[1]);
     g.h_in = static_cast<int>(xs[2]);
@@ -343,8 +382,8 @@ class Lowering {
     g.c_out = static_cast<int>(w.shape[1]);
     g.kh = static_cast<int>(w.shape[2]);
     g.kw = static_cast<int>(w.shape[3]);
-    const std::vector<int64_t> strides = Pair(n.Ints("strides"), 1);
-    const std::vector<int64_t> dilations = Pair(n.Ints("dilations"), 1);
+    const std::vector<int64_t> strides = Pair(n, "strides", 1);
+    const std::vector<int64_t> dilations = Pair(n, "dilations", 1);
     const std::vector<int64_t> pads = n.Ints("pads");
     const std::vector<int64_t> output_padding = n.Ints("output_padding");
     const bool plain = strides.size() == 2 && strides[0] == g.kh && strides[1] == g.kw &&
@@ -381,7 +420,7 @@ class Lowering {
         throw std::invalid_argument("node '" + n.name + "' (" + n.op_type + "): shapes " +
                                     ShapeText(a) + " and " + ShapeText(b) + " do not broadcast");
       }
-      out[d] = std::max(da, db);
+      out[d] = da == 1 ? db : da;  // a 0 dim broadcasts against 1 to 0
     }
     return out;
   }
@@ -444,8 +483,16 @@ class Lowering {
       }
       const int64_t x = a.ints[ia], y = b.ints[ib];
       const std::string& op = n.op_type;
-      if (op == "Div" && y == 0) Fail(n, "integer division by zero");
-      v.ints.push_back(op == "Add" ? x + y : op == "Sub" ? x - y : op == "Mul" ? x * y : x / y);
+      if (op == "Div" && (y == 0 || (x == std::numeric_limits<int64_t>::min() && y == -1))) {
+        Fail(n, "integer division by zero or overflow");
+      }
+      int64_t r = 0;
+      const bool overflow = op == "Add"   ? __builtin_add_overflow(x, y, &r)
+                            : op == "Sub" ? __builtin_sub_overflow(x, y, &r)
+                            : op == "Mul" ? __builtin_mul_overflow(x, y, &r)
+                                          : (r = x / y, false);
+      if (overflow) Fail(n, "integer overflow in shape arithmetic");
+      v.ints.push_back(r);
     }
     values_[Output(n, 0)] = v;
   }
@@ -506,6 +553,9 @@ class Lowering {
     if (sizes.empty()) {
       if (x.shape[axis] % parts != 0) Fail(n, "axis does not divide into equal parts");
       sizes.assign(static_cast<size_t>(parts), x.shape[axis] / parts);
+    }
+    for (int64_t size : sizes) {
+      if (size < 0 || size > x.shape[axis]) Fail(n, "split size out of range");
     }
     if (static_cast<int64_t>(sizes.size()) != parts ||
         std::accumulate(sizes.begin(), sizes.end(), int64_t{0}) != x.shape[axis]) {
@@ -579,9 +629,9 @@ class Lowering {
   void LowerMaxPool(const OnnxNode& n) {
     const Value& x = Float(n, 0);
     const Shape& xs = Image(n, x);
-    const std::vector<int64_t> kernel = n.Ints("kernel_shape");
-    const std::vector<int64_t> strides = Pair(n.Ints("strides"), 1);
-    const std::vector<int64_t> dilations = Pair(n.Ints("dilations"), 1);
+    const std::vector<int64_t> kernel = Pair(n, "kernel_shape", 0);
+    const std::vector<int64_t> strides = Pair(n, "strides", 1);
+    const std::vector<int64_t> dilations = Pair(n, "dilations", 1);
     if (kernel.size() != 2 || strides.size() != 2) Fail(n, "expected a 2-D kernel");
     if (dilations != std::vector<int64_t>{1, 1}) Fail(n, "dilated pooling is not supported");
     if (n.Int("ceil_mode", 0) != 0) Fail(n, "ceil_mode is not supported");
@@ -622,6 +672,8 @@ class Lowering {
       const std::vector<int64_t> sizes = ConstInts(n, 3);
       if (sizes.size() != 4 || sizes[0] != 1 || sizes[1] != xs[1])
         Fail(n, "sizes must resize H and W only");
+      if (sizes[2] < 1 || sizes[2] > kMaxDim || sizes[3] < 1 || sizes[3] > kMaxDim)
+        Fail(n, "sizes out of range");
       g.h_out = static_cast<int>(sizes[2]);
       g.w_out = static_cast<int>(sizes[3]);
       g.scale_h = static_cast<float>(g.h_out) / static_cast<float>(g.h_in);
@@ -630,6 +682,9 @@ class Lowering {
       const std::vector<float>& scales = ConstFloats(n, 2);
       if (scales.size() != 4 || scales[0] != 1.0f || scales[1] != 1.0f)
         Fail(n, "scales must resize H and W only");
+      for (int k = 2; k < 4; ++k) {
+        if (!(scales[k] > 0.0f && scales[k] <= 1024.0f)) Fail(n, "scales out of range");
+      }
       g.scale_h = scales[2];
       g.scale_w = scales[3];
       g.h_out = static_cast<int>(static_cast<float>(g.h_in) * g.scale_h);
@@ -664,7 +719,7 @@ class Lowering {
       } else {
         s[d] = target[d];
       }
-      known *= s[d];
+      known = Count(Shape{known, s[d]});
     }
     if (infer >= 0) {
       if (known == 0 || Count(x.shape) % known != 0) Fail(n, "cannot infer the -1 dim");

@@ -344,3 +344,70 @@ TEST(NetPlan, CudaAbsenceIsReportedNotFatal) {
 
 }  // namespace
 }  // namespace pcr::gpu
+
+namespace pcr::gpu {
+namespace {
+
+// Found by fuzz/fuzz_onnx.cpp: each was a crash, an uncaught std::out_of_range or undefined
+// behaviour before it was fixed.
+TEST(NetPlan, FuzzFindingsAreRefusedOrComputedCleanly) {
+  // An empty slice divided by a scalar: the 0 dim broadcasts to 0 (was 1: a read of nothing).
+  const auto empty = OnnxWriter()
+                         .Input("x", {1, 3, 2, 2})
+                         .Ints("starts", {1}, {int64_t{1} << 33})
+                         .Ints("ends", {1}, {int64_t{1} << 55})
+                         .Ints("axes", {1}, {1})
+                         .Node("Slice", {"x", "starts", "ends", "axes"}, {"s"})
+                         .Floats("two", {}, {2.0f})
+                         .Node("Div", {"s", "two"}, {"y"})
+                         .Output("y")
+                         .Model();
+  NetPlan plan;
+  const auto out = RunTwin(empty, 2, 2, std::vector<float>(12, 1.0f), &plan);
+  EXPECT_EQ(plan.outputs[0].shape, (std::vector<int64_t>{1, 0, 2, 2}));
+  EXPECT_TRUE(out[0].empty());
+  // A Conv without an output.
+  const auto no_output = OnnxWriter()
+                             .Input("x", {1, 3, 2, 2})
+                             .Floats("w", {1, 3, 1, 1}, {1, 1, 1})
+                             .Node("Conv", {"x", "w"}, {})
+                             .Output("x")
+                             .Model();
+  EXPECT_THROW(BuildNetPlan(no_output, 2, 2), std::invalid_argument);
+  // Shapes whose element count overflows, negative split sizes, shape arithmetic that overflows.
+  const auto huge = OnnxWriter()
+                        .Input("x", {1, 3, 2, 2})
+                        .Ints("shape", {4}, {int64_t{1} << 40, int64_t{1} << 40, -1, 1})
+                        .Node("Reshape", {"x", "shape"}, {"y"})
+                        .Output("y")
+                        .Model();
+  EXPECT_THROW(BuildNetPlan(huge, 2, 2), std::invalid_argument);
+  const auto negative_split =
+      OnnxWriter()
+          .Input("x", {1, 3, 2, 2})
+          .Ints("sizes", {2}, {-1, 4})
+          .Node("Split", {"x", "sizes"}, {"p", "q"}, {OnnxAttr::Int("axis", 1)})
+          .Output("q")
+          .Model();
+  EXPECT_THROW(BuildNetPlan(negative_split, 2, 2), std::invalid_argument);
+  const auto overflow = OnnxWriter()
+                            .Input("x", {1, 3, 2, 2})
+                            .Ints("a", {1}, {int64_t{1} << 62})
+                            .Node("Mul", {"a", "a"}, {"b"})
+                            .Node("Reshape", {"x", "b"}, {"y"})
+                            .Output("y")
+                            .Model();
+  EXPECT_THROW(BuildNetPlan(overflow, 2, 2), std::invalid_argument);
+  const auto wild_pads =
+      OnnxWriter()
+          .Input("x", {1, 3, 2, 2})
+          .Node("MaxPool", {"x"}, {"y"},
+                {OnnxAttr::Ints("kernel_shape", {2, 2}),
+                 OnnxAttr::Ints("pads", {int64_t{1} << 40, 0, int64_t{1} << 40, 0})})
+          .Output("y")
+          .Model();
+  EXPECT_THROW(BuildNetPlan(wild_pads, 2, 2), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace pcr::gpu

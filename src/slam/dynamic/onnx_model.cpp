@@ -239,8 +239,14 @@ OnnxTensor ParseTensor(const WireField& message) {
     throw std::invalid_argument("tensor '" + t.name + "' has unsupported data type " +
                                 std::to_string(t.data_type));
   }
+  int64_t elements = 1;
   for (int64_t d : t.dims) {
     if (d < 0) throw std::invalid_argument("tensor '" + t.name + "' has a negative dim");
+    // No initializer holds 2^40 values: this only keeps ElementCount() from overflowing.
+    if (d != 0 && elements > (int64_t{1} << 40) / d) {
+      throw std::invalid_argument("tensor '" + t.name + "' has implausibly large dims");
+    }
+    elements *= d;
   }
   if (raw) {
     const size_t width =
