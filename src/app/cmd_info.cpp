@@ -1,9 +1,17 @@
 #include <fmt/format.h>
 
+#include <fstream>
+#include <iterator>
+#include <map>
 #include <string>
 
 #include "app/commands.h"
+#include "gpu/executor.h"
+#include "gpu/net_plan.h"
 #include "io/dataset.h"
+#include "slam/common/error.h"
+#include "slam/dynamic/onnx_model.h"
+#include "slam/dynamic/yolo_segmenter.h"
 
 namespace pcr::app {
 namespace {
@@ -34,20 +42,104 @@ void PrintInfo(const std::string& path, bool color) {
   }
 }
 
+std::string Dims(const std::vector<int64_t>& dims) {
+  std::string text;
+  for (size_t i = 0; i < dims.size(); ++i) {
+    if (i) text += 'x';
+    text += dims[i] < 0 ? std::string("?") : std::to_string(dims[i]);
+  }
+  return text;
+}
+
+// What a YOLOv8(-seg) ONNX export is and which engines can run it.
+void PrintModelInfo(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "cannot open the model");
+  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                   std::istreambuf_iterator<char>());
+  OnnxModel model;
+  try {
+    model = ParseOnnxModel(bytes);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(path, 0, std::string("cannot read it as an ONNX model: ") + e.what());
+  }
+  fmt::print("model:         {} ({:.1f} MiB)\n", path, bytes.size() / 1048576.0);
+  fmt::print("opset:         {}\n", model.opset);
+  for (const OnnxValueInfo& v : model.inputs)
+    fmt::print("input:         {} {}\n", v.name, Dims(v.dims));
+  for (const OnnxValueInfo& v : model.outputs)
+    fmt::print("output:        {} {}\n", v.name, Dims(v.dims));
+  std::map<std::string, int> ops;
+  for (const OnnxNode& n : model.nodes) ++ops[n.op_type];
+  std::string op_text;
+  for (const auto& [op, count] : ops)
+    op_text += fmt::format("{}{} {}", op_text.empty() ? "" : ", ", op, count);
+  fmt::print("nodes:         {} ({})\n", model.nodes.size(), op_text);
+
+  YoloOptions options;
+  options.model_path = path;
+  options.allow_cuda = false;
+  cv::Size input_size = options.dynamic_input_size;
+  if (!model.inputs.empty() && model.inputs[0].dims.size() == 4 && model.inputs[0].dims[2] > 0 &&
+      model.inputs[0].dims[3] > 0) {
+    input_size = cv::Size(static_cast<int>(model.inputs[0].dims[3]),
+                          static_cast<int>(model.inputs[0].dims[2]));
+  }
+  try {
+    const YoloSegmenter segmenter(options);
+    const YoloOutputLayout& l = segmenter.layout();
+    input_size = segmenter.input_size();
+    fmt::print("YOLO layout:   {} classes, {} mask coefficients, {} anchors, prototypes {}x{}\n",
+               l.num_classes, l.num_mask_coeffs, l.num_anchors, l.proto_size.width,
+               l.proto_size.height);
+    fmt::print("opencv:        runs ({})\n", segmenter.backend());
+  } catch (const std::exception& e) {
+    fmt::print("opencv:        cannot run it: {}\n", e.what());
+  }
+  try {
+    const gpu::NetPlan plan = gpu::BuildNetPlan(bytes, input_size.height, input_size.width);
+    fmt::print(
+        "pcr executor:  runs at {}x{}: {} steps ({} fused activations), {:.1f} MiB weights, "
+        "{:.1f} MiB activations\n",
+        input_size.width, input_size.height, plan.steps.size(), plan.fused_activations,
+        gpu::ConstantFloats(plan) * 4.0 / 1048576.0, gpu::ActivationFloats(plan) * 4.0 / 1048576.0);
+  } catch (const std::invalid_argument& e) {
+    fmt::print("pcr executor:  cannot run it: {}\n", e.what());
+  }
+  std::string why;
+  const int devices = gpu::CudaDeviceCount(&why);
+  if (devices > 0) {
+    fmt::print("cuda:          {} device(s): --inference cuda\n", devices);
+  } else {
+    fmt::print("cuda:          unavailable ({})\n", why);
+  }
+}
+
 }  // namespace
 
 void AddInfoCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "info",
-      "Describe a KITTI odometry sequence or raw drive (calibration, frames, ground truth)");
+      "Describe a KITTI odometry sequence or raw drive (calibration, frames, ground truth), or a "
+      "YOLOv8-seg ONNX model (layout, ops, which inference engines run it)");
   auto path = std::make_shared<std::string>();
+  auto model = std::make_shared<std::string>();
   auto color = std::make_shared<bool>(false);
-  cmd->add_option(
-         "--sequence,-s", *path,
-         "Odometry sequence dir (sequences/NN) or raw drive dir (DATE/DATE_drive_NNNN_sync)")
-      ->required();
+  auto* sequence = cmd->add_option(
+      "--sequence,-s", *path,
+      "Odometry sequence dir (sequences/NN) or raw drive dir (DATE/DATE_drive_NNNN_sync)");
+  auto* model_option = cmd->add_option("--model", *model, "a YOLOv8(-seg) ONNX export");
+  sequence->excludes(model_option);
   cmd->add_flag("--color", *color, "Use the colour cameras (2/3) instead of the grey ones (0/1)");
-  cmd->callback([path, color] { PrintInfo(*path, *color); });
+  cmd->callback([path, model, color] {
+    if (!model->empty()) {
+      PrintModelInfo(*model);
+    } else if (!path->empty()) {
+      PrintInfo(*path, *color);
+    } else {
+      throw ConfigError("info needs --sequence DIR or --model FILE.onnx");
+    }
+  });
 }
 
 }  // namespace pcr::app

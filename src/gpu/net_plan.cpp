@@ -44,6 +44,7 @@ struct Value {
   int buffer = -1;
   bool is_int = false;
   std::vector<int64_t> ints;
+  int unsupported_type = 0;  // an initializer of another ONNX data type (int8, float16, ...)
 };
 
 // Bounds on attributes and dims, so that the plan's int geometry cannot overflow.
@@ -152,7 +153,9 @@ class Lowering {
   Value ConstantValue(const OnnxTensor& t) {
     Value v;
     v.shape = t.dims;
-    if (t.is_int()) {
+    if (!t.is_float() && !t.is_int()) {
+      v.unsupported_type = t.data_type;
+    } else if (t.is_int()) {
       v.is_int = true;
       v.ints = t.ints;
     } else {
@@ -175,6 +178,11 @@ class Lowering {
     if (!HasInput(n, i)) Fail(n, "missing input " + std::to_string(i));
     const auto it = values_.find(n.inputs[i]);
     if (it == values_.end()) Fail(n, "input '" + n.inputs[i] + "' is not computed before it");
+    if (it->second.unsupported_type != 0) {
+      Fail(n, "input '" + n.inputs[i] + "' has ONNX data type " +
+                  std::to_string(it->second.unsupported_type) +
+                  " (the executor takes float32/64 and int32/64 constants)");
+    }
     return it->second;
   }
 

@@ -329,6 +329,23 @@ TEST(NetPlan, UnsupportedOpsAndBadShapesNameTheNode) {
   EXPECT_NO_THROW(BuildNetPlan(fixed, 2, 2));
   EXPECT_THROW(BuildNetPlan(fixed, 4, 4), std::invalid_argument);
   EXPECT_THROW(BuildNetPlan(test::Str("not a model"), 2, 2), std::invalid_argument);
+  // An int8 weight (type 3, as in dynamically quantized exports) used by a Conv.
+  const auto weight =
+      test::Cat({test::VarintField(1, 1), test::VarintField(1, 3), test::VarintField(1, 1),
+                 test::VarintField(1, 1), test::VarintField(2, 3),
+                 test::BytesField(8, test::Str("w")), test::BytesField(9, {1, 2, 3})});
+  const auto int8_model = OnnxWriter()
+                              .Input("x", {1, 3, 2, 2})
+                              .RawInitializer(weight)
+                              .Node("Conv", {"x", "w"}, {"y"})
+                              .Output("y")
+                              .Model();
+  try {
+    BuildNetPlan(int8_model, 2, 2);
+    FAIL() << "an int8 weight was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("data type 3"), std::string::npos) << e.what();
+  }
 }
 
 TEST(NetPlan, CudaAbsenceIsReportedNotFatal) {

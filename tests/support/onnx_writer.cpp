@@ -105,6 +105,11 @@ OnnxWriter& OnnxWriter::Ints(const std::string& name, const std::vector<int64_t>
   return *this;
 }
 
+OnnxWriter& OnnxWriter::RawInitializer(const Bytes& tensor_proto) {
+  graph_ = Cat({graph_, BytesField(5, tensor_proto)});
+  return *this;
+}
+
 OnnxWriter& OnnxWriter::Node(const std::string& op, const std::vector<std::string>& inputs,
                              const std::vector<std::string>& outputs,
                              const std::vector<OnnxAttr>& attributes) {

@@ -38,6 +38,8 @@ class OnnxWriter {
                      const std::vector<float>& values);
   OnnxWriter& Ints(const std::string& name, const std::vector<int64_t>& dims,
                    const std::vector<int64_t>& values);
+  // Any TensorProto, already serialized (e.g. an int8 or float16 initializer).
+  OnnxWriter& RawInitializer(const Bytes& tensor_proto);
   OnnxWriter& Node(const std::string& op, const std::vector<std::string>& inputs,
                    const std::vector<std::string>& outputs,
                    const std::vector<OnnxAttr>& attributes = {});

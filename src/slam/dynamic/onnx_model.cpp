@@ -235,10 +235,6 @@ OnnxTensor ParseTensor(const WireField& message) {
     throw std::invalid_argument("tensor '" + t.name +
                                 "' keeps its data in an external file (not supported)");
   }
-  if (!t.is_float() && !t.is_int()) {
-    throw std::invalid_argument("tensor '" + t.name + "' has unsupported data type " +
-                                std::to_string(t.data_type));
-  }
   int64_t elements = 1;
   for (int64_t d : t.dims) {
     if (d < 0) throw std::invalid_argument("tensor '" + t.name + "' has a negative dim");
@@ -248,6 +244,7 @@ OnnxTensor ParseTensor(const WireField& message) {
     }
     elements *= d;
   }
+  if (!t.is_float() && !t.is_int()) return t;  // kept without values (e.g. int8, float16)
   if (raw) {
     const size_t width =
         t.data_type == OnnxTensor::kFloat || t.data_type == OnnxTensor::kInt32 ? 4 : 8;

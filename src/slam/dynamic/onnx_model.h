@@ -15,6 +15,7 @@ struct OnnxTensor {
   std::vector<int64_t> dims;
   std::vector<float> floats;  // kFloat and kDouble tensors
   std::vector<int64_t> ints;  // kInt64 and kInt32 tensors
+                              // (other types, e.g. int8 or float16, are read without values)
   int64_t ElementCount() const;
   bool is_float() const { return data_type == kFloat || data_type == kDouble; }
   bool is_int() const { return data_type == kInt64 || data_type == kInt32; }
@@ -57,8 +58,8 @@ struct OnnxModel {
 };
 
 // Throws std::invalid_argument (with the byte offset) when the bytes are not a well-formed
-// ModelProto with a graph, or a tensor keeps its data outside the file (external data) or in an
-// unsupported type, or its data size does not match its dims.
+// ModelProto with a graph, or a tensor keeps its data outside the file (external data), or the
+// data of a float or integer tensor does not match its dims.
 OnnxModel ParseOnnxModel(const std::vector<uint8_t>& model_bytes);
 
 // Dims of the first graph input (not an initializer) of a serialized ONNX ModelProto; symbolic
