@@ -44,7 +44,8 @@ struct Value {
   int buffer = -1;
   bool is_int = false;
   std::vector<int64_t> ints;
-  int unsupported_type = 0;  // an initializer of another ONNX data type (int8, float16, ...)
+  // An initializer of another ONNX data type (int8, float16, undefined...): -1 when supported.
+  int unsupported_type = -1;
 };
 
 // Bounds on attributes and dims, so that the plan's int geometry cannot overflow.
@@ -124,7 +125,8 @@ class Lowering {
       const auto it = values_.find(o.name);
       if (it == values_.end())
         throw std::invalid_argument("graph output '" + o.name + "' is never computed");
-      if (it->second.is_int || plan_.buffers[it->second.buffer].constant()) {
+      if (it->second.is_int || it->second.buffer < 0 ||
+          plan_.buffers[it->second.buffer].constant()) {
         throw std::invalid_argument("graph output '" + o.name + "' is a constant");
       }
       plan_.outputs.push_back({o.name, it->second.buffer, it->second.shape});
@@ -154,7 +156,7 @@ class Lowering {
     Value v;
     v.shape = t.dims;
     if (!t.is_float() && !t.is_int()) {
-      v.unsupported_type = t.data_type;
+      v.unsupported_type = std::max(t.data_type, 0);
     } else if (t.is_int()) {
       v.is_int = true;
       v.ints = t.ints;
@@ -178,7 +180,7 @@ class Lowering {
     if (!HasInput(n, i)) Fail(n, "missing input " + std::to_string(i));
     const auto it = values_.find(n.inputs[i]);
     if (it == values_.end()) Fail(n, "input '" + n.inputs[i] + "' is not computed before it");
-    if (it->second.unsupported_type != 0) {
+    if (it->second.unsupported_type >= 0) {
       Fail(n, "input '" + n.inputs[i] + "' has ONNX data type " +
                   std::to_string(it->second.unsupported_type) +
                   " (the executor takes float32/64 and int32/64 constants)");

@@ -424,6 +424,20 @@ TEST(NetPlan, FuzzFindingsAreRefusedOrComputedCleanly) {
           .Output("y")
           .Model();
   EXPECT_THROW(BuildNetPlan(wild_pads, 2, 2), std::invalid_argument);
+  // Initializers of data type 0 (undefined) as a Conv bias and as a graph output.
+  const auto undefined = test::Cat(
+      {test::VarintField(1, 1), test::VarintField(2, 0), test::BytesField(8, test::Str("u"))});
+  const auto undefined_bias = OnnxWriter()
+                                  .Input("x", {1, 3, 2, 2})
+                                  .Floats("w", {1, 3, 1, 1}, {1, 1, 1})
+                                  .RawInitializer(undefined)
+                                  .Node("Conv", {"x", "w", "u"}, {"y"})
+                                  .Output("y")
+                                  .Model();
+  EXPECT_THROW(BuildNetPlan(undefined_bias, 2, 2), std::invalid_argument);
+  const auto undefined_output =
+      OnnxWriter().Input("x", {1, 3, 2, 2}).RawInitializer(undefined).Output("u").Model();
+  EXPECT_THROW(BuildNetPlan(undefined_output, 2, 2), std::invalid_argument);
 }
 
 }  // namespace
