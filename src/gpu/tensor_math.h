@@ -75,8 +75,18 @@ PCR_HD inline bool IsPointwise(const ConvGeometry& g) {
          g.pad_left == 0 && g.h_out == g.h_in && g.w_out == g.w_in;
 }
 
-// Element `index` of the column matrix (row-major, ColRows x ColCols): row (c, ky, kx), column
-// (oy, ox); zero where the kernel tap falls into the padding.
+// Tap (c, ky, kx) of the kernel at output pixel (oy, ox): the input value it reads, zero in the
+// padding. Row (c * kh + ky) * kw + kx, column oy * w_out + ox of the column matrix.
+PCR_HD inline float Im2ColTap(const float* in, const ConvGeometry& g, int c, int ky, int kx, int oy,
+                              int ox) {
+  const int y = oy * g.stride_h - g.pad_top + ky * g.dilation_h;
+  const int x = ox * g.stride_w - g.pad_left + kx * g.dilation_w;
+  if (y < 0 || y >= g.h_in || x < 0 || x >= g.w_in) return 0.0f;
+  return in[(c * g.h_in + y) * g.w_in + x];
+}
+
+// Element `index` of the column matrix (row-major, ColRows x ColCols). The CUDA kernel computes
+// elements by index; the CPU twin walks the taps in the same order without the divisions.
 PCR_HD inline float Im2ColAt(const float* in, const ConvGeometry& g, int64_t index) {
   const int cols = g.h_out * g.w_out;
   const int i = static_cast<int>(index);
@@ -86,11 +96,7 @@ PCR_HD inline float Im2ColAt(const float* in, const ConvGeometry& g, int64_t ind
   const int ky = (row / g.kw) % g.kh;
   const int c = row / (g.kw * g.kh);
   const int oy = col / g.w_out;
-  const int ox = col - oy * g.w_out;
-  const int y = oy * g.stride_h - g.pad_top + ky * g.dilation_h;
-  const int x = ox * g.stride_w - g.pad_left + kx * g.dilation_w;
-  if (y < 0 || y >= g.h_in || x < 0 || x >= g.w_in) return 0.0f;
-  return in[(c * g.h_in + y) * g.w_in + x];
+  return Im2ColTap(in, g, c, ky, kx, oy, col - oy * g.w_out);
 }
 
 // Epilogue of a GEMM whose output has `plane` elements per row (channel): adds the channel's

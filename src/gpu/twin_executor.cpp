@@ -62,8 +62,17 @@ class TwinExecutor final : public Executor {
     const float* in = Buffer(s.in);
     const float* col = in;
     if (!IsPointwise(g)) {
-      const int64_t n = ColRows(g) * ColCols(g);
-      for (int64_t i = 0; i < n; ++i) scratch_[i] = Im2ColAt(in, g, i);
+      // Im2ColAt's order, tap by tap (the index decomposition costs more than the copy).
+      float* dst = scratch_.data();
+      for (int c = 0; c < g.c_in; ++c) {
+        for (int ky = 0; ky < g.kh; ++ky) {
+          for (int kx = 0; kx < g.kw; ++kx) {
+            for (int oy = 0; oy < g.h_out; ++oy) {
+              for (int ox = 0; ox < g.w_out; ++ox) *dst++ = Im2ColTap(in, g, c, ky, kx, oy, ox);
+            }
+          }
+        }
+      }
       col = scratch_.data();
     }
     float* out = Buffer(s.out);

@@ -96,6 +96,43 @@ TEST(NetPlan, StridedPaddedConvWithBiasMatchesDirectConvolution) {
   EXPECT_GT(plan.scratch_size, 0);
 }
 
+// The CUDA kernel computes the column matrix by element index, the twin tap by tap: the same
+// values in the same places.
+TEST(NetPlan, Im2ColByIndexMatchesTapByTap) {
+  ConvGeometry g;
+  g.c_in = 3;
+  g.h_in = 7;
+  g.w_in = 9;
+  g.c_out = 2;
+  g.kh = 3;
+  g.kw = 2;
+  g.stride_h = 2;
+  g.stride_w = 1;
+  g.pad_top = 1;
+  g.pad_left = 2;
+  g.dilation_h = 2;
+  g.dilation_w = 1;
+  g.h_out = (g.h_in + 2 * g.pad_top - g.dilation_h * (g.kh - 1) - 1) / g.stride_h + 1;
+  g.w_out = (g.w_in + 2 * g.pad_left - g.dilation_w * (g.kw - 1) - 1) / g.stride_w + 1;
+  const auto input = Random(3 * 7 * 9, 21);
+  int64_t index = 0, zeros = 0;
+  for (int c = 0; c < g.c_in; ++c) {
+    for (int ky = 0; ky < g.kh; ++ky) {
+      for (int kx = 0; kx < g.kw; ++kx) {
+        for (int oy = 0; oy < g.h_out; ++oy) {
+          for (int ox = 0; ox < g.w_out; ++ox, ++index) {
+            const float tap = Im2ColTap(input.data(), g, c, ky, kx, oy, ox);
+            ASSERT_EQ(Im2ColAt(input.data(), g, index), tap) << index;
+            zeros += tap == 0.0f;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(index, ColRows(g) * ColCols(g));
+  EXPECT_GT(zeros, 0);  // the padding was exercised
+}
+
 TEST(NetPlan, ConvSigmoidMulIsFusedIntoOneSiluStep) {
   const int h = 5, w = 6, m = 2;
   const auto weights = Random(m * 3, 4), input = Random(3 * h * w, 5);
