@@ -42,15 +42,6 @@ void PrintInfo(const std::string& path, bool color) {
   }
 }
 
-std::string Dims(const std::vector<int64_t>& dims) {
-  std::string text;
-  for (size_t i = 0; i < dims.size(); ++i) {
-    if (i) text += 'x';
-    text += dims[i] < 0 ? std::string("?") : std::to_string(dims[i]);
-  }
-  return text;
-}
-
 // What a YOLOv8(-seg) ONNX export is and which engines can run it.
 void PrintModelInfo(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -66,9 +57,9 @@ void PrintModelInfo(const std::string& path) {
   fmt::print("model:         {} ({:.1f} MiB)\n", path, bytes.size() / 1048576.0);
   fmt::print("opset:         {}\n", model.opset);
   for (const OnnxValueInfo& v : model.inputs)
-    fmt::print("input:         {} {}\n", v.name, Dims(v.dims));
+    fmt::print("input:         {} {}\n", v.name, OnnxDimsText(v.dims));
   for (const OnnxValueInfo& v : model.outputs)
-    fmt::print("output:        {} {}\n", v.name, Dims(v.dims));
+    fmt::print("output:        {} {}\n", v.name, OnnxDimsText(v.dims));
   std::map<std::string, int> ops;
   for (const OnnxNode& n : model.nodes) ++ops[n.op_type];
   std::string op_text;

@@ -391,12 +391,12 @@ class CudaExecutor final : public Executor {
   void Validate(const MaxPoolStep& s) const {
     const PoolGeometry& g = s.geometry;
     RequireBuffer(s.in, Product(g.channels, g.h_in, g.w_in), "max-pool input");
-    RequireBuffer(s.out, Product(g.channels, g.h_out, g.w_out), "max-pool output");
+    RequireBuffer(s.out, PoolOutCount(g), "max-pool output");
   }
   void Validate(const ResizeStep& s) const {
     const ResizeGeometry& g = s.geometry;
     RequireBuffer(s.in, Product(g.channels, g.h_in, g.w_in), "resize input");
-    RequireBuffer(s.out, Product(g.channels, g.h_out, g.w_out), "resize output");
+    RequireBuffer(s.out, ResizeOutCount(g), "resize output");
   }
   void Validate(const TransposeStep& s) const {
     RequireBuffer(s.in, s.count, "transpose input");
@@ -487,7 +487,7 @@ class CudaExecutor final : public Executor {
 
   void RunStep(const MaxPoolStep& s) {
     const PoolGeometry& g = s.geometry;
-    const int64_t count = Product(g.channels, g.h_out, g.w_out);
+    const int64_t count = PoolOutCount(g);
     if (count <= 0) return;
     MaxPoolKernel<<<Blocks(count), kThreads, 0, stream_>>>(Buf(s.in), Buf(s.out), g, count);
     CheckLaunch("MaxPoolKernel");
@@ -495,7 +495,7 @@ class CudaExecutor final : public Executor {
 
   void RunStep(const ResizeStep& s) {
     const ResizeGeometry& g = s.geometry;
-    const int64_t count = Product(g.channels, g.h_out, g.w_out);
+    const int64_t count = ResizeOutCount(g);
     if (count <= 0) return;
     ResizeKernel<<<Blocks(count), kThreads, 0, stream_>>>(Buf(s.in), Buf(s.out), g, count);
     CheckLaunch("ResizeKernel");

@@ -310,7 +310,6 @@ class Lowering {
     g.kw = static_cast<int>(w.shape[3]);
     const std::vector<int64_t> strides = Pair(n, "strides", 1);
     const std::vector<int64_t> dilations = Pair(n, "dilations", 1);
-    if (strides.size() != 2 || dilations.size() != 2) Fail(n, "expected 2-D strides and dilations");
     g.stride_h = static_cast<int>(strides[0]);
     g.stride_w = static_cast<int>(strides[1]);
     g.dilation_h = static_cast<int>(dilations[0]);
@@ -396,7 +395,7 @@ class Lowering {
     const std::vector<int64_t> dilations = Pair(n, "dilations", 1);
     const std::vector<int64_t> pads = n.Ints("pads");
     const std::vector<int64_t> output_padding = n.Ints("output_padding");
-    const bool plain = strides.size() == 2 && strides[0] == g.kh && strides[1] == g.kw &&
+    const bool plain = strides[0] == g.kh && strides[1] == g.kw &&
                        dilations == std::vector<int64_t>{1, 1} &&
                        std::all_of(pads.begin(), pads.end(), [](int64_t p) { return p == 0; }) &&
                        std::all_of(output_padding.begin(), output_padding.end(),
@@ -642,7 +641,6 @@ class Lowering {
     const std::vector<int64_t> kernel = Pair(n, "kernel_shape", 0);
     const std::vector<int64_t> strides = Pair(n, "strides", 1);
     const std::vector<int64_t> dilations = Pair(n, "dilations", 1);
-    if (kernel.size() != 2 || strides.size() != 2) Fail(n, "expected a 2-D kernel");
     if (dilations != std::vector<int64_t>{1, 1}) Fail(n, "dilated pooling is not supported");
     if (n.Int("ceil_mode", 0) != 0) Fail(n, "ceil_mode is not supported");
     if (n.outputs.size() > 1 && !n.outputs[1].empty())
@@ -797,8 +795,8 @@ class Lowering {
 };
 
 // Greedy interval allocation: tensors in order of first use; each takes the smallest free buffer
-// that is large enough, else a new one. A buffer is free once
-// the last step touching its tensor is strictly before the new tensor's first step.
+// that is large enough, else a new one. A buffer is free once the last step touching its tensor
+// is strictly before the new tensor's first step.
 void ShareStorage(NetPlan* plan) {
   const int n = static_cast<int>(plan->buffers.size());
   std::vector<int> first(n, -1), last(n, -1);
@@ -837,13 +835,7 @@ void ShareStorage(NetPlan* plan) {
     for (int i = 0; i < static_cast<int>(slots.size()); ++i) {
       if (slots[i].busy_until >= first[b]) continue;
       const int64_t have = buffers[slots[i].buffer].size;
-      if (best < 0) {
-        if (have >= size) best = i;
-        continue;
-      }
-      const int64_t best_have = buffers[slots[best].buffer].size;
-      const bool fits = have >= size, best_fits = best_have >= size;
-      if (fits && (!best_fits || have < best_have)) best = i;
+      if (have >= size && (best < 0 || have < buffers[slots[best].buffer].size)) best = i;
     }
     if (best < 0) {
       slots.push_back({static_cast<int>(buffers.size()), -1});
@@ -851,7 +843,7 @@ void ShareStorage(NetPlan* plan) {
       best = static_cast<int>(slots.size()) - 1;
     }
     PlanBuffer& target = buffers[slots[best].buffer];
-    target.size = std::max(target.size, size);
+    target.size = std::max(target.size, size);  // a new slot starts at 0
     slots[best].busy_until = last[b];
     map[b] = slots[best].buffer;
   }

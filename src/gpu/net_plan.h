@@ -112,6 +112,13 @@ NetPlan BuildNetPlan(const std::vector<uint8_t>& model_bytes, int height, int wi
 template <typename F>
 void ForEachBuffer(PlanStep& step, F&& f);
 
+// Elements of a tensor of this shape (a scalar's shape is empty: 1).
+inline int64_t ShapeElements(const std::vector<int64_t>& shape) {
+  int64_t n = 1;
+  for (int64_t d : shape) n *= d;
+  return n;
+}
+
 // Total floats of the plan's non-constant buffers and of its constants.
 int64_t ActivationFloats(const NetPlan& plan);
 int64_t ConstantFloats(const NetPlan& plan);

@@ -195,6 +195,10 @@ struct PoolGeometry {
   int kh = 1, kw = 1, stride_h = 1, stride_w = 1, pad_top = 0, pad_left = 0;
 };
 
+PCR_HD inline int64_t PoolOutCount(const PoolGeometry& g) {
+  return static_cast<int64_t>(g.channels) * g.h_out * g.w_out;
+}
+
 PCR_HD inline float MaxPoolAt(const float* in, const PoolGeometry& g, int64_t index) {
   const int i = static_cast<int>(index);
   const int ox = i % g.w_out;
@@ -221,6 +225,10 @@ struct ResizeGeometry {
   int channels = 0, h_in = 0, w_in = 0, h_out = 0, w_out = 0;
   float scale_h = 1.0f, scale_w = 1.0f;
 };
+
+PCR_HD inline int64_t ResizeOutCount(const ResizeGeometry& g) {
+  return static_cast<int64_t>(g.channels) * g.h_out * g.w_out;
+}
 
 PCR_HD inline float ResizeNearestAt(const float* in, const ResizeGeometry& g, int64_t index) {
   const int i = static_cast<int>(index);

@@ -39,10 +39,8 @@ class TwinExecutor final : public Executor {
     }
     std::vector<std::vector<float>> outputs;
     for (const PlanTensor& t : plan_->outputs) {
-      int64_t count = 1;
-      for (int64_t d : t.shape) count *= d;
       const float* data = Buffer(t.buffer);
-      outputs.emplace_back(data, data + count);
+      outputs.emplace_back(data, data + ShapeElements(t.shape));
     }
     return outputs;
   }
@@ -121,16 +119,14 @@ class TwinExecutor final : public Executor {
     const PoolGeometry& g = s.geometry;
     const float* in = Buffer(s.in);
     float* out = Buffer(s.out);
-    const int64_t n = static_cast<int64_t>(g.channels) * g.h_out * g.w_out;
-    for (int64_t i = 0; i < n; ++i) out[i] = MaxPoolAt(in, g, i);
+    for (int64_t i = 0; i < PoolOutCount(g); ++i) out[i] = MaxPoolAt(in, g, i);
   }
 
   void Execute(const ResizeStep& s) {
     const ResizeGeometry& g = s.geometry;
     const float* in = Buffer(s.in);
     float* out = Buffer(s.out);
-    const int64_t n = static_cast<int64_t>(g.channels) * g.h_out * g.w_out;
-    for (int64_t i = 0; i < n; ++i) out[i] = ResizeNearestAt(in, g, i);
+    for (int64_t i = 0; i < ResizeOutCount(g); ++i) out[i] = ResizeNearestAt(in, g, i);
   }
 
   void Execute(const TransposeStep& s) {

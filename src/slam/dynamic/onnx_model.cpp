@@ -9,6 +9,13 @@ namespace {
 
 // ---- Minimal protobuf wire-format walker ----
 
+// The n-byte little-endian unsigned integer at p (n <= 8), as protobuf stores fixed-size values.
+uint64_t LittleEndian(const uint8_t* p, size_t n) {
+  uint64_t value = 0;
+  for (size_t k = 0; k < n; ++k) value |= static_cast<uint64_t>(p[k]) << (8 * k);
+  return value;
+}
+
 struct WireField {
   uint32_t number = 0;
   int wire_type = 0;
@@ -67,8 +74,7 @@ class WireReader {
   }
   uint64_t Fixed(size_t n) {
     if (n > static_cast<size_t>(end_ - p_)) Fail("truncated fixed-size field");
-    uint64_t value = 0;
-    for (size_t k = 0; k < n; ++k) value |= static_cast<uint64_t>(p_[k]) << (8 * k);
+    const uint64_t value = LittleEndian(p_, n);
     p_ += n;
     return value;
   }
@@ -161,31 +167,20 @@ void AppendInts(const WireField& f, std::vector<int64_t>* out) {
   for (uint64_t v : WireReader::PackedVarints(f)) out->push_back(static_cast<int64_t>(v));
 }
 
-// Repeated float: packed (wire type 2, 4 bytes each) or one fixed32 field.
-void AppendFloats(const WireField& f, std::vector<float>* out) {
-  if (f.wire_type == 5) {
-    out->push_back(FloatOfFixed32(f.fixed));
+// Repeated float (width 4) or double (width 8, narrowed to float): one fixed-size field (wire
+// type 5 or 1) or a packed run (wire type 2).
+void AppendReals(const WireField& f, size_t width, std::vector<float>* out) {
+  const auto value = [width](uint64_t bits) {
+    return width == 4 ? FloatOfFixed32(bits) : static_cast<float>(DoubleOfFixed64(bits));
+  };
+  if (f.wire_type == (width == 4 ? 5 : 1)) {
+    out->push_back(value(f.fixed));
     return;
   }
-  if (f.wire_type != 2 || f.size % 4 != 0) throw std::invalid_argument("bad packed float field");
-  for (size_t k = 0; k < f.size; k += 4) {
-    uint64_t bits = 0;
-    for (size_t b = 0; b < 4; ++b) bits |= static_cast<uint64_t>(f.data[k + b]) << (8 * b);
-    out->push_back(FloatOfFixed32(bits));
+  if (f.wire_type != 2 || f.size % width != 0) {
+    throw std::invalid_argument(width == 4 ? "bad packed float field" : "bad packed double field");
   }
-}
-
-void AppendDoubles(const WireField& f, std::vector<float>* out) {
-  if (f.wire_type == 1) {
-    out->push_back(static_cast<float>(DoubleOfFixed64(f.fixed)));
-    return;
-  }
-  if (f.wire_type != 2 || f.size % 8 != 0) throw std::invalid_argument("bad packed double field");
-  for (size_t k = 0; k < f.size; k += 8) {
-    uint64_t bits = 0;
-    for (size_t b = 0; b < 8; ++b) bits |= static_cast<uint64_t>(f.data[k + b]) << (8 * b);
-    out->push_back(static_cast<float>(DoubleOfFixed64(bits)));
-  }
+  for (size_t k = 0; k < f.size; k += width) out->push_back(value(LittleEndian(f.data + k, width)));
 }
 
 // TensorProto{dims = 1, data_type = 2, float_data = 4, int32_data = 5, int64_data = 7, name = 8,
@@ -206,7 +201,7 @@ OnnxTensor ParseTensor(const WireField& message) {
         t.data_type = static_cast<int>(f.varint);
         break;
       case 4:
-        AppendFloats(f, &t.floats);
+        AppendReals(f, 4, &t.floats);
         break;
       case 5:
       case 7:
@@ -222,7 +217,7 @@ OnnxTensor ParseTensor(const WireField& message) {
         }
         break;
       case 10:
-        AppendDoubles(f, &t.floats);
+        AppendReals(f, 8, &t.floats);
         break;
       case 14:
         external = f.wire_type == 0 && f.varint == 1;
@@ -252,8 +247,7 @@ OnnxTensor ParseTensor(const WireField& message) {
       throw std::invalid_argument("tensor '" + t.name + "' raw data is not whole elements");
     }
     for (size_t k = 0; k < raw_size; k += width) {
-      uint64_t bits = 0;
-      for (size_t b = 0; b < width; ++b) bits |= static_cast<uint64_t>(raw[k + b]) << (8 * b);
+      const uint64_t bits = LittleEndian(raw + k, width);
       switch (t.data_type) {
         case OnnxTensor::kFloat:
           t.floats.push_back(FloatOfFixed32(bits));
@@ -301,7 +295,7 @@ OnnxAttribute ParseAttribute(const WireField& message) {
         if (f.wire_type == 2) a.t.push_back(ParseTensor(f));
         break;
       case 7:
-        AppendFloats(f, &a.floats);
+        AppendReals(f, 4, &a.floats);
         break;
       case 8:
         AppendInts(f, &a.ints);
@@ -414,6 +408,15 @@ std::string OnnxNode::String(const std::string& attribute, const std::string& fa
 std::vector<int64_t> OnnxNode::Ints(const std::string& attribute) const {
   const OnnxAttribute* a = Find(attribute);
   return a ? a->ints : std::vector<int64_t>{};
+}
+
+std::string OnnxDimsText(const std::vector<int64_t>& dims) {
+  std::string text;
+  for (size_t i = 0; i < dims.size(); ++i) {
+    if (i) text += 'x';
+    text += dims[i] < 0 ? std::string("?") : std::to_string(dims[i]);
+  }
+  return text;
 }
 
 OnnxModel ParseOnnxModel(const std::vector<uint8_t>& model_bytes) {

@@ -57,6 +57,9 @@ struct OnnxModel {
   std::vector<OnnxValueInfo> outputs;
 };
 
+// Dims as text, e.g. "1x3x?x640" (symbolic or missing dims, -1, as '?').
+std::string OnnxDimsText(const std::vector<int64_t>& dims);
+
 // Throws std::invalid_argument (with the byte offset) when the bytes are not a well-formed
 // ModelProto with a graph, or a tensor keeps its data outside the file (external data), or the
 // data of a float or integer tensor does not match its dims.

@@ -462,11 +462,7 @@ YoloSegmenter::YoloSegmenter(const YoloOptions& options) : options_(options) {
   } catch (const std::invalid_argument& e) {
     throw InputError(path, 0, std::string("not an ONNX model or truncated (") + e.what() + ")");
   }
-  std::string dims_text;
-  for (size_t i = 0; i < dims.size(); ++i) {
-    if (i) dims_text += 'x';
-    dims_text += dims[i] < 0 ? std::string("?") : std::to_string(dims[i]);
-  }
+  const std::string dims_text = OnnxDimsText(dims);
   if (dims.size() != 4 || (dims[1] > 0 && dims[1] != 3) || (dims[0] > 1)) {
     throw InputError(path, 0, "model input is " + dims_text + ", expected 1x3xHxW");
   }
