@@ -396,12 +396,6 @@ TEST(NetPlan, CudaAbsenceIsReportedNotFatal) {
   EXPECT_THROW(MakeCudaExecutor(plan), std::runtime_error);
 }
 
-}  // namespace
-}  // namespace pcr::gpu
-
-namespace pcr::gpu {
-namespace {
-
 // Found by fuzz/fuzz_onnx.cpp: each was a crash, an uncaught std::out_of_range or undefined
 // behaviour before it was fixed.
 TEST(NetPlan, FuzzFindingsAreRefusedOrComputedCleanly) {

@@ -20,10 +20,12 @@ namespace {
 const char* const kFast = "models/yolov8n-seg_coco_224x640.onnx";
 const char* const kImage = "models/test_images/kitti_000008.png";
 
-YoloOptions Options() {
+// The 224x640 model on OpenCV DNN's CPU backend, or on the executor's `device` when given.
+YoloOptions Options(const std::string& device = "") {
   YoloOptions options;
   options.model_path = test::SharedPath(kFast);
   options.allow_cuda = false;
+  if (!device.empty()) options.engine_factory = NetEngineFactory(device);
   return options;
 }
 
@@ -48,9 +50,7 @@ TEST(YoloTwin, RawOutputsMatchOpenCvDnn) {
   const cv::Mat image = cv::imread(test::SharedPath(kImage), cv::IMREAD_COLOR);
   ASSERT_FALSE(image.empty()) << test::SharedPath(kImage);
   YoloSegmenter reference(Options());
-  YoloOptions twin_options = Options();
-  twin_options.engine_factory = NetEngineFactory("twin");
-  YoloSegmenter twin(twin_options);
+  YoloSegmenter twin(Options("twin"));
   EXPECT_EQ(twin.backend(), "pcr-cpu-twin");
   EXPECT_EQ(twin.layout().num_anchors, reference.layout().num_anchors);
   EXPECT_EQ(twin.layout().proto_size, reference.layout().proto_size);
@@ -77,9 +77,7 @@ TEST(YoloTwin, SegmentFindsTheSameInstances) {
   const cv::Mat image = cv::imread(test::SharedPath(kImage), cv::IMREAD_GRAYSCALE);
   ASSERT_FALSE(image.empty()) << test::SharedPath(kImage);
   YoloSegmenter reference(Options());
-  YoloOptions twin_options = Options();
-  twin_options.engine_factory = NetEngineFactory("twin");
-  YoloSegmenter twin(twin_options);
+  YoloSegmenter twin(Options("twin"));
   const Segmentation want = reference.Segment(image);
   const Segmentation got = twin.Segment(image);
   EXPECT_EQ(got.backend, "pcr-cpu-twin");
@@ -133,10 +131,8 @@ TEST(YoloTwin, BadDeviceNamesAndUnrunnableModelsAreClearErrors) {
   EXPECT_TRUE(IsNetEngineDevice("cuda:1"));
   EXPECT_FALSE(IsNetEngineDevice("opencv"));
   if (CudaDeviceCount() == 0) {
-    YoloOptions options = Options();
-    options.engine_factory = NetEngineFactory("cuda");
     try {
-      YoloSegmenter segmenter(options);
+      YoloSegmenter segmenter(Options("cuda"));
       FAIL() << "a CUDA engine was made without a device";
     } catch (const InputError& e) {
       const std::string what = e.what();
@@ -146,25 +142,15 @@ TEST(YoloTwin, BadDeviceNamesAndUnrunnableModelsAreClearErrors) {
   }
 }
 
-}  // namespace
-}  // namespace pcr::gpu
-
-namespace pcr::gpu {
-namespace {
-
-// On a machine with a CUDA device (scripts/gpu_check.sh): the CUDA executor against its twin on
-// the real model. Skipped, saying why, elsewhere.
+// On a machine with a CUDA device (scripts/device_run.sh check): the CUDA executor against its twin
+// on the real model. Skipped, saying why, elsewhere.
 TEST(YoloCuda, MatchesTheTwinOnTheRealModel) {
   std::string why;
   if (CudaDeviceCount(&why) == 0) GTEST_SKIP() << "no CUDA device: " << why;
   const cv::Mat image = cv::imread(test::SharedPath(kImage), cv::IMREAD_COLOR);
   ASSERT_FALSE(image.empty());
-  YoloOptions twin_options = Options();
-  twin_options.engine_factory = NetEngineFactory("twin");
-  YoloSegmenter twin(twin_options);
-  YoloOptions cuda_options = Options();
-  cuda_options.engine_factory = NetEngineFactory("cuda");
-  YoloSegmenter cuda(cuda_options);
+  YoloSegmenter twin(Options("twin"));
+  YoloSegmenter cuda(Options("cuda"));
   EXPECT_EQ(cuda.backend().rfind("pcr-cuda:0", 0), 0u) << cuda.backend();
   LetterboxInfo letterbox;
   const cv::Mat blob = twin.Preprocess(image, &letterbox);
