@@ -5,6 +5,8 @@
 # under TSAN_OPTIONS=halt_on_error=1 (the first report stops the run with exit code 66).
 #   scripts/tsan.sh [POLICY ...]     (default: pipelined; e.g. scripts/tsan.sh pipelined realtime)
 # Environment: PCR_SHARED_DIR (default ../shared), PCR_TSAN_FRAMES (default 0:20),
+# PCR_TSAN_INFERENCE (--inference, default opencv; `twin` runs the network executor, whose
+# passes suspend the segment stage's task in the pipelined and realtime policies),
 # PCR_JOBS (build jobs, default nproc).
 # oneTBB and OpenCV come from Debian and are not instrumented: scripts/tsan.supp suppresses
 # reports whose frames lie in those libraries only (see the file); reports in our code are not
@@ -13,6 +15,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 shared=${PCR_SHARED_DIR:-$(cd .. && pwd)/shared}
 frames=${PCR_TSAN_FRAMES:-0:20}
+inference=${PCR_TSAN_INFERENCE:-opencv}
 policies=("$@")
 [ ${#policies[@]} -eq 0 ] && policies=(pipelined)
 drive="$shared/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"
@@ -30,12 +33,12 @@ export TSAN_OPTIONS="$opts suppressions=$PWD/scripts/tsan.supp ${TSAN_OPTIONS:-}
 status=0
 for policy in "${policies[@]}"; do
   log=build-tsan/tsan_${policy}.log
-  echo "tsan: pcr_orb pipeline --policy $policy --frames $frames (YOLO 224x640, --filter on)," \
-    "log in $log"
+  echo "tsan: pcr_orb pipeline --policy $policy --frames $frames (YOLO 224x640 on $inference," \
+    "--filter on), log in $log"
   set +e
   build-tsan/src/pcr_orb pipeline --sequence "$drive" --config config/kitti03.yaml \
     --frames "$frames" --segmenter yolo --model "$model" --filter on --policy "$policy" \
-    --threads 2 --out "build-tsan/out_$policy" >"$log" 2>&1
+    --inference "$inference" --threads 2 --out "build-tsan/out_$policy" >"$log" 2>&1
   rc=$?
   set -e
   if grep -q "unexpected memory mapping\|FATAL: ThreadSanitizer" "$log"; then
@@ -44,7 +47,8 @@ for policy in "${policies[@]}"; do
     set +e
     setarch "$(uname -m)" -R build-tsan/src/pcr_orb pipeline --sequence "$drive" \
       --config config/kitti03.yaml --frames "$frames" --segmenter yolo --model "$model" \
-      --filter on --policy "$policy" --threads 2 --out "build-tsan/out_$policy" >"$log" 2>&1
+      --filter on --policy "$policy" --inference "$inference" --threads 2 \
+      --out "build-tsan/out_$policy" >"$log" 2>&1
     rc=$?
     set -e
   fi

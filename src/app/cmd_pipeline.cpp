@@ -37,6 +37,7 @@ struct PipelineArgs {
   int trim_every = graph::PipelineOptions{}.trim_heap_every;
   std::string trim_after_keyframe =
       graph::PipelineOptions{}.trim_heap_after_keyframe ? "on" : "off";
+  std::string device_overlap = graph::PipelineOptions{}.device_overlap ? "on" : "off";
 };
 
 nodes::FrameSource SourceFromDataset(const Dataset& dataset, const RunConfig& config,
@@ -85,6 +86,7 @@ graph::PipelineOptions ToPipelineOptions(const PipelineArgs& a) {
   o.tracking_delay_ms = a.delay_ms;
   o.trim_heap_every = a.trim_every;
   o.trim_heap_after_keyframe = a.trim_after_keyframe == "on";
+  o.device_overlap = a.device_overlap == "on";
   std::string why;
   if (!o.IsValid(&why)) throw ConfigError("pipeline options: " + why);
   return o;
@@ -105,7 +107,8 @@ nlohmann::json OptionsJson(const PipelineArgs& a) {
           {"inference", a.inference},
           {"delay_ms", a.delay_ms},
           {"trim_every", a.trim_every},
-          {"trim_after_keyframe", a.trim_after_keyframe}};
+          {"trim_after_keyframe", a.trim_after_keyframe},
+          {"device_overlap", a.device_overlap}};
 }
 
 void RunPipelineCommand(const PipelineArgs& args) {
@@ -233,6 +236,11 @@ void AddPipelineCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--trim-after-keyframe", args->trim_after_keyframe,
                   "also right after each keyframe's local mapping: on or off")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
+  cmd->add_option("--device-overlap", args->device_overlap,
+                  "pipelined/realtime with --inference cuda: the segment stage's thread runs "
+                  "other stages while the GPU works (off: it waits, blocked): on or off")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   cmd->add_option("--delay-ms", args->delay_ms,

@@ -8,6 +8,7 @@
 #include <cuda_runtime.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -122,15 +123,17 @@ class CudaExecutor final : public Executor {
 
   std::string Name() const override { return name_; }
 
-  std::vector<std::vector<float>> Run(const float* input) override {
+  void Launch(const float* input, const Done& done) override {
     step_ = -1;
-    // The current device is per host thread; Run may come from another thread than the
-    // constructor.
+    // The current device is per host thread; a pass may come from another thread than the
+    // constructor, and its two halves from two threads.
     Check(cudaSetDevice(device_), "cudaSetDevice");
-    // A Run that threw may have left copies from the staging buffers queued; wait for them.
-    Check(cudaStreamSynchronize(stream_), "cudaStreamSynchronize (start of Run)");
+    // A pass that threw (or was never finished) may have left copies from the staging buffers
+    // queued, and its callback may still be running; wait for them.
+    Check(cudaStreamSynchronize(stream_), "cudaStreamSynchronize (start of a pass)");
+    callback_status_.store(cudaSuccess);
     if (input_count_ > 0) {
-      if (input == nullptr) throw std::runtime_error("CUDA executor: Run() given a null input");
+      if (input == nullptr) throw std::runtime_error("CUDA executor: Launch() given a null input");
       std::memcpy(host_input_, input, static_cast<size_t>(input_count_) * sizeof(float));
       Check(cudaMemcpyAsync(buffers_[plan_->input.buffer], host_input_,
                             static_cast<size_t>(input_count_) * sizeof(float),
@@ -149,15 +152,34 @@ class CudaExecutor final : public Executor {
                             cudaMemcpyDeviceToHost, stream_),
             "cudaMemcpyAsync (output)");
     }
+    if (!done) return;
+    // cudaStreamAddCallback, not cudaLaunchHostFunc: its callback runs exactly once, also after
+    // a device error (with the error), so a waiter is always woken.
+    done_ = done;
+    const cudaError_t e = cudaStreamAddCallback(stream_, &CudaExecutor::OnPassEnd, this, 0);
+    if (e != cudaSuccess) {
+      done_ = nullptr;
+      Check(e, "cudaStreamAddCallback");
+    }
+    // Nothing after this point: the callback may already have woken the caller's Finish().
+  }
+
+  void Finish(const std::vector<float*>& outputs) override {
+    if (outputs.size() != plan_->outputs.size()) {
+      throw std::invalid_argument("CUDA executor: one destination per plan output");
+    }
+    step_ = -1;
+    Check(cudaSetDevice(device_), "cudaSetDevice");
     // Kernel faults surface here, after the last step; they cannot be attributed to a step.
-    Check(cudaStreamSynchronize(stream_), "cudaStreamSynchronize (end of Run)");
-    std::vector<std::vector<float>> outputs(plan_->outputs.size());
+    Check(cudaStreamSynchronize(stream_), "cudaStreamSynchronize (end of a pass)");
+    Check(callback_status_.load(), "the forward pass (as its completion callback saw it)");
     for (size_t i = 0; i < outputs.size(); ++i) {
       const float* begin = host_outputs_ + output_offsets_[i];
-      outputs[i].assign(begin, begin + output_counts_[i]);
+      std::copy(begin, begin + output_counts_[i], outputs[i]);
     }
-    return outputs;
   }
+
+  const NetPlan& plan() const override { return *plan_; }
 
  private:
   void Init() {
@@ -253,6 +275,17 @@ class CudaExecutor final : public Executor {
     if (stream_) cudaStreamDestroy(stream_);
     stream_ = nullptr;
     cudaGetLastError();  // do not leave a (non-sticky) error behind for the next caller
+  }
+
+  // Runs on a CUDA runtime thread when the pass has ended: no CUDA calls, no blocking.
+  static void CUDART_CB OnPassEnd(cudaStream_t /*stream*/, cudaError_t status, void* self_ptr) {
+    auto* self = static_cast<CudaExecutor*>(self_ptr);
+    self->callback_status_.store(status);
+    // Moved out first: the woken caller may start the next pass (which sets done_) while this
+    // call is still returning.
+    Done done = std::move(self->done_);
+    self->done_ = nullptr;
+    done();
   }
 
   // ---- Error reporting ----
@@ -531,6 +564,8 @@ class CudaExecutor final : public Executor {
   int64_t input_count_ = 0;
   float* host_input_ = nullptr;    // pinned staging of the input
   float* host_outputs_ = nullptr;  // pinned staging of all outputs, back to back
+  Done done_;                      // of the launched pass, for OnPassEnd
+  std::atomic<cudaError_t> callback_status_{cudaSuccess};  // written by OnPassEnd
   std::vector<int64_t> output_offsets_, output_counts_;
 };
 

@@ -1,6 +1,8 @@
 #pragma once
 // Runs a NetPlan. Implementations: TwinExecutor (CPU, always built) and CudaExecutor (when the
-// build has CUDA). Thread-compatible: one Run() at a time per executor.
+// build has CUDA). Thread-compatible: one pass at a time per executor (Launch, then Finish, or
+// Run); the two halves of a pass may come from different threads.
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -11,10 +13,23 @@ namespace pcr::gpu {
 
 class Executor {
  public:
+  using Done = std::function<void()>;
+
   virtual ~Executor() = default;
-  // input: the plan's input tensor (plan.input.shape, row-major). Returns the plan's outputs in
-  // order, each plan.outputs[i].shape row-major.
-  virtual std::vector<std::vector<float>> Run(const float* input) = 0;
+  // Queues one forward pass and returns. input: the plan's input tensor (plan.input.shape,
+  // row-major), read before Launch returns. `done` (may be empty) is called exactly once, when
+  // the pass has finished or failed: by the CUDA executor from a CUDA runtime thread (it must not
+  // block or call CUDA), by the twin on the calling thread as Launch's last act. Throws, without
+  // calling `done`, when the pass cannot be queued.
+  virtual void Launch(const float* input, const Done& done) = 0;
+  // Waits for the launched pass (at once when `done` has been called), then writes output i
+  // (plan.outputs[i].shape, row-major, ShapeElements floats) to outputs[i]. Throws when the pass
+  // failed, saying where.
+  virtual void Finish(const std::vector<float*>& outputs) = 0;
+  // Launch + Finish into new vectors, blocking.
+  std::vector<std::vector<float>> Run(const float* input);
+
+  virtual const NetPlan& plan() const = 0;
   virtual std::string Name() const = 0;  // "cpu-twin", "cuda:0 (NVIDIA H200)", ...
 };
 

@@ -2,7 +2,10 @@
 
 #include <spdlog/spdlog.h>
 
+#include <exception>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 #include "gpu/executor.h"
 
@@ -38,23 +41,40 @@ class NetEngine final : public InferenceEngine {
                       blob.size[0] == in[0] && blob.size[1] == in[1] && blob.size[2] == in[2] &&
                       blob.size[3] == in[3];
     if (!fits) throw std::invalid_argument("NetEngine: the blob does not match the model input");
-    std::vector<std::vector<float>> outputs = executor_->Run(blob.ptr<float>());
     std::vector<cv::Mat> mats;
-    for (size_t i = 0; i < outputs.size(); ++i) {
-      const std::vector<int64_t>& s = plan_->outputs[i].shape;
-      const std::vector<int> dims(s.begin(), s.end());
-      cv::Mat m(static_cast<int>(dims.size()), dims.data(), CV_32F);
-      std::copy(outputs[i].begin(), outputs[i].end(), m.ptr<float>());
-      mats.push_back(m);
+    std::vector<float*> destinations;
+    for (const PlanTensor& t : plan_->outputs) {
+      const std::vector<int> dims(t.shape.begin(), t.shape.end());
+      mats.emplace_back(static_cast<int>(dims.size()), dims.data(), CV_32F);
+      destinations.push_back(mats.back().ptr<float>());
     }
+    const float* input = blob.ptr<float>();
+    if (wait_) {
+      std::exception_ptr error;
+      wait_([&](const DeviceDone& done) {
+        try {
+          executor_->Launch(input, done);
+        } catch (...) {
+          error = std::current_exception();
+          done();  // Launch did not queue the pass and will not call it
+        }
+      });
+      if (error) std::rethrow_exception(error);
+    } else {
+      executor_->Launch(input, {});
+    }
+    executor_->Finish(destinations);  // straight into the caller's tensors
     return mats;
   }
+
+  void SetDeviceWait(DeviceWait wait) override { wait_ = std::move(wait); }
 
   std::string Backend() const override { return "pcr-" + executor_->Name(); }
 
  private:
   std::shared_ptr<const NetPlan> plan_;
   std::unique_ptr<Executor> executor_;
+  DeviceWait wait_;  // empty: Finish() blocks
 };
 
 }  // namespace

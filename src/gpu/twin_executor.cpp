@@ -1,8 +1,10 @@
 // The CPU twin of cuda_executor.cu: the same steps, the same per-element functions
-// (tensor_math.h), Eigen for the GEMMs.
+// (tensor_math.h), Eigen for the GEMMs. Also Executor::Run, which both executors share.
 #include <Eigen/Core>
+#include <algorithm>
 #include <stdexcept>
 #include <type_traits>
+#include <vector>
 
 #include "gpu/executor.h"
 
@@ -31,20 +33,27 @@ class TwinExecutor final : public Executor {
     scratch_.resize(static_cast<size_t>(plan_->scratch_size));
   }
 
-  std::vector<std::vector<float>> Run(const float* input) override {
+  void Launch(const float* input, const Done& done) override {
     float* in = Buffer(plan_->input.buffer);
     std::copy(input, input + plan_->buffers[plan_->input.buffer].size, in);
     for (size_t s = 0; s < plan_->steps.size(); ++s) {
       std::visit([this](const auto& step) { Execute(step); }, plan_->steps[s]);
     }
-    std::vector<std::vector<float>> outputs;
-    for (const PlanTensor& t : plan_->outputs) {
-      const float* data = Buffer(t.buffer);
-      outputs.emplace_back(data, data + ShapeElements(t.shape));
-    }
-    return outputs;
+    if (done) done();  // last: the caller may already be running Finish() on another thread
   }
 
+  void Finish(const std::vector<float*>& outputs) override {
+    if (outputs.size() != plan_->outputs.size()) {
+      throw std::invalid_argument("TwinExecutor: one destination per plan output");
+    }
+    for (size_t i = 0; i < outputs.size(); ++i) {
+      const PlanTensor& t = plan_->outputs[i];
+      const float* data = Buffer(t.buffer);
+      std::copy(data, data + ShapeElements(t.shape), outputs[i]);
+    }
+  }
+
+  const NetPlan& plan() const override { return *plan_; }
   std::string Name() const override { return "cpu-twin"; }
 
  private:
@@ -148,6 +157,18 @@ class TwinExecutor final : public Executor {
 };
 
 }  // namespace
+
+std::vector<std::vector<float>> Executor::Run(const float* input) {
+  Launch(input, {});
+  std::vector<std::vector<float>> outputs;
+  std::vector<float*> destinations;
+  for (const PlanTensor& t : plan().outputs) {
+    outputs.emplace_back(static_cast<size_t>(ShapeElements(t.shape)));
+  }
+  for (std::vector<float>& o : outputs) destinations.push_back(o.data());
+  Finish(destinations);
+  return outputs;
+}
 
 std::unique_ptr<Executor> MakeTwinExecutor(std::shared_ptr<const NetPlan> plan) {
   return std::make_unique<TwinExecutor>(std::move(plan));

@@ -2,6 +2,7 @@
 
 #include <oneapi/tbb/flow_graph.h>
 #include <oneapi/tbb/global_control.h>
+#include <oneapi/tbb/task.h>
 #include <oneapi/tbb/task_arena.h>
 #include <spdlog/spdlog.h>
 
@@ -9,6 +10,8 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <exception>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <opencv2/core/utility.hpp>
@@ -17,6 +20,7 @@
 #include <thread>
 #include <tuple>
 #include <utility>
+#include <vector>
 
 #include "graph/heap.h"
 #include "graph/mask_board.h"
@@ -144,6 +148,51 @@ class TsanBody {
 
  private:
   const void* serial_node_;
+};
+
+// The flow graph's DeviceWait (slam/dynamic/segmenter.h): the calling stage's task is
+// suspended while the device works and its thread runs other stages meanwhile, so a GPU pass
+// does not hold one of the `--threads` slots; done() resumes the task, on whichever thread picks
+// it up. Must be called from a task of the run's arena. A launch that throws (before it has
+// arranged for done(), as DeviceWait requires) resumes the task at once and the exception
+// surfaces from here.
+void SuspendWhileDeviceWorks(const std::function<void(const DeviceDone&)>& launch) {
+  char sync = 0;  // the device's and the launcher's writes -> the resumed half (TSAN)
+  std::exception_ptr error;
+  oneapi::tbb::task::suspend([&launch, &sync, &error](oneapi::tbb::task::suspend_point tag) {
+    try {
+      launch([tag, &sync] {
+        TsanRelease(&sync);
+        oneapi::tbb::task::resume(tag);
+      });
+    } catch (...) {
+      error = std::current_exception();
+      TsanRelease(&sync);
+      oneapi::tbb::task::resume(tag);
+    }
+  });
+  TsanAcquire(&sync);
+  if (error) std::rethrow_exception(error);
+}
+
+// Installs SuspendWhileDeviceWorks in the segmenters for one run, and removes it after.
+class DeviceWaitScope {
+ public:
+  explicit DeviceWaitScope(const nodes::SegmenterSet& segmenters) {
+    for (Segmenter* s : {segmenters.accurate, segmenters.fast}) {
+      if (!s || std::find(installed_.begin(), installed_.end(), s) != installed_.end()) continue;
+      s->SetDeviceWait(SuspendWhileDeviceWorks);
+      installed_.push_back(s);
+    }
+  }
+  ~DeviceWaitScope() {
+    for (Segmenter* s : installed_) s->SetDeviceWait({});
+  }
+  DeviceWaitScope(const DeviceWaitScope&) = delete;
+  DeviceWaitScope& operator=(const DeviceWaitScope&) = delete;
+
+ private:
+  std::vector<Segmenter*> installed_;
 };
 
 // One run of the graph: shared state of the node bodies and the clock.
@@ -796,6 +845,11 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
                 ToString(options.policy), source.name, source.size(), options.threads,
                 max_in_flight);
   GraphRun run(source, &slam, options, max_in_flight, segmenters, scorer, extra);
+  // Pipelined and realtime: inference on a device overlaps the CPU stages on every thread. The
+  // sequential reference keeps its stages one after another (T = T_slam + T_inference).
+  std::optional<DeviceWaitScope> device_wait;
+  if (options.policy != Policy::kSequential && options.device_overlap)
+    device_wait.emplace(segmenters);
   PipelineResult result;
   arena.execute([&] { result = run.Run(); });
   return result;

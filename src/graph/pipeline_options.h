@@ -64,6 +64,11 @@ struct PipelineOptions {
   // bench_memory, 2000 frames: ~15% less resident memory and window peaks +7.4% instead of
   // +11-13%; off by default because YOLO then faults its buffers in again (~3% throughput).
   bool trim_heap_after_keyframe = false;
+  // Pipelined and realtime: a segmenter whose network runs on a device (`--inference cuda`)
+  // waits for it with its stage's task suspended, so that the thread runs other stages meanwhile
+  // (segmenter.h, DeviceWait); false: the pass blocks its thread, one of `threads`. The
+  // sequential policy always blocks (its stages run one after another).
+  bool device_overlap = true;
   // Testing and demonstrations: artificial delay added to every tracking call (simulates a slow
   // back end), and a hook called at the start of every stage body (may sleep or throw).
   double tracking_delay_ms = 0;

@@ -385,6 +385,32 @@ TEST(NetPlan, UnsupportedOpsAndBadShapesNameTheNode) {
   }
 }
 
+TEST(NetPlan, LaunchThenFinishWritesTheOutputsAndCallsDoneOnce) {
+  const auto model = OnnxWriter()
+                         .Input("x", {1, 3, 2, 2})
+                         .Node("Sigmoid", {"x"}, {"y"})
+                         .Node("Split", {"y"}, {"a", "b"},
+                               {OnnxAttr::Int("axis", 1), OnnxAttr::Ints("split", {1, 2})})
+                         .Output("a")
+                         .Output("b")
+                         .Model();
+  auto plan = std::make_shared<const NetPlan>(BuildNetPlan(model, 2, 2));
+  const auto input = Random(12, 9);
+  auto executor = MakeTwinExecutor(plan);
+  const auto want = executor->Run(input.data());
+  ASSERT_EQ(want.size(), 2u);
+  std::vector<float> a(4, -7.0f), b(8, -7.0f);
+  int dones = 0;
+  executor->Launch(input.data(), [&dones] { ++dones; });
+  EXPECT_EQ(dones, 1);  // the twin: before Launch returns
+  executor->Finish({a.data(), b.data()});
+  EXPECT_EQ(a, want[0]);
+  EXPECT_EQ(b, want[1]);
+  for (size_t i = 0; i < 4; ++i) EXPECT_FLOAT_EQ(a[i], 1.0f / (1.0f + std::exp(-input[i])));
+  EXPECT_EQ(dones, 1);
+  EXPECT_THROW(executor->Finish({a.data()}), std::invalid_argument);  // one per output
+}
+
 TEST(NetPlan, CudaAbsenceIsReportedNotFatal) {
   std::string why;
   const int devices = CudaDeviceCount(&why);

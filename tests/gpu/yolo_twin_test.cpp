@@ -4,9 +4,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <fstream>
+#include <functional>
+#include <future>
 #include <iterator>
 #include <opencv2/imgcodecs.hpp>
+#include <thread>
 
 #include "gpu/executor.h"
 #include "gpu/net_engine.h"
@@ -44,6 +48,32 @@ float MaxDiff(const cv::Mat& a, const cv::Mat& b, int row_begin = -1, int row_en
   float worst = 0.0f;
   for (size_t i = begin; i < end; ++i) worst = std::max(worst, std::abs(pa[i] - pb[i]));
   return worst;
+}
+
+// A DeviceWait that blocks until done() the way a scheduler's resumes: counts its calls and
+// remembers the thread that called done().
+struct BlockingWait {
+  int waits = 0, dones = 0;
+  std::thread::id done_thread;
+  DeviceWait Get() {
+    return [this](const std::function<void(const DeviceDone&)>& launch) {
+      ++waits;
+      std::promise<void> finished;
+      std::future<void> ended = finished.get_future();
+      launch([this, &finished] {
+        ++dones;
+        done_thread = std::this_thread::get_id();
+        finished.set_value();
+      });
+      ended.wait();
+    };
+  }
+};
+
+bool BitwiseEqual(const cv::Mat& a, const cv::Mat& b) {
+  return a.total() == b.total() &&
+         std::equal(a.ptr<float>(), a.ptr<float>() + a.total(), b.ptr<float>(),
+                    [](float x, float y) { return std::memcmp(&x, &y, sizeof x) == 0; });
 }
 
 TEST(YoloTwin, RawOutputsMatchOpenCvDnn) {
@@ -125,6 +155,31 @@ TEST(YoloTwin, SharedStorageGivesBitwiseTheSameOutputsInAFractionOfTheMemory) {
   for (size_t k = 0; k < a.size(); ++k) EXPECT_TRUE(a[k] == b[k]) << "output " << k;
 }
 
+TEST(YoloTwin, ADeviceWaitGetsTheSameOutputsAndOneDonePerPass) {
+  const cv::Mat image = cv::imread(test::SharedPath(kImage), cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty()) << test::SharedPath(kImage);
+  YoloSegmenter twin(Options("twin"));
+  LetterboxInfo letterbox;
+  const cv::Mat blob = twin.Preprocess(image, &letterbox);
+  const std::vector<cv::Mat> blocking = twin.Forward(blob);
+  BlockingWait wait;
+  twin.SetDeviceWait(wait.Get());
+  const std::vector<cv::Mat> waited = twin.Forward(blob);
+  EXPECT_EQ(wait.waits, 1);
+  EXPECT_EQ(wait.dones, 1);
+  EXPECT_EQ(wait.done_thread, std::this_thread::get_id());  // the twin calls done itself
+  ASSERT_EQ(waited.size(), blocking.size());
+  for (size_t i = 0; i < waited.size(); ++i) EXPECT_TRUE(BitwiseEqual(waited[i], blocking[i]));
+  twin.SetDeviceWait({});
+  twin.Forward(blob);
+  EXPECT_EQ(wait.waits, 1);  // removed: not called again
+  // OpenCV DNN computes on the calling thread: it has no use for the wait.
+  YoloSegmenter opencv(Options());
+  opencv.SetDeviceWait(wait.Get());
+  opencv.Forward(blob);
+  EXPECT_EQ(wait.waits, 1);
+}
+
 TEST(YoloTwin, BadDeviceNamesAndUnrunnableModelsAreClearErrors) {
   EXPECT_THROW(NetEngineFactory("gpu0"), std::invalid_argument);
   EXPECT_THROW(NetEngineFactory("cuda:x"), std::invalid_argument);
@@ -163,6 +218,19 @@ TEST(YoloCuda, MatchesTheTwinOnTheRealModel) {
     EXPECT_LT(MaxDiff(got[1], want[1]), 1e-3f);
   }
   EXPECT_EQ(cuda.Segment(image).instances.size(), twin.Segment(image).instances.size());
+  // Through a device wait: done() comes from the CUDA runtime's callback thread.
+  const std::vector<cv::Mat> blocking = cuda.Forward(blob);
+  BlockingWait wait;
+  cuda.SetDeviceWait(wait.Get());
+  for (int run = 0; run < 3; ++run) {
+    const std::vector<cv::Mat> got = cuda.Forward(blob);
+    ASSERT_EQ(got.size(), 2u);
+    EXPECT_TRUE(BitwiseEqual(got[0], blocking[0]));
+    EXPECT_TRUE(BitwiseEqual(got[1], blocking[1]));
+  }
+  EXPECT_EQ(wait.waits, 3);
+  EXPECT_EQ(wait.dones, 3);
+  EXPECT_NE(wait.done_thread, std::this_thread::get_id());
 }
 
 }  // namespace

@@ -9,8 +9,10 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <mutex>
 #include <set>
+#include <string_view>
 #include <thread>
 
 #include "graph/heap.h"
@@ -105,6 +107,53 @@ class HalfImageSegmenter final : public Segmenter {
   double fraction_;
   int delay_ms_;
   std::atomic<int> calls_{0};
+};
+
+// A segmenter whose work runs on a "device": a thread of its own that sleeps device_ms and then
+// computes HalfImageSegmenter's result, as a GPU would work while the host waits. With the
+// scheduler's DeviceWait installed, Segment() waits through it; without, it blocks.
+class DeviceSegmenter final : public Segmenter {
+ public:
+  // fail_on_call > 0: that call's launch throws ("device lost") instead of starting the device.
+  explicit DeviceSegmenter(int device_ms, int fail_on_call = 0)
+      : half_(0.25), device_ms_(device_ms), fail_on_call_(fail_on_call) {}
+  Segmentation Segment(const cv::Mat& image) override {
+    if (wait_ && ++launches_ == fail_on_call_) {
+      wait_([](const DeviceDone&) { throw std::runtime_error("device lost"); });
+      ADD_FAILURE() << "the wait returned after a failed launch";
+    }
+    Segmentation result;
+    auto work = [&] {
+      std::this_thread::sleep_for(std::chrono::milliseconds(device_ms_));
+      result = half_.Segment(image);
+    };
+    if (!wait_) {
+      ++blocking_calls_;
+      work();
+      return result;
+    }
+    ++waited_calls_;
+    std::promise<DeviceDone> launched;
+    std::thread device([&work, started = launched.get_future()]() mutable {
+      const DeviceDone done = started.get();
+      work();
+      done();
+    });
+    wait_([&launched](const DeviceDone& done) { launched.set_value(done); });
+    device.join();
+    return result;
+  }
+  std::string Name() const override { return "device"; }
+  void SetDeviceWait(DeviceWait wait) override { wait_ = std::move(wait); }
+  bool wait_installed() const { return static_cast<bool>(wait_); }
+  int waited_calls() const { return waited_calls_.load(); }
+  int blocking_calls() const { return blocking_calls_.load(); }
+
+ private:
+  HalfImageSegmenter half_;
+  int device_ms_, fail_on_call_, launches_ = 0;
+  DeviceWait wait_;
+  std::atomic<int> waited_calls_{0}, blocking_calls_{0};
 };
 
 TEST(PipelineTest, SequentialAndPipelinedEqualProcessFrameLoop) {
@@ -306,6 +355,66 @@ TEST(PipelineTest, SegmentationBranchIsDeterministicWhenWaitedFor) {
   EXPECT_FALSE(plain.tracked.size() == seq.tracked.size() &&
                plain.tracked.back().world_from_cam.matrix() ==
                    seq.tracked.back().world_from_cam.matrix());
+}
+
+TEST(PipelineTest, DeviceInferenceLeavesItsThreadToOtherStages) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 8);
+  DeviceSegmenter on_device(60), reference_device(60);
+  nodes::SegmenterSet set, reference_set;
+  set.fast = &on_device;
+  reference_set.fast = &reference_device;
+  // One TBB thread: whatever runs while the device works ran on the thread that launched it.
+  PipelineOptions options = Options(Policy::kPipelined, 3);
+  options.threads = 1;
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options, set);
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(r.stats.masks_fresh, 8u);
+  EXPECT_EQ(on_device.waited_calls(), 8);
+  EXPECT_EQ(on_device.blocking_calls(), 0);
+  EXPECT_FALSE(on_device.wait_installed());  // removed when the run ended
+  EXPECT_EQ(r.stats.profile_threads, 1);
+  size_t inside = 0;
+  for (const StageEvent& seg : r.events) {
+    if (std::string_view(seg.stage) != kStageSegment) continue;
+    for (const StageEvent& e : r.events) {
+      inside += std::string_view(e.stage) != kStageSegment && e.start_ns > seg.start_ns &&
+                e.end_ns < seg.end_ns;
+    }
+  }
+  EXPECT_GT(inside, 0u) << "no stage ran while the device worked";
+
+  // The sequential reference blocks on the device (stages one after another) and tracks the same.
+  const PipelineResult seq =
+      RunPipeline(clip, SlamOptions{}, Options(Policy::kSequential), reference_set);
+  ASSERT_TRUE(seq.error.empty()) << seq.error;
+  EXPECT_EQ(reference_device.blocking_calls(), 8);
+  EXPECT_EQ(reference_device.waited_calls(), 0);
+  for (const StageEvent& seg : seq.events) {
+    if (std::string_view(seg.stage) != kStageSegment) continue;
+    for (const StageEvent& e : seq.events) {
+      EXPECT_FALSE(std::string_view(e.stage) != kStageSegment && e.start_ns > seg.start_ns &&
+                   e.end_ns < seg.end_ns)
+          << e.stage << " ran inside a blocking segment call";
+    }
+  }
+  ExpectSameTrajectory(seq.tracked, r.tracked);
+  ASSERT_EQ(seq.frames.size(), r.frames.size());
+  for (size_t i = 0; i < seq.frames.size(); ++i)
+    EXPECT_EQ(seq.frames[i].num_excluded, r.frames[i].num_excluded);
+}
+
+TEST(PipelineTest, AFailedDeviceLaunchStopsTheRunAndKeepsEarlierPoses) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 10);
+  DeviceSegmenter failing(20, /*fail_on_call=*/6);
+  nodes::SegmenterSet set;
+  set.fast = &failing;
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, Options(Policy::kPipelined, 3), set);
+  EXPECT_NE(r.error.find("device lost"), std::string::npos) << r.error;
+  EXPECT_EQ(r.error_stage, kStageSegment);
+  EXPECT_GE(r.error_frame_index, 3);  // the 6th call, frames in flight allowing
+  // Every frame before the failed one finished, nothing after it.
+  EXPECT_EQ(static_cast<int64_t>(r.frames.size()), r.error_frame_index);
+  EXPECT_FALSE(failing.wait_installed());
 }
 
 TEST(PipelineTest, LowQualityRunsInferenceEverySecondFrameWithFewerFeatures) {

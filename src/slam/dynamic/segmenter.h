@@ -7,6 +7,7 @@
 // detectors do: pixel (u, v) covers [u, u+1) x [v, v+1), so a camera-convention point (x, y) lies
 // in a box when (x + 0.5, y + 0.5) does.
 #include <cmath>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <set>
 #include <string>
@@ -37,6 +38,15 @@ struct Segmentation {
   std::string backend;  // e.g. "opencv-dnn-cpu"
 };
 
+// How work handed to a device (a GPU) is waited for. wait(launch) calls launch(done) once;
+// launch queues the device work and returns, and done() is called exactly once, from any thread,
+// when the work has finished (or failed); wait returns after that, possibly on another thread
+// than it was called on. Nothing may be touched by launch after it has arranged for done() to be
+// called. A scheduler installs one that frees the calling thread for other work meanwhile (the
+// flow graph: a TBB task suspension); without one, a device engine blocks its caller.
+using DeviceDone = std::function<void()>;
+using DeviceWait = std::function<void(const std::function<void(const DeviceDone&)>& launch)>;
+
 // Thread-compatible: one caller at a time (Segment() may keep inference state).
 class Segmenter {
  public:
@@ -44,6 +54,9 @@ class Segmenter {
   // image: grey CV_8UC1 or BGR CV_8UC3. Throws std::invalid_argument on anything else.
   virtual Segmentation Segment(const cv::Mat& image) = 0;
   virtual std::string Name() const = 0;
+  // For segmenters that run on a device: how Segment() waits for it (empty: block). Segmenters
+  // that compute on the calling thread ignore it. Not to be called while Segment() runs.
+  virtual void SetDeviceWait(DeviceWait wait) { (void)wait; }
 };
 
 // How hard the pixels of a dynamic class are filtered (paper section 3.3.1, multi-class

@@ -14,6 +14,7 @@
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "slam/dynamic/mask_utils.h"
@@ -35,6 +36,9 @@ class InferenceEngine {
   // by the caller.
   virtual std::vector<cv::Mat> Forward(const cv::Mat& blob) = 0;
   virtual std::string Backend() const = 0;  // e.g. "opencv-dnn-cpu", "pcr-cuda:0 (...)"
+  // Engines that run on a device wait for it with `wait` in Forward() (segmenter.h); engines that
+  // compute on the calling thread ignore it.
+  virtual void SetDeviceWait(DeviceWait wait) { (void)wait; }
 };
 
 // Makes an engine for the serialized ONNX model at a 1 x 3 x H x W input. Throws
@@ -153,6 +157,7 @@ class YoloSegmenter final : public Segmenter {
 
   Segmentation Segment(const cv::Mat& image) override;
   std::string Name() const override;
+  void SetDeviceWait(DeviceWait wait) override { engine_->SetDeviceWait(std::move(wait)); }
 
   // The stages of Segment(), public for benchmarks and tests.
   // Letterboxed, normalized NCHW blob of a CV_8UC1 / CV_8UC3 image.
