@@ -7,6 +7,7 @@
 //   bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N]
 //                  [--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none]
 //                  [--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]
+//                  [--device-ms MS]
 //
 // Default input: KITTI raw drive 0005 (stereo, moving vehicles and a cyclist) with the
 // YOLOv8n-seg 224x640 model (the fast level) and, for adaptive quality, the 384x1280 model (the
@@ -25,6 +26,14 @@
 // 1-thread sequential run went from 4.0 to 5.8 fps with a busy loop on the other vCPU, so its
 // stage means overstate the CPU work of a loaded machine.)
 //
+// --device-ms MS emulates a GPU host on this machine's cores: the network's forward pass is a
+// device that takes MS ms of wall time and no host CPU (a thread that sleeps), returning the raw
+// outputs OpenCV DNN computed for the same input in a warm-up pass before the rows. Everything
+// else (pre- and post-processing, ORB, filter, SLAM, the scheduler's device wait) runs as it
+// would there; one more row runs the pipelined policy with the device wait blocking its thread
+// (`--device-overlap off`). It measures the scheduling for an assumed device time, not a GPU:
+// `--inference cuda` measures the real one where a GPU is present.
+//
 // Every row also reports how many cores the rest of the machine kept busy while it ran (column
 // `other`, from /proc/stat) and warns when that left the row fewer than `threads` cores: a
 // compiler running next to the benchmark gave a ratio of 0.96x where an idle machine gives 1.41x.
@@ -39,9 +48,12 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <map>
 #include <memory>
 #include <string>
+#include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "app/inference.h"
@@ -70,6 +82,7 @@ struct BenchArgs {
   bool filter = true;
   int threads = 2, max_in_flight = 4;
   double rate = 1.0;
+  double device_ms = 0;  // > 0: emulated device (see the top of the file)
 };
 
 BenchArgs ParseArgs(int argc, char** argv) {
@@ -104,11 +117,16 @@ BenchArgs ParseArgs(int argc, char** argv) {
       a.out = value();
     } else if (arg == "--inference") {
       a.inference = value();
+    } else if (arg == "--device-ms") {
+      a.device_ms = std::stod(value());
+      if (!(a.device_ms > 0 && a.device_ms < 10000))
+        throw std::invalid_argument("--device-ms must be in (0, 10000)");
     } else if (arg == "-h" || arg == "--help") {
       std::printf(
           "bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N] "
           "[--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none] "
-          "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]\n");
+          "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR] "
+          "[--device-ms MS]\n");
       std::exit(0);
     } else if (!arg.empty() && arg[0] != '-') {
       a.sequence = arg;
@@ -118,8 +136,73 @@ BenchArgs ParseArgs(int argc, char** argv) {
   }
   if (a.segmenter != "yolo" && a.segmenter != "none")
     throw std::invalid_argument("--segmenter must be yolo or none");
+  if (a.device_ms > 0 && (a.segmenter != "yolo" || a.inference != "opencv"))
+    throw std::invalid_argument("--device-ms needs --segmenter yolo and --inference opencv");
   return a;
 }
+
+// The emulated device of --device-ms: OpenCV DNN's outputs for inputs seen in the warm-up pass
+// (Forward before Seal), each later pass taking device_ms on a thread that only sleeps. With the
+// scheduler's DeviceWait the caller waits through it, as NetEngine does for a CUDA pass;
+// without, it blocks, as a CUDA pass without one does.
+class EmulatedDeviceEngine final : public pcr::InferenceEngine {
+ public:
+  EmulatedDeviceEngine(std::unique_ptr<pcr::InferenceEngine> reference, double device_ms)
+      : reference_(std::move(reference)), device_ms_(device_ms) {}
+
+  std::vector<std::vector<int>> OutputShapes() const override { return reference_->OutputShapes(); }
+
+  std::vector<cv::Mat> Forward(const cv::Mat& blob) override {
+    const uint64_t key = Key(blob);
+    auto it = cache_.find(key);
+    if (it == cache_.end()) {
+      if (sealed_) throw std::runtime_error("emulated device: an input the warm-up did not see");
+      it = cache_.emplace(key, reference_->Forward(blob)).first;
+    } else {
+      const auto device_time = std::chrono::microseconds(std::llround(device_ms_ * 1e3));
+      if (wait_) {
+        std::promise<pcr::DeviceDone> launched;
+        std::thread device([device_time, started = launched.get_future()]() mutable {
+          const pcr::DeviceDone done = started.get();
+          std::this_thread::sleep_for(device_time);
+          done();
+        });
+        wait_([&launched](const pcr::DeviceDone& done) { launched.set_value(done); });
+        device.join();
+      } else {
+        std::this_thread::sleep_for(device_time);
+      }
+    }
+    std::vector<cv::Mat> copies;
+    for (const cv::Mat& m : it->second) copies.push_back(m.clone());
+    return copies;
+  }
+
+  std::string Backend() const override {
+    return fmt::format("an emulated device ({} ms a pass)", device_ms_);
+  }
+  void SetDeviceWait(pcr::DeviceWait wait) override { wait_ = std::move(wait); }
+  void Seal() { sealed_ = true; }
+
+ private:
+  // Every 61st float of the blob and its size: distinct frames give distinct keys.
+  static uint64_t Key(const cv::Mat& blob) {
+    const float* p = blob.ptr<float>();
+    uint64_t h = 1469598103934665603ull ^ blob.total();
+    for (size_t i = 0; i < blob.total(); i += 61) {
+      uint32_t bits = 0;
+      std::memcpy(&bits, p + i, sizeof bits);
+      h = (h ^ bits) * 1099511628211ull;
+    }
+    return h;
+  }
+
+  std::unique_ptr<pcr::InferenceEngine> reference_;
+  double device_ms_;
+  std::unordered_map<uint64_t, std::vector<cv::Mat>> cache_;
+  bool sealed_ = false;
+  pcr::DeviceWait wait_;
+};
 
 pcr::nodes::FrameSource SourceOf(const pcr::Dataset& dataset, pcr::app::FrameRange range) {
   pcr::nodes::FrameSource source;
@@ -184,6 +267,7 @@ struct Row {
   Policy policy = Policy::kSequential;
   bool adaptive = false;
   int threads = 2;
+  bool device_overlap = true;
   pcr::graph::PipelineStats stats;
   double ate_m = -1;
   double cpu_s = 0;
@@ -209,6 +293,7 @@ int main(int argc, char** argv) {
     // without adaptive quality; the medium and low levels), the high model in the accurate slot
     // (the high level), each warmed up by one forward pass kept out of the runs.
     std::vector<std::unique_ptr<pcr::YoloSegmenter>> networks;
+    std::vector<EmulatedDeviceEngine*> devices;  // owned by `networks`
     pcr::nodes::SegmenterSet segmenters;
     std::string segmenter_name = "none";
     if (args.segmenter == "yolo") {
@@ -217,6 +302,14 @@ int main(int argc, char** argv) {
         pcr::YoloOptions options;
         options.model_path = path;
         pcr::app::ApplyInference(args.inference, &options);
+        if (args.device_ms > 0) {
+          options.engine_factory = [&](const std::vector<uint8_t>& bytes, cv::Size size) {
+            auto engine = std::make_unique<EmulatedDeviceEngine>(
+                pcr::MakeOpenCvDnnEngine(bytes, size, false), args.device_ms);
+            devices.push_back(engine.get());
+            return engine;
+          };
+        }
         networks.push_back(std::make_unique<pcr::YoloSegmenter>(options));
         networks.back()->Segment(first);
         return networks.back().get();
@@ -231,11 +324,15 @@ int main(int argc, char** argv) {
                         networks.back()->input_size().width);
       }
     }
-    // Page-cache the images so that the first run does not pay the disk.
+    // Page-cache the images so that the first run does not pay the disk; with --device-ms, the
+    // warm-up pass of the emulated device.
     for (int64_t i : source.frame_indices) {
-      source.load_left(i);
+      const cv::Mat left = source.load_left(i);
       source.load_right(i);
+      if (args.device_ms > 0)
+        for (const auto& network : networks) network->Segment(left);
     }
+    for (EmulatedDeviceEngine* device : devices) device->Seal();
 
     std::printf(
         "bench_pipeline: %s, frames %zu..%zu (%zu), %d threads, %d in flight, %s, filter %s, "
@@ -246,12 +343,14 @@ int main(int argc, char** argv) {
     std::printf("load average before: %s\n", LoadAverage().c_str());
 
     std::vector<Row> rows;
-    auto add_row = [&](const char* name, Policy policy, bool adaptive, int threads) {
+    auto add_row = [&](const char* name, Policy policy, bool adaptive, int threads,
+                       bool device_overlap = true) {
       Row row;
       row.name = name;
       row.policy = policy;
       row.adaptive = adaptive;
       row.threads = threads;
+      row.device_overlap = device_overlap;
       rows.push_back(row);
     };
     add_row("sequential", Policy::kSequential, false, args.threads);
@@ -259,6 +358,9 @@ int main(int argc, char** argv) {
     add_row("realtime", Policy::kRealtime, false, args.threads);
     add_row("realtime+adaptive", Policy::kRealtime, true, args.threads);
     add_row("sequential 1-thread", Policy::kSequential, false, 1);
+    if (args.device_ms > 0)
+      add_row("pipelined, blocking", Policy::kPipelined, false, args.threads,
+              /*device_overlap=*/false);
     for (Row& row : rows) {
       pcr::graph::PipelineOptions options;
       options.policy = row.policy;
@@ -266,6 +368,7 @@ int main(int argc, char** argv) {
       options.max_in_flight = args.max_in_flight;
       options.rate = args.rate;
       options.adaptive = row.adaptive;
+      options.device_overlap = row.device_overlap;
       // The filter keeps state across frames: one per run.
       std::unique_ptr<pcr::nodes::DynamicFilterScorer> scorer;
       if (args.filter)
@@ -365,8 +468,19 @@ int main(int argc, char** argv) {
       const auto p = pipe.stats.stages.find(stage);
       const bool has_p = p != pipe.stats.stages.end();
       const double per_frame = has_p ? p->second.time.total_ms / frames_pipe : 0.0;
-      cpu_per_frame_ms += per_frame;
       const std::string name = stage;
+      double cpu_ms = per_frame;
+      if (has_p && args.device_ms > 0 && name == pcr::graph::kStageSegment) {
+        // With an emulated device the segment stage's wall time is no CPU work: it holds the
+        // device's time and, in the pipelined run, the wait to be resumed behind another stage.
+        // Its CPU work per call is the 1-thread run's call less the device's time.
+        const auto o = one.stats.stages.find(stage);
+        const double host_ms = o == one.stats.stages.end()
+                                   ? 0.0
+                                   : std::max(0.0, o->second.time.mean_ms - args.device_ms);
+        cpu_ms = host_ms * static_cast<double>(p->second.time.count) / frames_pipe;
+      }
+      cpu_per_frame_ms += cpu_ms;
       // Serial nodes: tracking and mapping share the token (one chain); the filter and (outside
       // realtime) the segmenter are serial nodes of their own.
       if (name == pcr::graph::kStageTracking || name == pcr::graph::kStageMapping)
@@ -377,7 +491,8 @@ int main(int argc, char** argv) {
                   mean_of(seq, stage).c_str(), mean_of(pipe, stage).c_str(),
                   mean_of(one, stage).c_str(), per_frame);
     }
-    std::printf("%-11s %6s %12s %12s %12s %13.1f\n", "sum", "", "", "", "", cpu_per_frame_ms);
+    std::printf("%-11s %6s %12s %12s %12s %13.1f%s\n", "sum", "", "", "", "", cpu_per_frame_ms,
+                args.device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "");
 
     const double seq_fps = seq.stats.fps;
     std::printf(
@@ -385,6 +500,11 @@ int main(int argc, char** argv) {
         "1-thread synchronous reference: %.2f\n",
         seq_fps > 0 ? pipe.stats.fps / seq_fps : 0.0, pipe.stats.fps, seq_fps,
         one.stats.fps > 0 ? pipe.stats.fps / one.stats.fps : 0.0);
+    if (rows.size() > 5 && seq_fps > 0)
+      std::printf(
+          "emulated device, %.1f ms a pass: pipelined/sequential %.2f with the device wait, %.2f "
+          "with the pass blocking its thread (%.2f fps)\n",
+          args.device_ms, pipe.stats.fps / seq_fps, rows[5].stats.fps / seq_fps, rows[5].stats.fps);
     const double ideal_fps = cpu_per_frame_ms > 0 ? 1000.0 * args.threads / cpu_per_frame_ms : 0;
     const double serial_ms = std::max({serial_chain_ms, segment_ms, filter_ms});
     const double serial_fps = serial_ms > 0 ? 1000.0 / serial_ms : 0;
