@@ -7,7 +7,7 @@
 //   bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N]
 //                  [--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none]
 //                  [--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]
-//                  [--device-ms MS]
+//                  [--device-ms MS] [--repeat N]
 //
 // Default input: KITTI raw drive 0005 (stereo, moving vehicles and a cyclist) with the
 // YOLOv8n-seg 224x640 model (the fast level) and, for adaptive quality, the 384x1280 model (the
@@ -33,6 +33,10 @@
 // would there; one more row runs the pipelined policy with the device wait blocking its thread
 // (`--device-overlap off`). It measures the scheduling for an assumed device time, not a GPU:
 // `--inference cuda` measures the real one where a GPU is present.
+//
+// --repeat N runs all rows N times, round after round, and reports each row's median-fps run and
+// every round's ratio: the speed of this project's VMs drifts within minutes, and a ratio of two
+// rows is only as good as the time between them.
 //
 // Every row also reports how many cores the rest of the machine kept busy while it ran (column
 // `other`, from /proc/stat) and warns when that left the row fewer than `threads` cores: a
@@ -83,6 +87,7 @@ struct BenchArgs {
   int threads = 2, max_in_flight = 4;
   double rate = 1.0;
   double device_ms = 0;  // > 0: emulated device (see the top of the file)
+  int repeat = 1;        // rounds of all rows
 };
 
 BenchArgs ParseArgs(int argc, char** argv) {
@@ -117,6 +122,9 @@ BenchArgs ParseArgs(int argc, char** argv) {
       a.out = value();
     } else if (arg == "--inference") {
       a.inference = value();
+    } else if (arg == "--repeat") {
+      a.repeat = std::stoi(value());
+      if (a.repeat < 1 || a.repeat > 50) throw std::invalid_argument("--repeat must be in 1..50");
     } else if (arg == "--device-ms") {
       a.device_ms = std::stod(value());
       if (!(a.device_ms > 0 && a.device_ms < 10000))
@@ -126,7 +134,7 @@ BenchArgs ParseArgs(int argc, char** argv) {
           "bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N] "
           "[--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none] "
           "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR] "
-          "[--device-ms MS]\n");
+          "[--device-ms MS] [--repeat N]\n");
       std::exit(0);
     } else if (!arg.empty() && arg[0] != '-') {
       a.sequence = arg;
@@ -361,42 +369,73 @@ int main(int argc, char** argv) {
     if (args.device_ms > 0)
       add_row("pipelined, blocking", Policy::kPipelined, false, args.threads,
               /*device_overlap=*/false);
-    for (Row& row : rows) {
-      pcr::graph::PipelineOptions options;
-      options.policy = row.policy;
-      options.threads = row.threads;
-      options.max_in_flight = args.max_in_flight;
-      options.rate = args.rate;
-      options.adaptive = row.adaptive;
-      options.device_overlap = row.device_overlap;
-      // The filter keeps state across frames: one per run.
-      std::unique_ptr<pcr::nodes::DynamicFilterScorer> scorer;
-      if (args.filter)
-        scorer = std::make_unique<pcr::nodes::DynamicFilterScorer>(source.rig,
-                                                                   slam_options.orb.scale_factor);
-      const double cpu_before = ProcessCpuSeconds();
-      const double busy_before = MachineBusySeconds();
-      const auto wall_before = std::chrono::steady_clock::now();
-      const pcr::graph::PipelineResult r =
-          pcr::graph::RunPipeline(source, slam_options, options, segmenters, scorer.get());
-      row.cpu_s = ProcessCpuSeconds() - cpu_before;
-      const double busy_after = MachineBusySeconds();
-      const double wall_s =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_before).count();
-      if (busy_before >= 0 && busy_after >= 0 && wall_s > 0)
-        row.other_cores = std::max(0.0, (busy_after - busy_before - row.cpu_s) / wall_s);
-      if (!r.error.empty()) std::fprintf(stderr, "%s: %s\n", row.name.c_str(), r.error.c_str());
-      row.stats = r.stats;
-      row.ate_m = AteRmse(dataset, r.tracked);
-      if (!args.out.empty()) {
-        std::string dir_name = row.name;
-        std::replace_if(
-            dir_name.begin(), dir_name.end(), [](char c) { return c == ' ' || c == '+'; }, '_');
-        const std::string dir = args.out + "/" + dir_name;
-        std::filesystem::create_directories(dir);
-        pcr::graph::WriteChromeTrace(dir + "/trace.json", r);
-        pcr::graph::WriteTimingChart(dir + "/timing.png", r);
+    // Rounds: every row once per round, so that a drift of the machine's speed (this project's
+    // VMs vary by 30% within minutes) reaches all rows alike; each row keeps its median-fps run.
+    std::vector<std::vector<Row>> rounds(static_cast<size_t>(args.repeat), rows);
+    for (int round = 0; round < args.repeat; ++round) {
+      for (Row& row : rounds[static_cast<size_t>(round)]) {
+        pcr::graph::PipelineOptions options;
+        options.policy = row.policy;
+        options.threads = row.threads;
+        options.max_in_flight = args.max_in_flight;
+        options.rate = args.rate;
+        options.adaptive = row.adaptive;
+        options.device_overlap = row.device_overlap;
+        // The filter keeps state across frames: one per run.
+        std::unique_ptr<pcr::nodes::DynamicFilterScorer> scorer;
+        if (args.filter)
+          scorer = std::make_unique<pcr::nodes::DynamicFilterScorer>(source.rig,
+                                                                     slam_options.orb.scale_factor);
+        const double cpu_before = ProcessCpuSeconds();
+        const double busy_before = MachineBusySeconds();
+        const auto wall_before = std::chrono::steady_clock::now();
+        const pcr::graph::PipelineResult r =
+            pcr::graph::RunPipeline(source, slam_options, options, segmenters, scorer.get());
+        row.cpu_s = ProcessCpuSeconds() - cpu_before;
+        const double busy_after = MachineBusySeconds();
+        const double wall_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_before).count();
+        if (busy_before >= 0 && busy_after >= 0 && wall_s > 0)
+          row.other_cores = std::max(0.0, (busy_after - busy_before - row.cpu_s) / wall_s);
+        if (!r.error.empty()) std::fprintf(stderr, "%s: %s\n", row.name.c_str(), r.error.c_str());
+        row.stats = r.stats;
+        row.ate_m = AteRmse(dataset, r.tracked);
+        if (!args.out.empty() && round == args.repeat - 1) {
+          std::string dir_name = row.name;
+          std::replace_if(
+              dir_name.begin(), dir_name.end(), [](char c) { return c == ' ' || c == '+'; }, '_');
+          const std::string dir = args.out + "/" + dir_name;
+          std::filesystem::create_directories(dir);
+          pcr::graph::WriteChromeTrace(dir + "/trace.json", r);
+          pcr::graph::WriteTimingChart(dir + "/timing.png", r);
+        }
       }
+      if (args.repeat > 1) {
+        const std::vector<Row>& r = rounds[static_cast<size_t>(round)];
+        std::printf("round %d: pipelined/sequential %.2f (%.2f / %.2f fps)%s\n", round + 1,
+                    r[1].stats.fps / std::max(1e-9, r[0].stats.fps), r[1].stats.fps, r[0].stats.fps,
+                    r.size() > 5 ? fmt::format(", blocking device pass {:.2f}",
+                                               r[5].stats.fps / std::max(1e-9, r[0].stats.fps))
+                                       .c_str()
+                                 : "");
+      }
+    }
+    for (size_t i = 0; i < rows.size(); ++i) {
+      std::vector<const Row*> runs;
+      for (const std::vector<Row>& r : rounds) runs.push_back(&r[i]);
+      std::sort(runs.begin(), runs.end(),
+                [](const Row* x, const Row* y) { return x->stats.fps < y->stats.fps; });
+      rows[i] = *runs[runs.size() / 2];
+    }
+    if (args.repeat > 1) {
+      std::vector<double> ratios;
+      for (const std::vector<Row>& r : rounds)
+        ratios.push_back(r[1].stats.fps / std::max(1e-9, r[0].stats.fps));
+      std::sort(ratios.begin(), ratios.end());
+      std::printf(
+          "pipelined/sequential over %d rounds: median %.2f, range %.2f-%.2f; each row below is "
+          "its median-fps run\n",
+          args.repeat, ratios[ratios.size() / 2], ratios.front(), ratios.back());
     }
 
     const std::string load_after = LoadAverage();
