@@ -30,8 +30,8 @@
 // device that takes MS ms of wall time and no host CPU (a thread that sleeps), returning the raw
 // outputs OpenCV DNN computed for the same input in a warm-up pass before the rows. Everything
 // else (pre- and post-processing, ORB, filter, SLAM, the scheduler's device wait) runs as it
-// would there; one more row runs the pipelined policy with the device wait blocking its thread
-// (`--device-overlap off`). It measures the scheduling for an assumed device time, not a GPU:
+// would there. With it, and with --inference cuda, one more row runs the pipelined policy with
+// the device pass blocking its thread (`--device-overlap off`). It measures the scheduling for an assumed device time, not a GPU:
 // `--inference cuda` measures the real one where a GPU is present.
 //
 // --repeat N runs all rows N times, round after round, and reports each row's median-fps run and
@@ -366,7 +366,9 @@ int main(int argc, char** argv) {
     add_row("realtime", Policy::kRealtime, false, args.threads);
     add_row("realtime+adaptive", Policy::kRealtime, true, args.threads);
     add_row("sequential 1-thread", Policy::kSequential, false, 1);
-    if (args.device_ms > 0)
+    // On a device (emulated or CUDA): what the device wait buys.
+    const bool on_device = args.device_ms > 0 || args.inference.rfind("cuda", 0) == 0;
+    if (on_device)
       add_row("pipelined, blocking", Policy::kPipelined, false, args.threads,
               /*device_overlap=*/false);
     // Rounds: every row once per round, so that a drift of the machine's speed (this project's
@@ -541,9 +543,11 @@ int main(int argc, char** argv) {
         one.stats.fps > 0 ? pipe.stats.fps / one.stats.fps : 0.0);
     if (rows.size() > 5 && seq_fps > 0)
       std::printf(
-          "emulated device, %.1f ms a pass: pipelined/sequential %.2f with the device wait, %.2f "
-          "with the pass blocking its thread (%.2f fps)\n",
-          args.device_ms, pipe.stats.fps / seq_fps, rows[5].stats.fps / seq_fps, rows[5].stats.fps);
+          "%s: pipelined/sequential %.2f with the device wait, %.2f with the pass blocking its "
+          "thread (%.2f fps)\n",
+          args.device_ms > 0 ? fmt::format("emulated device, {:.1f} ms a pass", args.device_ms).c_str()
+                             : args.inference.c_str(),
+          pipe.stats.fps / seq_fps, rows[5].stats.fps / seq_fps, rows[5].stats.fps);
     const double ideal_fps = cpu_per_frame_ms > 0 ? 1000.0 * args.threads / cpu_per_frame_ms : 0;
     const double serial_ms = std::max({serial_chain_ms, segment_ms, filter_ms});
     const double serial_fps = serial_ms > 0 ? 1000.0 / serial_ms : 0;

@@ -5,8 +5,9 @@
 #                                   checkout, so that it stays while the machine is warm
 #   scripts/device_run.sh check     (carry .device/data) runs, writing logs to $OUT:
 #     test_gpu (the CUDA executor against its CPU twin on the real model), bench_yolo's forward
-#     pass on cuda and on OpenCV DNN, and bench_pipeline (sequential, pipelined, realtime) with
-#     --inference cuda and opencv on the carried frames, 2 threads.
+#     pass on cuda and on OpenCV DNN, and bench_pipeline (sequential, pipelined, realtime; on cuda
+#     also pipelined with the GPU pass blocking its thread, 3 rounds) with --inference cuda and
+#     opencv on the carried frames, 2 threads.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 dest=${PCR_DEVICE_DIR:-/root/pcr-gpu}
@@ -29,9 +30,13 @@ case "${1:-}" in
       tee "$out/bench_yolo_cuda.log"
     "$dest/bench_yolo" --benchmark_filter='(Forward|Segment)/224x640' 2>&1 |
       tee "$out/bench_yolo_opencv.log"
+    # cuda: 3 rounds, and a row with the GPU pass blocking its thread (--device-overlap off).
     for inference in cuda opencv; do
+      rounds=1
+      [ "$inference" = cuda ] && rounds=3
       "$dest/bench_pipeline" "$seq" --threads 2 --model "$model" --model-high none \
-        --inference "$inference" 2>&1 | tee "$out/bench_pipeline_$inference.log"
+        --inference "$inference" --repeat "$rounds" 2>&1 |
+        tee "$out/bench_pipeline_$inference.log"
     done
     ;;
   *)
