@@ -31,7 +31,8 @@
 // outputs OpenCV DNN computed for the same input in a warm-up pass before the rows. Everything
 // else (pre- and post-processing, ORB, filter, SLAM, the scheduler's device wait) runs as it
 // would there. With it, and with --inference cuda, one more row runs the pipelined policy with
-// the device pass blocking its thread (`--device-overlap off`). It measures the scheduling for an assumed device time, not a GPU:
+// the device pass blocking its thread (`--device-overlap off`). It measures the scheduling for an
+// assumed device time, not a GPU:
 // `--inference cuda` measures the real one where a GPU is present.
 //
 // --repeat N runs all rows N times, round after round, and reports each row's median-fps run and
@@ -536,18 +537,31 @@ int main(int argc, char** argv) {
                 args.device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "");
 
     const double seq_fps = seq.stats.fps;
+    // Ratios of two rows: the median over the rounds of the ratio within a round (rows of one
+    // round ran minutes apart at most).
+    auto ratio = [&rounds](size_t num, size_t den) {
+      std::vector<double> r;
+      for (const std::vector<Row>& round : rounds)
+        if (round[den].stats.fps > 0) r.push_back(round[num].stats.fps / round[den].stats.fps);
+      if (r.empty()) return 0.0;
+      std::sort(r.begin(), r.end());
+      return r[r.size() / 2];
+    };
+    const std::string of_rounds =
+        args.repeat > 1 ? fmt::format(" (medians of {} rounds)", args.repeat) : std::string();
     std::printf(
         "\nthroughput ratio pipelined/sequential: %.2f (%.2f / %.2f fps); against the "
-        "1-thread synchronous reference: %.2f\n",
-        seq_fps > 0 ? pipe.stats.fps / seq_fps : 0.0, pipe.stats.fps, seq_fps,
-        one.stats.fps > 0 ? pipe.stats.fps / one.stats.fps : 0.0);
-    if (rows.size() > 5 && seq_fps > 0)
+        "1-thread synchronous reference: %.2f%s\n",
+        ratio(1, 0), pipe.stats.fps, seq_fps, ratio(1, 4), of_rounds.c_str());
+    if (rows.size() > 5) {
+      const std::string device =
+          args.device_ms > 0 ? fmt::format("emulated device, {:.1f} ms a pass", args.device_ms)
+                             : args.inference;
       std::printf(
           "%s: pipelined/sequential %.2f with the device wait, %.2f with the pass blocking its "
-          "thread (%.2f fps)\n",
-          args.device_ms > 0 ? fmt::format("emulated device, {:.1f} ms a pass", args.device_ms).c_str()
-                             : args.inference.c_str(),
-          pipe.stats.fps / seq_fps, rows[5].stats.fps / seq_fps, rows[5].stats.fps);
+          "thread%s\n",
+          device.c_str(), ratio(1, 0), ratio(5, 0), of_rounds.c_str());
+    }
     const double ideal_fps = cpu_per_frame_ms > 0 ? 1000.0 * args.threads / cpu_per_frame_ms : 0;
     const double serial_ms = std::max({serial_chain_ms, segment_ms, filter_ms});
     const double serial_fps = serial_ms > 0 ? 1000.0 / serial_ms : 0;
