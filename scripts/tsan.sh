@@ -5,8 +5,9 @@
 # under TSAN_OPTIONS=halt_on_error=1 (the first report stops the run with exit code 66).
 #   scripts/tsan.sh [POLICY ...]     (default: pipelined; e.g. scripts/tsan.sh pipelined realtime)
 # Environment: PCR_SHARED_DIR (default ../shared), PCR_TSAN_FRAMES (default 0:20),
-# PCR_TSAN_INFERENCE (--inference, default opencv; `twin` runs the network executor, whose
-# passes suspend the segment stage's task in the pipelined and realtime policies),
+# PCR_TSAN_INFERENCE (--inference, default opencv; `twin` runs the network executor through
+# the graph's device wait, which TSAN builds implement by blocking: TSAN cannot follow the
+# stack switches of TBB's task suspension),
 # PCR_JOBS (build jobs, default nproc).
 # oneTBB and OpenCV come from Debian and are not instrumented: scripts/tsan.supp suppresses
 # reports whose frames lie in those libraries only (see the file); reports in our code are not

@@ -157,8 +157,29 @@ class TsanBody {
 // arranged for done(), as DeviceWait requires) resumes the task at once and the exception
 // surfaces from here.
 void SuspendWhileDeviceWorks(const std::function<void(const DeviceDone&)>& launch) {
-  char sync = 0;  // the device's and the launcher's writes -> the resumed half (TSAN)
   std::exception_ptr error;
+#ifdef PCR_UNDER_TSAN
+  // TSAN cannot follow the stack switches of TBB's suspension (Debian's libtbb is built without
+  // sanitizer support; oneTBB itself uses threads instead when it is, and so do we): TSAN
+  // builds wait blocked, which keeps the device -> caller hand-off under TSAN's eye.
+  std::mutex mutex;
+  std::condition_variable ended;
+  bool finished = false;
+  auto done = [&] {
+    std::lock_guard<std::mutex> lock(mutex);
+    finished = true;
+    ended.notify_one();  // under the lock: the waiter may return (destroying `ended`) after it
+  };
+  try {
+    launch(done);
+  } catch (...) {
+    error = std::current_exception();
+    done();
+  }
+  std::unique_lock<std::mutex> lock(mutex);
+  ended.wait(lock, [&] { return finished; });
+#else
+  char sync = 0;  // the device's and the launcher's writes -> the resumed half (TSAN)
   oneapi::tbb::task::suspend([&launch, &sync, &error](oneapi::tbb::task::suspend_point tag) {
     try {
       launch([tag, &sync] {
@@ -172,6 +193,7 @@ void SuspendWhileDeviceWorks(const std::function<void(const DeviceDone&)>& launc
     }
   });
   TsanAcquire(&sync);
+#endif
   if (error) std::rethrow_exception(error);
 }
 
