@@ -503,25 +503,31 @@ int main(int argc, char** argv) {
       const auto it = row.stats.stages.find(stage);
       return it == row.stats.stages.end() ? std::string("-") : Fixed(it->second.time.mean_ms, 1);
     };
+    // A pass's device time: the emulated one, or the pipelined run's device lane (a GPU).
+    const auto device_lane = pipe.stats.stages.find(pcr::graph::kStageDevice);
+    const double device_ms = args.device_ms > 0 ? args.device_ms
+                             : device_lane != pipe.stats.stages.end()
+                                 ? device_lane->second.time.mean_ms
+                                 : 0.0;
     for (const char* stage :
          {pcr::graph::kStagePreprocess, pcr::graph::kStageOrbLeft, pcr::graph::kStageOrbRight,
           pcr::graph::kStageSegment, pcr::graph::kStageStereo, pcr::graph::kStageFilter,
-          pcr::graph::kStageTracking, pcr::graph::kStageMapping}) {
+          pcr::graph::kStageTracking, pcr::graph::kStageMapping, pcr::graph::kStageDevice}) {
       const auto p = pipe.stats.stages.find(stage);
       const bool has_p = p != pipe.stats.stages.end();
       const double per_frame = has_p ? p->second.time.total_ms / frames_pipe : 0.0;
       const std::string name = stage;
       double cpu_ms = per_frame;
-      if (has_p && args.device_ms > 0 && name == pcr::graph::kStageSegment) {
-        // With an emulated device the segment stage's wall time is no CPU work: it holds the
-        // device's time and, in the pipelined run, the wait to be resumed behind another stage.
-        // Its CPU work per call is the 1-thread run's call less the device's time.
+      if (has_p && device_ms > 0 && name == pcr::graph::kStageSegment) {
+        // On a device the segment stage's wall time is no CPU work: it holds the device's time
+        // and, in the pipelined run, the wait to be resumed behind another stage. Its CPU work
+        // per call is the 1-thread run's call less the device's time.
         const auto o = one.stats.stages.find(stage);
-        const double host_ms = o == one.stats.stages.end()
-                                   ? 0.0
-                                   : std::max(0.0, o->second.time.mean_ms - args.device_ms);
+        const double host_ms =
+            o == one.stats.stages.end() ? 0.0 : std::max(0.0, o->second.time.mean_ms - device_ms);
         cpu_ms = host_ms * static_cast<double>(p->second.time.count) / frames_pipe;
       }
+      if (name == pcr::graph::kStageDevice) cpu_ms = 0;  // the device's lane: no host CPU
       cpu_per_frame_ms += cpu_ms;
       // Serial nodes: tracking and mapping share the token (one chain); the filter and (outside
       // realtime) the segmenter are serial nodes of their own.
@@ -534,7 +540,7 @@ int main(int argc, char** argv) {
                   mean_of(one, stage).c_str(), per_frame);
     }
     std::printf("%-11s %6s %12s %12s %12s %13.1f%s\n", "sum", "", "", "", "", cpu_per_frame_ms,
-                args.device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "");
+                device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "");
 
     const double seq_fps = seq.stats.fps;
     // Ratios of two rows: the median over the rounds of the ratio within a round (rows of one

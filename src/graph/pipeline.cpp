@@ -197,13 +197,13 @@ void SuspendWhileDeviceWorks(const std::function<void(const DeviceDone&)>& launc
   if (error) std::rethrow_exception(error);
 }
 
-// Installs SuspendWhileDeviceWorks in the segmenters for one run, and removes it after.
+// Installs a device wait in the segmenters for one run, and removes it after.
 class DeviceWaitScope {
  public:
-  explicit DeviceWaitScope(const nodes::SegmenterSet& segmenters) {
+  DeviceWaitScope(const nodes::SegmenterSet& segmenters, const DeviceWait& wait) {
     for (Segmenter* s : {segmenters.accurate, segmenters.fast}) {
       if (!s || std::find(installed_.begin(), installed_.end(), s) != installed_.end()) continue;
-      s->SetDeviceWait(SuspendWhileDeviceWorks);
+      s->SetDeviceWait(wait);
       installed_.push_back(s);
     }
   }
@@ -246,6 +246,25 @@ class GraphRun {
 
   // Builds and runs the graph; call inside the task arena that should run it.
   PipelineResult Run();
+
+  // The segmenters' device wait in this run: SuspendWhileDeviceWorks, each pass profiled as a
+  // "device" event of the frame being segmented, from the launch to the device's done() (the
+  // resumption may come later, when a thread is free).
+  DeviceWait MakeDeviceWait() {
+    return [this](const std::function<void(const DeviceDone&)>& launch) {
+      const FrameTicket ticket = inference_ticket_;  // before the task may move to another thread
+      const int64_t start = NowNs();
+      int64_t end = -1;  // written before done(), read after the resumption
+      SuspendWhileDeviceWorks([this, &launch, &end](const DeviceDone& done) {
+        launch([this, &end, done] {
+          end = NowNs();
+          done();
+        });
+      });
+      profiler_.RecordDevice(kStageDevice, ticket.seq, ticket.frame_index, start,
+                             end >= 0 ? end : NowNs());
+    };
+  }
 
  private:
   struct FrameClock {
@@ -331,7 +350,9 @@ class GraphRun {
   }
 
   // Segments one frame and hands the result to the board (nothing on error: it is recorded).
+  // One call at a time (the segment node is serial; realtime runs one inference at a time).
   void RunInference(const ImagesPtr& images) {
+    inference_ticket_ = images->ticket;
     if (auto fresh = Guarded(kStageSegment, images->ticket, [&] { return segment_(images); })) {
       last_inference_ms_.store((*fresh)->segment_ms);
       board_->OnSegmentation(*fresh);
@@ -375,6 +396,7 @@ class GraphRun {
   ImagesPtr pending_inference_;
   bool inference_running_ = false;
   std::atomic<double> last_inference_ms_{0};
+  FrameTicket inference_ticket_;  // of the RunInference call in progress (for the device wait)
   std::atomic<size_t> inferences_busy_{0};
   nodes::FilterNode filter_;
   nodes::TrackingNode tracking_;
@@ -871,7 +893,7 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
   // sequential reference keeps its stages one after another (T = T_slam + T_inference).
   std::optional<DeviceWaitScope> device_wait;
   if (options.policy != Policy::kSequential && options.device_overlap)
-    device_wait.emplace(segmenters);
+    device_wait.emplace(segmenters, run.MakeDeviceWait());
   PipelineResult result;
   arena.execute([&] { result = run.Run(); });
   return result;

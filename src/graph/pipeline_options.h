@@ -36,6 +36,9 @@ inline constexpr const char* kStageStereo = "stereo";
 inline constexpr const char* kStageFilter = "filter";
 inline constexpr const char* kStageTracking = "tracking";
 inline constexpr const char* kStageMapping = "mapping";
+// A segment call's pass on a device (GPU), from launch to completion: recorded where the graph's
+// device wait is used, on the profile's device lane (Profiler::kDeviceLane), not a thread.
+inline constexpr const char* kStageDevice = "device";
 
 struct PipelineOptions {
   Policy policy = Policy::kPipelined;

@@ -26,7 +26,7 @@ double Us(int64_t ns) { return static_cast<double>(ns) * 1e-3; }
 std::vector<std::string> OrderedStages(const std::vector<std::string>& present) {
   const std::vector<std::string> order = {kStagePreprocess, kStageOrbLeft, kStageOrbRight,
                                           kStageSegment,    kStageStereo,  kStageFilter,
-                                          kStageTracking,   kStageMapping};
+                                          kStageTracking,   kStageMapping, kStageDevice};
   std::vector<std::string> out;
   for (const std::string& s : order) {
     if (std::find(present.begin(), present.end(), s) != present.end()) out.push_back(s);
@@ -47,6 +47,7 @@ cv::Scalar StageColour(const std::string& stage) {
   if (stage == kStageFilter) return {40, 170, 230};
   if (stage == kStageTracking) return {60, 170, 60};
   if (stage == kStageMapping) return {40, 110, 40};
+  if (stage == kStageDevice) return {30, 30, 140};
   return {120, 120, 120};
 }
 
@@ -185,7 +186,9 @@ void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
                       {"ph", "M"},
                       {"pid", 1},
                       {"tid", t},
-                      {"args", {{"name", fmt::format("worker {}", t)}}}});
+                      {"args",
+                       {{"name", t == Profiler::kDeviceLane ? std::string("device (GPU)")
+                                                            : fmt::format("worker {}", t)}}}});
   }
   const int lanes = std::max(1, result.stats.max_in_flight);
   for (const FrameRecord& f : result.frames) {
@@ -228,17 +231,24 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
   const PipelineStats& s = result.stats;
   int64_t end_ns = 1;
   int num_threads = 1;
+  bool device = false;
   for (const StageEvent& e : result.events) {
     end_ns = std::max(end_ns, e.end_ns);
     num_threads = std::max(num_threads, e.thread + 1);
+    device = device || e.thread == Profiler::kDeviceLane;
   }
+  // Lanes: the threads, then the device's (when a device wait recorded passes).
+  const int num_lanes = num_threads + (device ? 1 : 0);
+  auto lane_of = [num_threads](int thread) {
+    return thread == Profiler::kDeviceLane ? num_threads : thread;
+  };
   if (max_seconds > 0) end_ns = std::min(end_ns, static_cast<int64_t>(max_seconds * 1e9));
   std::vector<std::string> names;
   for (const auto& [name, st] : s.stages) names.push_back(name);
   const std::vector<std::string> stages = OrderedStages(names);
 
   const int width = 1600, left = 110, right = 30, lane_h = 26;
-  const int gantt_top = 60, gantt_h = num_threads * lane_h;
+  const int gantt_top = 60, gantt_h = num_lanes * lane_h;
   const int legend_top = gantt_top + gantt_h + 40;
   const int bars_top = legend_top + 40, bar_h = 22;
   const int height = bars_top + static_cast<int>(stages.size()) * (bar_h + 8) + 40;
@@ -255,10 +265,11 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
   // Gantt.
   const double span_ms = static_cast<double>(end_ns) * 1e-6;
   const double px_per_ms = (width - left - right) / span_ms;
-  for (int t = 0; t < num_threads; ++t) {
+  for (int t = 0; t < num_lanes; ++t) {
     const int y = gantt_top + t * lane_h;
     cv::rectangle(image, {left, y}, {width - right, y + lane_h - 4}, {245, 245, 245}, cv::FILLED);
-    Text(image, fmt::format("thread {}", t), {10, y + lane_h - 10});
+    Text(image, t < num_threads ? fmt::format("thread {}", t) : std::string("device"),
+         {10, y + lane_h - 10});
   }
   for (const StageEvent& e : result.events) {
     if (e.start_ns >= end_ns) continue;
@@ -266,7 +277,7 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
         left + static_cast<int>(std::lround(static_cast<double>(e.start_ns) * 1e-6 * px_per_ms));
     const int x1 = left + static_cast<int>(std::lround(
                               static_cast<double>(std::min(e.end_ns, end_ns)) * 1e-6 * px_per_ms));
-    const int y = gantt_top + e.thread * lane_h;
+    const int y = gantt_top + lane_of(e.thread) * lane_h;
     cv::rectangle(image, {x0, y + 1}, {std::max(x0 + 1, x1), y + lane_h - 5}, StageColour(e.stage),
                   cv::FILLED);
   }

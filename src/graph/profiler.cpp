@@ -14,6 +14,12 @@ void Profiler::Record(const char* stage, int64_t seq, int64_t frame_index, int64
   events_.push_back({stage, seq, frame_index, thread, start_ns, end_ns});
 }
 
+void Profiler::RecordDevice(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
+                            int64_t end_ns) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  events_.push_back({stage, seq, frame_index, kDeviceLane, start_ns, end_ns});
+}
+
 std::vector<StageEvent> Profiler::Events() const {
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<StageEvent> events = events_;

@@ -19,15 +19,21 @@ struct StageEvent {
   const char* stage = "";  // one of the kStage* names (static storage)
   int64_t seq = -1;
   int64_t frame_index = -1;
-  int thread = 0;  // small id: order of first appearance in this run
+  int thread = 0;  // small id: order of first appearance in this run; Profiler::kDeviceLane
   int64_t start_ns = 0, end_ns = 0;
   int64_t ready_ns = -1;  // input ready (filled in by the run's summary; -1 = unknown)
 };
 
 class Profiler {
  public:
+  // StageEvent::thread of work that runs off the host threads (a GPU pass).
+  static constexpr int kDeviceLane = -1;
+
   void Record(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
               int64_t end_ns);
+  // The same on the device lane; does not count as a thread.
+  void RecordDevice(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
+                    int64_t end_ns);
   std::vector<StageEvent> Events() const;
   int num_threads() const;
 

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <filesystem>
@@ -385,12 +386,34 @@ TEST(PipelineTest, DeviceInferenceLeavesItsThreadToOtherStages) {
   EXPECT_EQ(on_device.blocking_calls(), 0);
   EXPECT_FALSE(on_device.wait_installed());  // removed when the run ended
   EXPECT_EQ(r.stats.profile_threads, 1);
+  // Each pass is on the profile's device lane, 60 ms or more, inside its frame's segment call.
+  ASSERT_TRUE(r.stats.stages.count(kStageDevice));
+  EXPECT_EQ(r.stats.stages.at(kStageDevice).time.count, 8u);
+  EXPECT_GE(r.stats.stages.at(kStageDevice).time.p50_ms, 60.0);
+  for (const StageEvent& d : r.events) {
+    if (std::string_view(d.stage) != kStageDevice) continue;
+    EXPECT_EQ(d.thread, Profiler::kDeviceLane);
+    bool within = false;
+    for (const StageEvent& seg : r.events) {
+      within = within || (std::string_view(seg.stage) == kStageSegment && seg.seq == d.seq &&
+                          seg.start_ns <= d.start_ns && d.end_ns <= seg.end_ns);
+    }
+    EXPECT_TRUE(within) << "device pass of frame " << d.frame_index;
+  }
+  const std::string trace = ::testing::TempDir() + "/device_trace.json";
+  WriteChromeTrace(trace, r);
+  std::ifstream trace_in(trace);
+  const nlohmann::json events = nlohmann::json::parse(trace_in)["traceEvents"];
+  EXPECT_TRUE(std::any_of(events.begin(), events.end(), [](const nlohmann::json& e) {
+    return e["name"] == "thread_name" && e["args"]["name"] == "device (GPU)";
+  }));
+  WriteTimingChart(::testing::TempDir() + "/device_timing.png", r);  // draws the device lane
   size_t inside = 0;
   for (const StageEvent& seg : r.events) {
     if (std::string_view(seg.stage) != kStageSegment) continue;
     for (const StageEvent& e : r.events) {
-      inside += std::string_view(e.stage) != kStageSegment && e.start_ns > seg.start_ns &&
-                e.end_ns < seg.end_ns;
+      inside += e.thread != Profiler::kDeviceLane && std::string_view(e.stage) != kStageSegment &&
+                e.start_ns > seg.start_ns && e.end_ns < seg.end_ns;
     }
   }
   if (kUnderTsan) {
@@ -414,6 +437,7 @@ TEST(PipelineTest, DeviceInferenceLeavesItsThreadToOtherStages) {
           << e.stage << " ran inside a blocking segment call";
     }
   }
+  EXPECT_EQ(seq.stats.stages.count(kStageDevice), 0u);  // no device wait: no device lane
   ExpectSameTrajectory(seq.tracked, r.tracked);
   ASSERT_EQ(seq.frames.size(), r.frames.size());
   for (size_t i = 0; i < seq.frames.size(); ++i)
