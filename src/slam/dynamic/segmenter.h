@@ -42,7 +42,8 @@ struct Segmentation {
 // launch queues the device work and returns, and done() is called exactly once, from any thread,
 // when the work has finished (or failed); wait returns after that, possibly on another thread
 // than it was called on. Nothing may be touched by launch after it has arranged for done() to be
-// called. A scheduler installs one that frees the calling thread for other work meanwhile (the
+// called; launch may throw only before that, and the exception comes out of wait. A scheduler
+// installs one that frees the calling thread for other work meanwhile (the
 // flow graph: a TBB task suspension); without one, a device engine blocks its caller.
 using DeviceDone = std::function<void()>;
 using DeviceWait = std::function<void(const std::function<void(const DeviceDone&)>& launch)>;
