@@ -283,6 +283,27 @@ struct Row {
   double other_cores = -1;  // cores busy with other work while the row ran; -1 unknown
 };
 
+// Throughput of row `num` over row `den` within one round (0 when `den` completed nothing).
+double FpsRatio(const std::vector<Row>& round, size_t num, size_t den) {
+  return round[den].stats.fps > 0 ? round[num].stats.fps / round[den].stats.fps : 0.0;
+}
+
+// FpsRatio in every round whose `den` row completed frames, sorted (rows of one round ran
+// minutes apart at most; rows of different rounds may not).
+std::vector<double> SortedRatios(const std::vector<std::vector<Row>>& rounds, size_t num,
+                                 size_t den) {
+  std::vector<double> ratios;
+  for (const std::vector<Row>& round : rounds)
+    if (round[den].stats.fps > 0) ratios.push_back(FpsRatio(round, num, den));
+  std::sort(ratios.begin(), ratios.end());
+  return ratios;
+}
+
+double MedianRatio(const std::vector<std::vector<Row>>& rounds, size_t num, size_t den) {
+  const std::vector<double> ratios = SortedRatios(rounds, num, den);
+  return ratios.empty() ? 0.0 : ratios[ratios.size() / 2];
+}
+
 std::string Fixed(double value, int decimals, bool valid = true) {
   return valid ? fmt::format("{:.{}f}", value, decimals) : std::string("-");
 }
@@ -416,11 +437,10 @@ int main(int argc, char** argv) {
       if (args.repeat > 1) {
         const std::vector<Row>& r = rounds[static_cast<size_t>(round)];
         std::printf("round %d: pipelined/sequential %.2f (%.2f / %.2f fps)%s\n", round + 1,
-                    r[1].stats.fps / std::max(1e-9, r[0].stats.fps), r[1].stats.fps, r[0].stats.fps,
-                    r.size() > 5 ? fmt::format(", blocking device pass {:.2f}",
-                                               r[5].stats.fps / std::max(1e-9, r[0].stats.fps))
-                                       .c_str()
-                                 : "");
+                    FpsRatio(r, 1, 0), r[1].stats.fps, r[0].stats.fps,
+                    r.size() > 5
+                        ? fmt::format(", blocking device pass {:.2f}", FpsRatio(r, 5, 0)).c_str()
+                        : "");
       }
     }
     for (size_t i = 0; i < rows.size(); ++i) {
@@ -430,11 +450,8 @@ int main(int argc, char** argv) {
                 [](const Row* x, const Row* y) { return x->stats.fps < y->stats.fps; });
       rows[i] = *runs[runs.size() / 2];
     }
-    if (args.repeat > 1) {
-      std::vector<double> ratios;
-      for (const std::vector<Row>& r : rounds)
-        ratios.push_back(r[1].stats.fps / std::max(1e-9, r[0].stats.fps));
-      std::sort(ratios.begin(), ratios.end());
+    const std::vector<double> ratios = SortedRatios(rounds, 1, 0);
+    if (args.repeat > 1 && !ratios.empty()) {
       std::printf(
           "pipelined/sequential over %d rounds: median %.2f, range %.2f-%.2f; each row below is "
           "its median-fps run\n",
@@ -543,16 +560,8 @@ int main(int argc, char** argv) {
                 device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "");
 
     const double seq_fps = seq.stats.fps;
-    // Ratios of two rows: the median over the rounds of the ratio within a round (rows of one
-    // round ran minutes apart at most).
-    auto ratio = [&rounds](size_t num, size_t den) {
-      std::vector<double> r;
-      for (const std::vector<Row>& round : rounds)
-        if (round[den].stats.fps > 0) r.push_back(round[num].stats.fps / round[den].stats.fps);
-      if (r.empty()) return 0.0;
-      std::sort(r.begin(), r.end());
-      return r[r.size() / 2];
-    };
+    // Ratios of two rows: the median over the rounds of the ratio within a round.
+    auto ratio = [&rounds](size_t num, size_t den) { return MedianRatio(rounds, num, den); };
     const std::string of_rounds =
         args.repeat > 1 ? fmt::format(" (medians of {} rounds)", args.repeat) : std::string();
     std::printf(

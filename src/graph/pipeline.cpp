@@ -254,15 +254,14 @@ class GraphRun {
     return [this](const std::function<void(const DeviceDone&)>& launch) {
       const FrameTicket ticket = inference_ticket_;  // before the task may move to another thread
       const int64_t start = NowNs();
-      int64_t end = -1;  // written before done(), read after the resumption
+      int64_t end = 0;  // written before done(), read after the resumption
       SuspendWhileDeviceWorks([this, &launch, &end](const DeviceDone& done) {
         launch([this, &end, done] {
           end = NowNs();
           done();
         });
-      });
-      profiler_.RecordDevice(kStageDevice, ticket.seq, ticket.frame_index, start,
-                             end >= 0 ? end : NowNs());
+      });  // (a launch that threw never called done(): its exception skips the record)
+      profiler_.RecordDevice(kStageDevice, ticket.seq, ticket.frame_index, start, end);
     };
   }
 
