@@ -107,6 +107,8 @@ DynamicFilter::DynamicFilter(const DynamicFilterOptions& options)
     : options_(options), voting_(options.voting) {
   std::string why;
   if (!options_.IsValid(&why)) throw ConfigError("DynamicFilterOptions: " + why);
+  flow_ = options_.flow_factory ? options_.flow_factory() : MakeOpenCvFlowEngine();
+  if (!flow_) throw ConfigError("DynamicFilterOptions: flow_factory made no engine");
 }
 
 void DynamicFilter::Reset() {
@@ -275,7 +277,7 @@ FilterOutput DynamicFilter::Process(const FilterInput& input) {
         guess = PredictPreviousPixels(camera, cur_uv, depth, guess_motion->inverse());
       }
       const FlowTracks tracks =
-          TrackIntoPrevious(*prev_pyramid, cur_pyramid, cur_uv, options_.lk, guess);
+          TrackIntoPrevious(*prev_pyramid, cur_pyramid, cur_uv, options_.lk, guess, flow_.get());
       prev_uv = tracks.prev_uv_px;
       observed = tracks.valid;
       // Each tracked keypoint continues the previous keypoint nearest to where LK found it

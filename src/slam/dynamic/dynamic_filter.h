@@ -29,6 +29,7 @@
 // the per-track temporal state. Pure: no threads, no I/O.
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <span>
@@ -79,6 +80,7 @@ struct DynamicFilterOptions {
   double max_prior_deviation_m = 0.3;      // PnP further from the prior than this is rejected
   double max_prior_deviation_rad = 0.035;  // (2 degrees)
   bool use_lk = true;                      // LK when the input carries no matched positions
+  FlowEngineFactory flow_factory;          // where LK runs; empty: OpenCV on the calling thread
   // Also start LK at the static prediction of keypoints with depth (under the prior, else the
   // last frame's motion); see LkOptions::guess_*.
   bool lk_predict_initial_flow = true;
@@ -210,9 +212,15 @@ class DynamicFilter {
   // Forgets the previous frame and all temporal state (a new sequence).
   void Reset();
   const DynamicFilterOptions& options() const { return options_; }
+  // The engine the LK passes run on ("opencv", "cpu-twin", "cuda:0 (...)").
+  const FlowEngine& flow_engine() const { return *flow_; }
+  // For a flow engine on a device: how Process() waits for its passes (FlowEngine::SetDeviceWait).
+  // Not to be called while Process() runs.
+  void SetDeviceWait(DeviceWait wait) { flow_->SetDeviceWait(std::move(wait)); }
 
  private:
   DynamicFilterOptions options_;
+  std::unique_ptr<FlowEngine> flow_;
   TemporalVoting voting_;
   bool has_previous_ = false;
   int64_t previous_frame_ = -1;

@@ -140,7 +140,8 @@ std::vector<cv::Mat> BuildLkPyramid(const cv::Mat& gray, const LkOptions& option
 FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
                              const std::vector<cv::Mat>& cur_pyramid,
                              const std::vector<cv::Point2f>& cur_uv_px, const LkOptions& options,
-                             const std::vector<cv::Point2f>& initial_prev_uv_px) {
+                             const std::vector<cv::Point2f>& initial_prev_uv_px,
+                             FlowEngine* engine) {
   std::string why;
   if (!options.IsValid(&why)) throw ConfigError("LkOptions: " + why);
   FlowTracks tracks;
@@ -152,9 +153,16 @@ FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
   if (prev_pyramid[0].size() != cur_pyramid[0].size()) {
     throw std::invalid_argument("TrackIntoPrevious: pyramids of different image sizes");
   }
-  const cv::Size window(options.window_px, options.window_px);
-  const cv::TermCriteria criteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
-                                  options.max_iterations, options.epsilon_px);
+  std::unique_ptr<FlowEngine> opencv;
+  if (!engine) {
+    opencv = MakeOpenCvFlowEngine();
+    engine = opencv.get();
+  }
+  LkPass pass;
+  pass.window_px = options.window_px;
+  pass.max_iterations = options.max_iterations;
+  pass.epsilon_px = options.epsilon_px;
+  pass.min_eigen_threshold = options.min_eigen_threshold;
   if (!initial_prev_uv_px.empty() && initial_prev_uv_px.size() != n) {
     throw std::invalid_argument("TrackIntoPrevious: one initial guess per point");
   }
@@ -186,10 +194,9 @@ FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
     if (!guess_start.empty()) {
       std::vector<uint8_t> guess_status;
       std::vector<float> errors;
-      cv::calcOpticalFlowPyrLK(cur_pyramid, prev_pyramid, guess_start, guess_uv, guess_status,
-                               errors, window,
-                               std::min(options.refine_max_level, options.max_level), criteria,
-                               cv::OPTFLOW_USE_INITIAL_FLOW, options.min_eigen_threshold);
+      pass.max_level = std::min(options.refine_max_level, options.max_level);
+      pass.use_initial_flow = true;
+      engine->Track(cur_pyramid, prev_pyramid, guess_start, guess_uv, guess_status, errors, pass);
       for (size_t k = 0; k < guess_index.size(); ++k) {
         if (!guess_status[k] || !inside(guess_uv[k])) continue;
         const size_t i = guess_index[k];
@@ -220,8 +227,9 @@ FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
   if (!zero_start.empty()) {
     std::vector<cv::Point2f> zero_uv;
     std::vector<uint8_t> zero_status;
-    cv::calcOpticalFlowPyrLK(cur_pyramid, prev_pyramid, zero_start, zero_uv, zero_status, error,
-                             window, options.max_level, criteria, 0, options.min_eigen_threshold);
+    pass.max_level = options.max_level;
+    pass.use_initial_flow = false;
+    engine->Track(cur_pyramid, prev_pyramid, zero_start, zero_uv, zero_status, error, pass);
     for (size_t k = 0; k < zero_index.size(); ++k) {
       const size_t i = zero_index[k];
       if (!zero_status[k] || !inside(zero_uv[k])) continue;
@@ -253,9 +261,9 @@ FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
   }
   if (!back_start.empty()) {
     std::vector<uint8_t> back_status;
-    cv::calcOpticalFlowPyrLK(prev_pyramid, cur_pyramid, back_start, back_uv, back_status, error,
-                             window, options.max_level, criteria, cv::OPTFLOW_USE_INITIAL_FLOW,
-                             options.min_eigen_threshold);
+    pass.max_level = options.max_level;
+    pass.use_initial_flow = true;
+    engine->Track(prev_pyramid, cur_pyramid, back_start, back_uv, back_status, error, pass);
     for (size_t k = 0; k < back_index.size(); ++k) {
       if (!back_status[k]) continue;
       const size_t i = back_index[k];

@@ -24,6 +24,7 @@
 
 #include "slam/common/camera.h"
 #include "slam/common/pose.h"
+#include "slam/dynamic/flow_engine.h"
 
 namespace pcr {
 
@@ -68,12 +69,14 @@ struct FlowTracks {
 // static prediction of a motion prior as the guess, a static point is found where it should be even
 // when it flows fast, or sits on an edge or a repeated texture where the zero-flow search slides to
 // a wrong but self-consistent match; a moving point's guess is off and its true match (found from
-// zero flow) fits better. Tracks that leave the image are invalid. Throws ConfigError for invalid
-// options, std::invalid_argument for a guess vector of another size.
+// zero flow) fits better. Tracks that leave the image are invalid. The LK passes run on `engine`
+// (nullptr: OpenCV on this thread). Throws ConfigError for invalid options,
+// std::invalid_argument for a guess vector of another size.
 FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
                              const std::vector<cv::Mat>& cur_pyramid,
                              const std::vector<cv::Point2f>& cur_uv_px, const LkOptions& options,
-                             const std::vector<cv::Point2f>& initial_prev_uv_px = {});
+                             const std::vector<cv::Point2f>& initial_prev_uv_px = {},
+                             FlowEngine* engine = nullptr);
 
 struct EgoMotionOptions {
   double ransac_reprojection_px = 2.0;  // inlier bound on the previous-image reprojection error

@@ -6,9 +6,11 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <tuple>
 
 #include "filter_test_scene.h"
 #include "slam/common/error.h"
+#include "slam/dynamic/dynamic_filter.h"
 #include "slam/dynamic/motion_score.h"
 #include "slam/geometry/se3.h"
 
@@ -373,6 +375,81 @@ TEST(FilterMotion, LucasKanadeGuessDoesNotBiasInformativeMatchesAndEdgesAreNotTr
   EXPECT_EQ(TrackIntoPrevious(ep, ec, on_edge, options).num_valid, 0);
   EXPECT_EQ(TrackIntoPrevious(ep, ec, on_edge, options, {{200.0f, 103.0f}}).num_valid, 0);
   EXPECT_THROW(TrackIntoPrevious(ep, ec, on_edge, options, guess), std::invalid_argument);
+}
+
+// A FlowEngine that records each pass and runs it on OpenCV.
+class RecordingFlowEngine final : public FlowEngine {
+ public:
+  struct Call {
+    const std::vector<cv::Mat>* from;
+    size_t points;
+    LkPass pass;
+  };
+  void Track(const std::vector<cv::Mat>& from, const std::vector<cv::Mat>& to,
+             const std::vector<cv::Point2f>& from_pts, std::vector<cv::Point2f>& to_pts,
+             std::vector<uint8_t>& status, std::vector<float>& error, const LkPass& pass) override {
+    calls.push_back({&from, from_pts.size(), pass});
+    opencv_->Track(from, to, from_pts, to_pts, status, error, pass);
+  }
+  std::string Name() const override { return "recording"; }
+  std::vector<Call> calls;
+
+ private:
+  std::unique_ptr<FlowEngine> opencv_ = MakeOpenCvFlowEngine();
+};
+
+TEST(FilterMotion, TheLucasKanadePassesRunOnTheGivenEngine) {
+  LkOptions options;
+  options.guess_accept_error_factor = 0.0;  // the zero-flow search runs for every point
+  cv::Mat prev(200, 400, CV_8U);
+  cv::RNG rng(9);
+  rng.fill(prev, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(prev, prev, cv::Size(0, 0), 1.5);
+  cv::Mat cur;
+  cv::warpAffine(prev, cur, cv::Matx23d(1, 0, 4, 0, 1, 1), prev.size(), cv::INTER_LINEAR,
+                 cv::BORDER_REFLECT);
+  std::vector<cv::Point2f> pts, guess;
+  for (int v = 40; v <= 160; v += 30) {
+    for (int u = 60; u <= 340; u += 35) {
+      pts.emplace_back(static_cast<float>(u), static_cast<float>(v));
+      guess.push_back(pts.back() - cv::Point2f(3.5f, 1.0f));
+    }
+  }
+  const auto prev_pyr = BuildLkPyramid(prev, options), cur_pyr = BuildLkPyramid(cur, options);
+  RecordingFlowEngine engine;
+  const FlowTracks on_engine = TrackIntoPrevious(prev_pyr, cur_pyr, pts, options, guess, &engine);
+  const FlowTracks on_opencv = TrackIntoPrevious(prev_pyr, cur_pyr, pts, options, guess);
+  EXPECT_EQ(on_engine.prev_uv_px, on_opencv.prev_uv_px);
+  EXPECT_EQ(on_engine.valid, on_opencv.valid);
+  EXPECT_EQ(on_engine.forward_backward_px, on_opencv.forward_backward_px);
+  EXPECT_GT(on_engine.num_valid, static_cast<int>(pts.size()) / 2);
+  // The guess on the fine levels, the search from zero flow over the pyramid, the round trip.
+  ASSERT_EQ(engine.calls.size(), 3u);
+  const auto& [guess_call, zero_call, back_call] =
+      std::tie(engine.calls[0], engine.calls[1], engine.calls[2]);
+  EXPECT_EQ(guess_call.from, &cur_pyr);
+  EXPECT_TRUE(guess_call.pass.use_initial_flow);
+  EXPECT_EQ(guess_call.pass.max_level, options.refine_max_level);
+  EXPECT_EQ(zero_call.from, &cur_pyr);
+  EXPECT_FALSE(zero_call.pass.use_initial_flow);
+  EXPECT_EQ(zero_call.pass.max_level, options.max_level);
+  EXPECT_EQ(zero_call.points, pts.size());
+  EXPECT_EQ(back_call.from, &prev_pyr);
+  EXPECT_TRUE(back_call.pass.use_initial_flow);
+  EXPECT_EQ(back_call.pass.max_level, options.max_level);
+  for (const auto& call : engine.calls) {
+    EXPECT_EQ(call.pass.window_px, options.window_px);
+    EXPECT_EQ(call.pass.max_iterations, options.max_iterations);
+    EXPECT_EQ(call.pass.epsilon_px, options.epsilon_px);
+    EXPECT_EQ(call.pass.min_eigen_threshold, options.min_eigen_threshold);
+  }
+  // A filter takes its engine from its options; a factory that makes none is a config error.
+  DynamicFilterOptions filter_options;
+  EXPECT_EQ(DynamicFilter(filter_options).flow_engine().Name(), "opencv");
+  filter_options.flow_factory = [] { return std::make_unique<RecordingFlowEngine>(); };
+  EXPECT_EQ(DynamicFilter(filter_options).flow_engine().Name(), "recording");
+  filter_options.flow_factory = [] { return std::unique_ptr<FlowEngine>(); };
+  EXPECT_THROW(DynamicFilter{filter_options}, ConfigError);
 }
 
 TEST(FilterMotion, InvalidOptionsAreRejected) {
