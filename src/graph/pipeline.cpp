@@ -197,24 +197,29 @@ void SuspendWhileDeviceWorks(const std::function<void(const DeviceDone&)>& launc
   if (error) std::rethrow_exception(error);
 }
 
-// Installs a device wait in the segmenters for one run, and removes it after.
+// Installs device waits for one run (the segmenters' and the scorer's), and removes them after.
 class DeviceWaitScope {
  public:
-  DeviceWaitScope(const nodes::SegmenterSet& segmenters, const DeviceWait& wait) {
+  DeviceWaitScope(const nodes::SegmenterSet& segmenters, const DeviceWait& inference_wait,
+                  nodes::FrameScorer* scorer, const DeviceWait& flow_wait)
+      : scorer_(scorer) {
     for (Segmenter* s : {segmenters.accurate, segmenters.fast}) {
       if (!s || std::find(installed_.begin(), installed_.end(), s) != installed_.end()) continue;
-      s->SetDeviceWait(wait);
+      s->SetDeviceWait(inference_wait);
       installed_.push_back(s);
     }
+    if (scorer_) scorer_->SetDeviceWait(flow_wait);
   }
   ~DeviceWaitScope() {
     for (Segmenter* s : installed_) s->SetDeviceWait({});
+    if (scorer_) scorer_->SetDeviceWait({});
   }
   DeviceWaitScope(const DeviceWaitScope&) = delete;
   DeviceWaitScope& operator=(const DeviceWaitScope&) = delete;
 
  private:
   std::vector<Segmenter*> installed_;
+  nodes::FrameScorer* scorer_;
 };
 
 // One run of the graph: shared state of the node bodies and the clock.
@@ -247,12 +252,14 @@ class GraphRun {
   // Builds and runs the graph; call inside the task arena that should run it.
   PipelineResult Run();
 
-  // The segmenters' device wait in this run: SuspendWhileDeviceWorks, each pass profiled as a
-  // "device" event of the frame being segmented, from the launch to the device's done() (the
-  // resumption may come later, when a thread is free).
-  DeviceWait MakeDeviceWait() {
-    return [this](const std::function<void(const DeviceDone&)>& launch) {
-      const FrameTicket ticket = inference_ticket_;  // before the task may move to another thread
+  // A device wait of this run: SuspendWhileDeviceWorks, each pass profiled as a `stage` event
+  // on `lane` of the frame whose call is in progress (*ticket, written by that stage's serial
+  // body before its call), from the launch to the device's done() (the resumption may come
+  // later, when a thread is free). The segmenters' passes: kStageDevice on kDeviceLane; the
+  // filter's LK passes: kStageDeviceFlow on kFlowDeviceLane.
+  DeviceWait MakeDeviceWait(const char* stage, int lane, const FrameTicket* ticket) {
+    return [this, stage, lane, ticket](const std::function<void(const DeviceDone&)>& launch) {
+      const FrameTicket frame = *ticket;  // before the task may move to another thread
       const int64_t start = NowNs();
       int64_t end = 0;  // written before done(), read after the resumption
       SuspendWhileDeviceWorks([this, &launch, &end](const DeviceDone& done) {
@@ -261,8 +268,14 @@ class GraphRun {
           done();
         });
       });  // (a launch that threw never called done(): its exception skips the record)
-      profiler_.RecordDevice(kStageDevice, ticket.seq, ticket.frame_index, start, end);
+      profiler_.RecordDevice(stage, frame.seq, frame.frame_index, start, end, lane);
     };
+  }
+  DeviceWait MakeInferenceWait() {
+    return MakeDeviceWait(kStageDevice, Profiler::kDeviceLane, &inference_ticket_);
+  }
+  DeviceWait MakeFlowWait() {
+    return MakeDeviceWait(kStageDeviceFlow, Profiler::kFlowDeviceLane, &filter_ticket_);
   }
 
  private:
@@ -396,6 +409,7 @@ class GraphRun {
   bool inference_running_ = false;
   std::atomic<double> last_inference_ms_{0};
   FrameTicket inference_ticket_;  // of the RunInference call in progress (for the device wait)
+  FrameTicket filter_ticket_;     // of the filter call in progress (for the flow's device wait)
   std::atomic<size_t> inferences_busy_{0};
   nodes::FilterNode filter_;
   nodes::TrackingNode tracking_;
@@ -512,6 +526,7 @@ PipelineResult GraphRun::Run() {
         TsanAfterSetup();  // before the next line reads a member
         const TsanBody tsan_body(&filter_);
         const auto& in = TsanReceive(input);
+        filter_ticket_ = TicketOf(in);
         if (auto out = Guarded(kStageFilter, TicketOf(in),
                                [&] { return filter_(std::get<0>(in), std::get<1>(in)); }))
           std::get<0>(ports).try_put(*out);
@@ -888,11 +903,12 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
                 ToString(options.policy), source.name, source.size(), options.threads,
                 max_in_flight);
   GraphRun run(source, &slam, options, max_in_flight, segmenters, scorer, extra);
-  // Pipelined and realtime: inference on a device overlaps the CPU stages on every thread. The
-  // sequential reference keeps its stages one after another (T = T_slam + T_inference).
+  // Pipelined and realtime: work on a device (inference, the filter's LK flow) overlaps the CPU
+  // stages on every thread. The sequential reference keeps its stages one after another
+  // (T = T_slam + T_inference).
   std::optional<DeviceWaitScope> device_wait;
   if (options.policy != Policy::kSequential && options.device_overlap)
-    device_wait.emplace(segmenters, run.MakeDeviceWait());
+    device_wait.emplace(segmenters, run.MakeInferenceWait(), scorer, run.MakeFlowWait());
   PipelineResult result;
   arena.execute([&] { result = run.Run(); });
   return result;

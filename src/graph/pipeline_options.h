@@ -39,6 +39,8 @@ inline constexpr const char* kStageMapping = "mapping";
 // A segment call's pass on a device (GPU), from launch to completion: recorded where the graph's
 // device wait is used, on the profile's device lane (Profiler::kDeviceLane), not a thread.
 inline constexpr const char* kStageDevice = "device";
+// A filter call's LK pass on a device, the same way (Profiler::kFlowDeviceLane).
+inline constexpr const char* kStageDeviceFlow = "device_flow";
 
 struct PipelineOptions {
   Policy policy = Policy::kPipelined;

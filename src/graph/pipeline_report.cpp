@@ -24,9 +24,9 @@ double Us(int64_t ns) { return static_cast<double>(ns) * 1e-3; }
 
 // Stages in pipeline order (others after, by name).
 std::vector<std::string> OrderedStages(const std::vector<std::string>& present) {
-  const std::vector<std::string> order = {kStagePreprocess, kStageOrbLeft, kStageOrbRight,
-                                          kStageSegment,    kStageStereo,  kStageFilter,
-                                          kStageTracking,   kStageMapping, kStageDevice};
+  const std::vector<std::string> order = {
+      kStagePreprocess, kStageOrbLeft,  kStageOrbRight, kStageSegment, kStageStereo,
+      kStageFilter,     kStageTracking, kStageMapping,  kStageDevice,  kStageDeviceFlow};
   std::vector<std::string> out;
   for (const std::string& s : order) {
     if (std::find(present.begin(), present.end(), s) != present.end()) out.push_back(s);
@@ -48,6 +48,7 @@ cv::Scalar StageColour(const std::string& stage) {
   if (stage == kStageTracking) return {60, 170, 60};
   if (stage == kStageMapping) return {40, 110, 40};
   if (stage == kStageDevice) return {30, 30, 140};
+  if (stage == kStageDeviceFlow) return {20, 100, 140};
   return {120, 120, 120};
 }
 
@@ -68,6 +69,13 @@ double TickStep(double span, int count) {
 
 // Bytes in MiB; -1 stays -1 (not known).
 double MiB(int64_t bytes) { return bytes >= 0 ? static_cast<double>(bytes) / 1048576.0 : -1.0; }
+
+// The trace's name of a profile lane (StageEvent::thread).
+std::string LaneName(int thread) {
+  if (thread == Profiler::kDeviceLane) return "device (GPU)";
+  if (thread == Profiler::kFlowDeviceLane) return "device flow (GPU)";
+  return fmt::format("worker {}", thread);
+}
 
 }  // namespace
 
@@ -186,9 +194,7 @@ void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
                       {"ph", "M"},
                       {"pid", 1},
                       {"tid", t},
-                      {"args",
-                       {{"name", t == Profiler::kDeviceLane ? std::string("device (GPU)")
-                                                            : fmt::format("worker {}", t)}}}});
+                      {"args", {{"name", LaneName(t)}}}});
   }
   const int lanes = std::max(1, result.stats.max_in_flight);
   for (const FrameRecord& f : result.frames) {
@@ -231,16 +237,22 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
   const PipelineStats& s = result.stats;
   int64_t end_ns = 1;
   int num_threads = 1;
-  bool device = false;
+  std::vector<int> device_lanes;  // kDeviceLane first, then kFlowDeviceLane
   for (const StageEvent& e : result.events) {
     end_ns = std::max(end_ns, e.end_ns);
     num_threads = std::max(num_threads, e.thread + 1);
-    device = device || e.thread == Profiler::kDeviceLane;
+    if (Profiler::IsDeviceLane(e.thread) &&
+        std::find(device_lanes.begin(), device_lanes.end(), e.thread) == device_lanes.end())
+      device_lanes.push_back(e.thread);
   }
-  // Lanes: the threads, then the device's (when a device wait recorded passes).
-  const int num_lanes = num_threads + (device ? 1 : 0);
-  auto lane_of = [num_threads](int thread) {
-    return thread == Profiler::kDeviceLane ? num_threads : thread;
+  std::sort(device_lanes.rbegin(), device_lanes.rend());
+  // Rows: the threads, then the devices' lanes (where device waits recorded passes).
+  const int num_lanes = num_threads + static_cast<int>(device_lanes.size());
+  auto lane_of = [num_threads, &device_lanes](int thread) {
+    if (!Profiler::IsDeviceLane(thread)) return thread;
+    return num_threads +
+           static_cast<int>(std::find(device_lanes.begin(), device_lanes.end(), thread) -
+                            device_lanes.begin());
   };
   if (max_seconds > 0) end_ns = std::min(end_ns, static_cast<int64_t>(max_seconds * 1e9));
   std::vector<std::string> names;
@@ -268,7 +280,11 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
   for (int t = 0; t < num_lanes; ++t) {
     const int y = gantt_top + t * lane_h;
     cv::rectangle(image, {left, y}, {width - right, y + lane_h - 4}, {245, 245, 245}, cv::FILLED);
-    Text(image, t < num_threads ? fmt::format("thread {}", t) : std::string("device"),
+    Text(image,
+         t < num_threads
+             ? fmt::format("thread {}", t)
+             : std::string(device_lanes[t - num_threads] == Profiler::kDeviceLane ? "device"
+                                                                                  : "device flow"),
          {10, y + lane_h - 10});
   }
   for (const StageEvent& e : result.events) {

@@ -1,6 +1,7 @@
 #include "graph/profiler.h"
 
 #include <algorithm>
+#include <stdexcept>
 #include <utility>
 
 namespace pcr::graph {
@@ -15,9 +16,10 @@ void Profiler::Record(const char* stage, int64_t seq, int64_t frame_index, int64
 }
 
 void Profiler::RecordDevice(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
-                            int64_t end_ns) {
+                            int64_t end_ns, int lane) {
+  if (!IsDeviceLane(lane)) throw std::invalid_argument("Profiler::RecordDevice: not a device lane");
   std::lock_guard<std::mutex> lock(mutex_);
-  events_.push_back({stage, seq, frame_index, kDeviceLane, start_ns, end_ns});
+  events_.push_back({stage, seq, frame_index, lane, start_ns, end_ns});
 }
 
 std::vector<StageEvent> Profiler::Events() const {

@@ -26,14 +26,17 @@ struct StageEvent {
 
 class Profiler {
  public:
-  // StageEvent::thread of work that runs off the host threads (a GPU pass).
+  // StageEvent::thread of work that runs off the host threads: the network's passes on a GPU,
+  // and the dynamic filter's LK passes on a GPU (the two may overlap in time).
   static constexpr int kDeviceLane = -1;
+  static constexpr int kFlowDeviceLane = -2;
+  static bool IsDeviceLane(int thread) { return thread < 0; }
 
   void Record(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
               int64_t end_ns);
-  // The same on the device lane; does not count as a thread.
+  // The same on a device lane (kDeviceLane, kFlowDeviceLane); does not count as a thread.
   void RecordDevice(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
-                    int64_t end_ns);
+                    int64_t end_ns, int lane = kDeviceLane);
   std::vector<StageEvent> Events() const;
   int num_threads() const;
 

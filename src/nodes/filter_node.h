@@ -27,6 +27,9 @@ class FrameScorer {
   // Per left keypoint: excluded flags and static-confidence weights (empty vectors: none).
   virtual KeypointFilter Score(const ScoringInput& input) = 0;
   virtual std::string Name() const = 0;
+  // For scorers with work on a device (the dynamic filter's LK flow on a GPU): how Score() waits
+  // for it (empty: block). Not to be called while Score() runs.
+  virtual void SetDeviceWait(DeviceWait wait) { (void)wait; }
 };
 
 // The multi-stage dynamic-point filter (pcr::DynamicFilter: motion, ground, sky/edge, temporal
@@ -37,6 +40,9 @@ class DynamicFilterScorer final : public FrameScorer {
                       const DynamicFilterOptions& options = {});
   KeypointFilter Score(const ScoringInput& input) override;
   std::string Name() const override { return "dynamic-filter"; }
+  void SetDeviceWait(DeviceWait wait) override { filter_.SetDeviceWait(std::move(wait)); }
+  // Where the filter's LK flow runs (FlowEngine::Name).
+  std::string FlowEngineName() const { return filter_.flow_engine().Name(); }
   // Keypoints of the last scored frame that the filter's LK flow tracked into the previous
   // image (0 when the frame's quality settings switched the flow off).
   int last_tracked() const { return last_tracked_; }

@@ -596,5 +596,130 @@ TEST(PipelineTest, DynamicFilterScorerKeepsPoliciesIdentical) {
   ExpectSameTrajectory(sequential.tracked, pipelined.tracked);
 }
 
+// The filter's LK passes on a "device": a thread of its own that runs OpenCV's LK and then
+// sleeps device_ms. With the scheduler's wait, Track() waits through it; without, it blocks.
+class DeviceFlowEngine final : public FlowEngine {
+ public:
+  struct Counts {
+    std::atomic<int> waited{0}, blocking{0};
+  };
+  DeviceFlowEngine(int device_ms, std::shared_ptr<Counts> counts)
+      : opencv_(MakeOpenCvFlowEngine()), device_ms_(device_ms), counts_(std::move(counts)) {}
+  void Track(const std::vector<cv::Mat>& from, const std::vector<cv::Mat>& to,
+             const std::vector<cv::Point2f>& from_pts, std::vector<cv::Point2f>& to_pts,
+             std::vector<uint8_t>& status, std::vector<float>& error, const LkPass& pass) override {
+    auto work = [&] {
+      opencv_->Track(from, to, from_pts, to_pts, status, error, pass);
+      std::this_thread::sleep_for(std::chrono::milliseconds(device_ms_));
+    };
+    if (!wait_) {
+      ++counts_->blocking;
+      work();
+      return;
+    }
+    ++counts_->waited;
+    std::promise<DeviceDone> launched;
+    std::thread device([&work, started = launched.get_future()]() mutable {
+      const DeviceDone done = started.get();
+      work();
+      done();
+    });
+    wait_([&launched](const DeviceDone& done) { launched.set_value(done); });
+    device.join();
+  }
+  std::string Name() const override { return "device flow"; }
+  void SetDeviceWait(DeviceWait wait) override { wait_ = std::move(wait); }
+
+ private:
+  std::unique_ptr<FlowEngine> opencv_;
+  int device_ms_;
+  std::shared_ptr<Counts> counts_;
+  DeviceWait wait_;
+};
+
+TEST(PipelineTest, DeviceFlowLeavesTheFilterThreadToOtherStages) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 8);
+  const SlamOptions slam_options;
+  auto on_device = std::make_shared<DeviceFlowEngine::Counts>();
+  auto reference = std::make_shared<DeviceFlowEngine::Counts>();
+  DynamicFilterOptions device_options, reference_options;
+  device_options.flow_factory = [on_device] {
+    return std::make_unique<DeviceFlowEngine>(40, on_device);
+  };
+  reference_options.flow_factory = [reference] {
+    return std::make_unique<DeviceFlowEngine>(40, reference);
+  };
+  nodes::DynamicFilterScorer scorer(clip.rig, slam_options.orb.scale_factor, device_options);
+  nodes::DynamicFilterScorer reference_scorer(clip.rig, slam_options.orb.scale_factor,
+                                              reference_options);
+  EXPECT_EQ(scorer.FlowEngineName(), "device flow");
+  // One TBB thread: whatever runs while the device works ran on the thread that launched it.
+  PipelineOptions options = Options(Policy::kPipelined, 3);
+  options.threads = 1;
+  const PipelineResult r = RunPipeline(clip, slam_options, options, {}, &scorer);
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(on_device->blocking.load(), 0);
+  // Frames 1..7 track into their previous frame: two or three passes each (a guess from the
+  // motion, the search from zero flow where the guess did not settle, the round trip).
+  EXPECT_GE(on_device->waited.load(), 2 * 7);
+  EXPECT_LE(on_device->waited.load(), 3 * 7);
+  EXPECT_EQ(r.stats.profile_threads, 1);
+  ASSERT_TRUE(r.stats.stages.count(kStageDeviceFlow));
+  EXPECT_EQ(r.stats.stages.at(kStageDeviceFlow).time.count,
+            static_cast<size_t>(on_device->waited.load()));
+  EXPECT_EQ(r.stats.stages.count(kStageDevice), 0u);  // no network on a device here
+  for (const StageEvent& d : r.events) {
+    if (std::string_view(d.stage) != kStageDeviceFlow) continue;
+    EXPECT_EQ(d.thread, Profiler::kFlowDeviceLane);
+    EXPECT_GE(d.end_ns - d.start_ns, 40'000'000);
+    bool within = false;
+    for (const StageEvent& f : r.events) {
+      within = within || (std::string_view(f.stage) == kStageFilter && f.seq == d.seq &&
+                          f.start_ns <= d.start_ns && d.end_ns <= f.end_ns);
+    }
+    EXPECT_TRUE(within) << "LK pass of frame " << d.frame_index;
+  }
+  const std::string trace = ::testing::TempDir() + "/flow_device_trace.json";
+  WriteChromeTrace(trace, r);
+  std::ifstream trace_in(trace);
+  const nlohmann::json events = nlohmann::json::parse(trace_in)["traceEvents"];
+  EXPECT_TRUE(std::any_of(events.begin(), events.end(), [](const nlohmann::json& e) {
+    return e["name"] == "thread_name" && e["args"]["name"] == "device flow (GPU)";
+  }));
+  WriteTimingChart(::testing::TempDir() + "/flow_device_timing.png", r);
+  size_t inside = 0;
+  for (const StageEvent& f : r.events) {
+    if (std::string_view(f.stage) != kStageFilter) continue;
+    for (const StageEvent& e : r.events) {
+      inside += !Profiler::IsDeviceLane(e.thread) && std::string_view(e.stage) != kStageFilter &&
+                e.start_ns > f.start_ns && e.end_ns < f.end_ns;
+    }
+  }
+  if (kUnderTsan) {
+    EXPECT_EQ(inside, 0u);  // TSAN builds wait blocked (SuspendWhileDeviceWorks)
+  } else {
+    EXPECT_GT(inside, 0u) << "no stage ran while the LK passes were on the device";
+  }
+
+  // The sequential reference blocks on the device and tracks the same, as does OpenCV's LK on
+  // the calling thread (the device engine computes with it).
+  const PipelineResult seq =
+      RunPipeline(clip, slam_options, Options(Policy::kSequential), {}, &reference_scorer);
+  ASSERT_TRUE(seq.error.empty()) << seq.error;
+  EXPECT_EQ(reference->waited.load(), 0);
+  EXPECT_EQ(reference->blocking.load(), on_device->waited.load());
+  EXPECT_EQ(seq.stats.stages.count(kStageDeviceFlow), 0u);
+  ExpectSameTrajectory(seq.tracked, r.tracked);
+  nodes::DynamicFilterScorer opencv_scorer(clip.rig, slam_options.orb.scale_factor);
+  EXPECT_EQ(opencv_scorer.FlowEngineName(), "opencv");
+  const PipelineResult plain =
+      RunPipeline(clip, slam_options, Options(Policy::kSequential), {}, &opencv_scorer);
+  ASSERT_TRUE(plain.error.empty()) << plain.error;
+  ExpectSameTrajectory(plain.tracked, r.tracked);
+  ASSERT_EQ(plain.frames.size(), r.frames.size());
+  for (size_t i = 0; i < plain.frames.size(); ++i)
+    EXPECT_EQ(plain.frames[i].num_excluded, r.frames[i].num_excluded);
+}
+
 }  // namespace
 }  // namespace pcr::graph
