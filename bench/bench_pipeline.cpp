@@ -7,7 +7,8 @@
 //   bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N]
 //                  [--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none]
 //                  [--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]
-//                  [--device-ms MS] [--repeat N]
+//                  [--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS]
+//                  [--repeat N]
 //
 // Default input: KITTI raw drive 0005 (stereo, moving vehicles and a cyclist) with the
 // YOLOv8n-seg 224x640 model (the fast level) and, for adaptive quality, the 384x1280 model (the
@@ -33,7 +34,10 @@
 // would there. With it, and with --inference cuda, one more row runs the pipelined policy with
 // the device pass blocking its thread (`--device-overlap off`). It measures the scheduling for an
 // assumed device time, not a GPU:
-// `--inference cuda` measures the real one where a GPU is present.
+// `--inference cuda` measures the real one where a GPU is present. --flow-device-ms MS does the
+// same for the dynamic filter's LK passes (three a frame): the passes of a warm-up run (the
+// sequential policy, not timed) are replayed, each taking MS ms on a sleeping thread
+// (`--flow cuda` runs them on a GPU).
 //
 // --repeat N runs all rows N times, round after round, and reports each row's median-fps run and
 // every round's ratio: the speed of this project's VMs drifts within minutes, and a ratio of two
@@ -56,6 +60,7 @@
 #include <future>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <unordered_map>
@@ -87,8 +92,10 @@ struct BenchArgs {
   bool filter = true;
   int threads = 2, max_in_flight = 4;
   double rate = 1.0;
-  double device_ms = 0;  // > 0: emulated device (see the top of the file)
-  int repeat = 1;        // rounds of all rows
+  double device_ms = 0;         // > 0: emulated device (see the top of the file)
+  std::string flow = "opencv";  // where the filter's LK runs (`pcr_orb pipeline --flow`)
+  double flow_device_ms = 0;    // > 0: the LK passes on an emulated device
+  int repeat = 1;               // rounds of all rows
 };
 
 BenchArgs ParseArgs(int argc, char** argv) {
@@ -126,6 +133,12 @@ BenchArgs ParseArgs(int argc, char** argv) {
     } else if (arg == "--repeat") {
       a.repeat = std::stoi(value());
       if (a.repeat < 1 || a.repeat > 50) throw std::invalid_argument("--repeat must be in 1..50");
+    } else if (arg == "--flow") {
+      a.flow = value();
+    } else if (arg == "--flow-device-ms") {
+      a.flow_device_ms = std::stod(value());
+      if (!(a.flow_device_ms > 0 && a.flow_device_ms < 10000))
+        throw std::invalid_argument("--flow-device-ms must be in (0, 10000)");
     } else if (arg == "--device-ms") {
       a.device_ms = std::stod(value());
       if (!(a.device_ms > 0 && a.device_ms < 10000))
@@ -135,7 +148,8 @@ BenchArgs ParseArgs(int argc, char** argv) {
           "bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N] "
           "[--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none] "
           "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR] "
-          "[--device-ms MS] [--repeat N]\n");
+          "[--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS] "
+          "[--repeat N]\n");
       std::exit(0);
     } else if (!arg.empty() && arg[0] != '-') {
       a.sequence = arg;
@@ -147,7 +161,28 @@ BenchArgs ParseArgs(int argc, char** argv) {
     throw std::invalid_argument("--segmenter must be yolo or none");
   if (a.device_ms > 0 && (a.segmenter != "yolo" || a.inference != "opencv"))
     throw std::invalid_argument("--device-ms needs --segmenter yolo and --inference opencv");
+  if (a.flow_device_ms > 0 && (!a.filter || a.flow != "opencv"))
+    throw std::invalid_argument("--flow-device-ms needs --filter on and --flow opencv");
   return a;
+}
+
+// One pass of an emulated device: device_ms of wall time on a thread that only sleeps. With a
+// DeviceWait the caller waits through it (the scheduler's suspension, as for a CUDA pass);
+// without, it blocks.
+void EmulatedPass(const pcr::DeviceWait& wait, double device_ms) {
+  const auto device_time = std::chrono::microseconds(std::llround(device_ms * 1e3));
+  if (!wait) {
+    std::this_thread::sleep_for(device_time);
+    return;
+  }
+  std::promise<pcr::DeviceDone> launched;
+  std::thread device([device_time, started = launched.get_future()]() mutable {
+    const pcr::DeviceDone done = started.get();
+    std::this_thread::sleep_for(device_time);
+    done();
+  });
+  wait([&launched](const pcr::DeviceDone& done) { launched.set_value(done); });
+  device.join();
 }
 
 // The emulated device of --device-ms: OpenCV DNN's outputs for inputs seen in the warm-up pass
@@ -168,19 +203,7 @@ class EmulatedDeviceEngine final : public pcr::InferenceEngine {
       if (sealed_) throw std::runtime_error("emulated device: an input the warm-up did not see");
       it = cache_.emplace(key, reference_->Forward(blob)).first;
     } else {
-      const auto device_time = std::chrono::microseconds(std::llround(device_ms_ * 1e3));
-      if (wait_) {
-        std::promise<pcr::DeviceDone> launched;
-        std::thread device([device_time, started = launched.get_future()]() mutable {
-          const pcr::DeviceDone done = started.get();
-          std::this_thread::sleep_for(device_time);
-          done();
-        });
-        wait_([&launched](const pcr::DeviceDone& done) { launched.set_value(done); });
-        device.join();
-      } else {
-        std::this_thread::sleep_for(device_time);
-      }
+      EmulatedPass(wait_, device_ms_);
     }
     std::vector<cv::Mat> copies;
     for (const cv::Mat& m : it->second) copies.push_back(m.clone());
@@ -210,6 +233,90 @@ class EmulatedDeviceEngine final : public pcr::InferenceEngine {
   double device_ms_;
   std::unordered_map<uint64_t, std::vector<cv::Mat>> cache_;
   bool sealed_ = false;
+  pcr::DeviceWait wait_;
+};
+
+// The emulated device of --flow-device-ms: the LK passes of a warm-up run (Record), replayed,
+// each taking flow_device_ms on a thread that only sleeps. A pass whose input the warm-up did not
+// see (a realtime row that dropped frames, or adaptive quality's other feature counts) runs on
+// OpenCV on the host and is counted. Passes are keyed by their points and settings (distinct
+// frames have distinct keypoints).
+struct FlowReplay {
+  struct Pass {
+    std::vector<cv::Point2f> to;
+    std::vector<uint8_t> status;
+    std::vector<float> error;
+  };
+  double device_ms = 0;
+  bool recording = true;
+  std::mutex mutex;  // rows run one at a time; the lock keeps the counters honest regardless
+  std::unordered_map<uint64_t, Pass> passes;
+  size_t replayed = 0, computed = 0;
+};
+
+class EmulatedFlowEngine final : public pcr::FlowEngine {
+ public:
+  explicit EmulatedFlowEngine(std::shared_ptr<FlowReplay> replay)
+      : replay_(std::move(replay)), opencv_(pcr::MakeOpenCvFlowEngine()) {}
+
+  void Track(const std::vector<cv::Mat>& from, const std::vector<cv::Mat>& to,
+             const std::vector<cv::Point2f>& from_pts, std::vector<cv::Point2f>& to_pts,
+             std::vector<uint8_t>& status, std::vector<float>& error,
+             const pcr::LkPass& pass) override {
+    const uint64_t key = Key(from, from_pts, to_pts, pass);
+    bool hit = false;
+    {
+      std::lock_guard<std::mutex> lock(replay_->mutex);
+      if (!replay_->recording) {
+        const auto it = replay_->passes.find(key);
+        if (it != replay_->passes.end()) {
+          to_pts = it->second.to;
+          status = it->second.status;
+          error = it->second.error;
+          ++replay_->replayed;
+          hit = true;
+        }
+      }
+    }
+    if (hit) {
+      EmulatedPass(wait_, replay_->device_ms);
+      return;
+    }
+    opencv_->Track(from, to, from_pts, to_pts, status, error, pass);
+    std::lock_guard<std::mutex> lock(replay_->mutex);
+    if (replay_->recording) {
+      replay_->passes[key] = {to_pts, status, error};
+    } else {
+      ++replay_->computed;
+    }
+  }
+  std::string Name() const override {
+    return fmt::format("an emulated device ({} ms a pass)", replay_->device_ms);
+  }
+  void SetDeviceWait(pcr::DeviceWait wait) override { wait_ = std::move(wait); }
+
+ private:
+  static uint64_t Key(const std::vector<cv::Mat>& from, const std::vector<cv::Point2f>& from_pts,
+                      const std::vector<cv::Point2f>& to_pts, const pcr::LkPass& pass) {
+    uint64_t h = 1469598103934665603ull;
+    auto mix = [&h](const void* data, size_t bytes) {
+      const auto* p = static_cast<const unsigned char*>(data);
+      for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 1099511628211ull;
+    };
+    const int geometry[] = {from.empty() ? 0 : from[0].cols,
+                            from.empty() ? 0 : from[0].rows,
+                            pass.window_px,
+                            pass.max_level,
+                            pass.max_iterations,
+                            pass.use_initial_flow ? 1 : 0};
+    mix(geometry, sizeof geometry);
+    mix(from_pts.data(), from_pts.size() * sizeof(cv::Point2f));
+    if (pass.use_initial_flow) mix(to_pts.data(), to_pts.size() * sizeof(cv::Point2f));
+    return h;
+  }
+
+  std::shared_ptr<FlowReplay> replay_;
+  std::unique_ptr<pcr::FlowEngine> opencv_;
   pcr::DeviceWait wait_;
 };
 
@@ -318,6 +425,22 @@ int main(int argc, char** argv) {
     const pcr::app::FrameRange range = pcr::app::FrameRange::Parse(args.frames, dataset.size());
     const pcr::nodes::FrameSource source = SourceOf(dataset, range);
     const pcr::SlamOptions slam_options;
+    // The filter's options: where its LK flow runs.
+    pcr::DynamicFilterOptions filter_options;
+    pcr::app::ApplyFlow(args.flow, &filter_options);
+    std::shared_ptr<FlowReplay> flow_replay;
+    if (args.flow_device_ms > 0) {
+      flow_replay = std::make_shared<FlowReplay>();
+      flow_replay->device_ms = args.flow_device_ms;
+      filter_options.flow_factory = [flow_replay] {
+        return std::make_unique<EmulatedFlowEngine>(flow_replay);
+      };
+    }
+    auto make_scorer = [&]() -> std::unique_ptr<pcr::nodes::DynamicFilterScorer> {
+      if (!args.filter) return nullptr;  // the filter keeps state across frames: one per run
+      return std::make_unique<pcr::nodes::DynamicFilterScorer>(
+          source.rig, slam_options.orb.scale_factor, filter_options);
+    };
 
     // Networks as `pcr_orb pipeline` sets them up: the fast model in the fast slot (every frame
     // without adaptive quality; the medium and low levels), the high model in the accurate slot
@@ -363,13 +486,25 @@ int main(int argc, char** argv) {
         for (const auto& network : networks) network->Segment(left);
     }
     for (EmulatedDeviceEngine* device : devices) device->Seal();
+    std::string flow_name = args.filter ? make_scorer()->FlowEngineName() : std::string("-");
+    if (flow_replay) {
+      // The emulated flow device's warm-up: one sequential run records the LK passes.
+      pcr::graph::PipelineOptions warm;
+      warm.policy = Policy::kSequential;
+      warm.threads = args.threads;
+      const auto scorer = make_scorer();
+      const pcr::graph::PipelineResult r =
+          pcr::graph::RunPipeline(source, slam_options, warm, segmenters, scorer.get());
+      if (!r.error.empty()) throw std::runtime_error("flow warm-up run: " + r.error);
+      flow_replay->recording = false;
+    }
 
     std::printf(
-        "bench_pipeline: %s, frames %zu..%zu (%zu), %d threads, %d in flight, %s, filter %s, "
-        "realtime rate %.3g, %s\n",
+        "bench_pipeline: %s, frames %zu..%zu (%zu), %d threads, %d in flight, %s, filter %s "
+        "(LK flow on %s), realtime rate %.3g, %s\n",
         dataset.name.c_str(), range.first, range.end - 1, source.size(), args.threads,
         args.max_in_flight, segmenter_name.c_str(), args.filter ? "on (multi-stage)" : "off",
-        args.rate, pcr::graph::AllocatorName().c_str());
+        flow_name.c_str(), args.rate, pcr::graph::AllocatorName().c_str());
     std::printf("load average before: %s\n", LoadAverage().c_str());
 
     std::vector<Row> rows;
@@ -389,7 +524,8 @@ int main(int argc, char** argv) {
     add_row("realtime+adaptive", Policy::kRealtime, true, args.threads);
     add_row("sequential 1-thread", Policy::kSequential, false, 1);
     // On a device (emulated or CUDA): what the device wait buys.
-    const bool on_device = args.device_ms > 0 || args.inference.rfind("cuda", 0) == 0;
+    const bool on_device = args.device_ms > 0 || args.inference.rfind("cuda", 0) == 0 ||
+                           args.flow_device_ms > 0 || args.flow.rfind("cuda", 0) == 0;
     if (on_device)
       add_row("pipelined, blocking", Policy::kPipelined, false, args.threads,
               /*device_overlap=*/false);
@@ -405,11 +541,7 @@ int main(int argc, char** argv) {
         options.rate = args.rate;
         options.adaptive = row.adaptive;
         options.device_overlap = row.device_overlap;
-        // The filter keeps state across frames: one per run.
-        std::unique_ptr<pcr::nodes::DynamicFilterScorer> scorer;
-        if (args.filter)
-          scorer = std::make_unique<pcr::nodes::DynamicFilterScorer>(source.rig,
-                                                                     slam_options.orb.scale_factor);
+        const std::unique_ptr<pcr::nodes::DynamicFilterScorer> scorer = make_scorer();
         const double cpu_before = ProcessCpuSeconds();
         const double busy_before = MachineBusySeconds();
         const auto wall_before = std::chrono::steady_clock::now();
@@ -526,10 +658,19 @@ int main(int argc, char** argv) {
                              : device_lane != pipe.stats.stages.end()
                                  ? device_lane->second.time.mean_ms
                                  : 0.0;
+    // The LK passes' device time per filter call (the pipelined run's flow lane).
+    double flow_device_per_call_ms = 0;
+    if (const auto lane = pipe.stats.stages.find(pcr::graph::kStageDeviceFlow),
+        filter = pipe.stats.stages.find(pcr::graph::kStageFilter);
+        lane != pipe.stats.stages.end() && filter != pipe.stats.stages.end() &&
+        filter->second.time.count > 0)
+      flow_device_per_call_ms =
+          lane->second.time.total_ms / static_cast<double>(filter->second.time.count);
     for (const char* stage :
          {pcr::graph::kStagePreprocess, pcr::graph::kStageOrbLeft, pcr::graph::kStageOrbRight,
           pcr::graph::kStageSegment, pcr::graph::kStageStereo, pcr::graph::kStageFilter,
-          pcr::graph::kStageTracking, pcr::graph::kStageMapping, pcr::graph::kStageDevice}) {
+          pcr::graph::kStageTracking, pcr::graph::kStageMapping, pcr::graph::kStageDevice,
+          pcr::graph::kStageDeviceFlow}) {
       const auto p = pipe.stats.stages.find(stage);
       const bool has_p = p != pipe.stats.stages.end();
       const double per_frame = has_p ? p->second.time.total_ms / frames_pipe : 0.0;
@@ -544,7 +685,17 @@ int main(int argc, char** argv) {
             o == one.stats.stages.end() ? 0.0 : std::max(0.0, o->second.time.mean_ms - device_ms);
         cpu_ms = host_ms * static_cast<double>(p->second.time.count) / frames_pipe;
       }
-      if (name == pcr::graph::kStageDevice) cpu_ms = 0;  // the device's lane: no host CPU
+      if (has_p && name == pcr::graph::kStageFilter && flow_device_per_call_ms > 0) {
+        // The same for the filter's LK passes on a device.
+        const auto o = one.stats.stages.find(stage);
+        const double host_ms =
+            o == one.stats.stages.end()
+                ? 0.0
+                : std::max(0.0, o->second.time.mean_ms - flow_device_per_call_ms);
+        cpu_ms = host_ms * static_cast<double>(p->second.time.count) / frames_pipe;
+      }
+      // The devices' lanes: no host CPU.
+      if (name == pcr::graph::kStageDevice || name == pcr::graph::kStageDeviceFlow) cpu_ms = 0;
       cpu_per_frame_ms += cpu_ms;
       // Serial nodes: tracking and mapping share the token (one chain); the filter and (outside
       // realtime) the segmenter are serial nodes of their own.
@@ -556,8 +707,16 @@ int main(int argc, char** argv) {
                   mean_of(seq, stage).c_str(), mean_of(pipe, stage).c_str(),
                   mean_of(one, stage).c_str(), per_frame);
     }
-    std::printf("%-11s %6s %12s %12s %12s %13.1f%s\n", "sum", "", "", "", "", cpu_per_frame_ms,
-                device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "");
+    std::printf("%-11s %6s %12s %12s %12s %13.1f%s%s\n", "sum", "", "", "", "", cpu_per_frame_ms,
+                device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "",
+                flow_device_per_call_ms > 0 ? " (filter: host CPU work of the 1-thread run)" : "");
+    if (flow_replay) {
+      std::printf(
+          "emulated flow device: %zu LK passes replayed (%.1f ms each), %zu run on the host "
+          "(inputs "
+          "the warm-up did not see)\n",
+          flow_replay->replayed, args.flow_device_ms, flow_replay->computed);
+    }
 
     const double seq_fps = seq.stats.fps;
     // Ratios of two rows: the median over the rounds of the ratio within a round.
@@ -569,9 +728,13 @@ int main(int argc, char** argv) {
         "1-thread synchronous reference: %.2f%s\n",
         ratio(1, 0), pipe.stats.fps, seq_fps, ratio(1, 4), of_rounds.c_str());
     if (rows.size() > 5) {
-      const std::string device =
-          args.device_ms > 0 ? fmt::format("emulated device, {:.1f} ms a pass", args.device_ms)
-                             : args.inference;
+      std::string device = args.device_ms > 0
+                               ? fmt::format("emulated device, {:.1f} ms a pass", args.device_ms)
+                               : "inference " + args.inference;
+      if (args.flow_device_ms > 0)
+        device += fmt::format(", LK on an emulated device ({:.1f} ms a pass)", args.flow_device_ms);
+      else if (args.flow != "opencv")
+        device += ", LK on " + flow_name;
       std::printf(
           "%s: pipelined/sequential %.2f with the device wait, %.2f with the pass blocking its "
           "thread%s\n",

@@ -4,8 +4,9 @@
 # test and benchmark executables with every shared library they need except glibc and CUDA's own,
 # and, separately, a slice of the real data. Output (ignored by git):
 #   .device/bin/pcr-gpu.tar.xz   executables + libraries (about 50 MB)
-#   .device/data/                the 224x640 model, the KITTI test frame and the first
+#   .device/data/                the 224x640 model, the KITTI test frame, the first
 #                                PCR_DEVICE_FRAMES (default 20) stereo frames of raw drive 0005
+#                                and seq 06's left images (the LK flow tests), about 40 MB
 # Each folder fits the tool's 64 MiB per call: carry .device/bin in one call and .device/data in
 # the next (see scripts/device_run.sh).
 set -euo pipefail
@@ -43,4 +44,7 @@ for d in image_00 image_01 oxts; do
   ls "$src/$d/data" | sort | head -n "$frames" |
     xargs -I{} cp "$src/$d/data/{}" .device/data/$drive/$d/data/
 done
+odo=data/kitti/sequences/06/image_0
+mkdir -p .device/data/$odo
+cp "$shared/$odo"/*.png .device/data/$odo/
 du -sh .device/bin .device/data

@@ -4,10 +4,11 @@
 #   scripts/device_run.sh unpack    (carry .device/bin)  unpacks to $PCR_DEVICE_DIR, outside the
 #                                   checkout, so that it stays while the machine is warm
 #   scripts/device_run.sh check     (carry .device/data) runs, writing logs to $OUT:
-#     test_gpu (the CUDA executor against its CPU twin on the real model), bench_yolo's forward
-#     pass on cuda and on OpenCV DNN, and bench_pipeline (sequential, pipelined, realtime; on cuda
-#     also pipelined with the GPU pass blocking its thread, 3 rounds) with --inference cuda and
-#     opencv on the carried frames, 2 threads.
+#     test_gpu (the CUDA executor and the CUDA LK flow against their CPU twins on real data),
+#     bench_yolo's forward pass on cuda and on OpenCV DNN, and bench_pipeline (sequential,
+#     pipelined, realtime; on cuda also pipelined with the GPU passes blocking their threads, 3
+#     rounds) with the network and the filter's LK flow on cuda, and on the CPU (opencv), on the
+#     carried frames, 2 threads.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 dest=${PCR_DEVICE_DIR:-/root/pcr-gpu}
@@ -25,7 +26,7 @@ case "${1:-}" in
     export PCR_SHARED_DIR="$PWD/.device/data"
     seq="$PCR_SHARED_DIR/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"
     model="$PCR_SHARED_DIR/models/yolov8n-seg_coco_224x640.onnx"
-    "$dest/test_gpu" --gtest_filter='YoloCuda*:NetPlan*:YoloTwin.Raw*' 2>&1 | tee "$out/test_gpu.log"
+    "$dest/test_gpu" --gtest_filter='YoloCuda*:NetPlan*:YoloTwin.Raw*:LkCuda*:LkFlow*' 2>&1 | tee "$out/test_gpu.log"
     "$dest/bench_yolo" --inference cuda --benchmark_filter='(Forward|Segment)/224x640' 2>&1 |
       tee "$out/bench_yolo_cuda.log"
     "$dest/bench_yolo" --benchmark_filter='(Forward|Segment)/224x640' 2>&1 |
@@ -35,7 +36,7 @@ case "${1:-}" in
       rounds=1
       [ "$inference" = cuda ] && rounds=3
       "$dest/bench_pipeline" "$seq" --threads 2 --model "$model" --model-high none \
-        --inference "$inference" --repeat "$rounds" 2>&1 |
+        --inference "$inference" --flow "$inference" --repeat "$rounds" 2>&1 |
         tee "$out/bench_pipeline_$inference.log"
     done
     ;;

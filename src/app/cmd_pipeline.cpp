@@ -30,7 +30,7 @@ struct PipelineArgs {
   std::string sequence, out = "out/pipeline", config, frames;
   std::vector<std::string> overrides;
   std::string policy = "pipelined", adaptive = "off", segmenter = "none", model, model_high;
-  std::string inference = "opencv";
+  std::string inference = "opencv", flow = "opencv";
   std::string filter = "off";  // on: the multi-stage DynamicFilter scores keypoints
   double rate = 1.0, mask_deadline_ms = 10, delay_ms = 0;
   int threads = 2, max_in_flight = 4, waiting = 1;
@@ -105,6 +105,7 @@ nlohmann::json OptionsJson(const PipelineArgs& a) {
           {"model", a.model},
           {"model_high", a.model_high},
           {"inference", a.inference},
+          {"flow", a.flow},
           {"delay_ms", a.delay_ms},
           {"trim_every", a.trim_every},
           {"trim_after_keyframe", a.trim_after_keyframe},
@@ -154,9 +155,14 @@ void RunPipelineCommand(const PipelineArgs& args) {
                                 out.num_map_points));
   };
   std::unique_ptr<nodes::DynamicFilterScorer> scorer;
-  if (args.filter == "on")
+  if (args.filter == "on") {
+    DynamicFilterOptions filter_options = config.dynamic.options;
+    ApplyFlow(args.flow, &filter_options);
     scorer = std::make_unique<nodes::DynamicFilterScorer>(source.rig, config.slam.orb.scale_factor,
-                                                          config.dynamic.options);
+                                                          filter_options);
+  } else if (args.flow != "opencv") {
+    spdlog::warn("--flow {} without --filter on: no LK flow runs", args.flow);
+  }
   const graph::PipelineResult result =
       graph::RunPipeline(source, config.slam, run_options, segmenters, scorer.get());
   progress.Finish();
@@ -228,6 +234,7 @@ void AddPipelineCommand(CLI::App& app) {
   cmd->add_option("--model-high", args->model_high,
                   "adaptive high-quality model (e.g. yolov8n-seg_coco_384x1280.onnx)");
   cmd->add_option("--inference", args->inference, kInferenceHelp)->capture_default_str();
+  cmd->add_option("--flow", args->flow, kFlowHelp)->capture_default_str();
   cmd->add_option("--frames", args->frames, "frame range A:B (B exclusive)");
   cmd->add_option("--config", args->config, "YAML configuration (see config/*.yaml)");
   cmd->add_option("--set", args->overrides, "override one key: section.key=value (repeatable)");

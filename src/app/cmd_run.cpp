@@ -35,6 +35,7 @@ void AddRunCommand(CLI::App& app) {
   cmd->add_option("--model", args->dynamic.model_path,
                   "YOLOv8-seg ONNX model for --segmenter yolo");
   cmd->add_option("--inference", args->dynamic.inference, kInferenceHelp)->capture_default_str();
+  cmd->add_option("--flow", args->dynamic.flow, kFlowHelp)->capture_default_str();
   cmd->add_option_function<std::string>(
          "--filter", [args](const std::string& v) { args->dynamic.filter = v == "on"; },
          "multi-stage dynamic-point filter before tracking: on or off (default off)")

@@ -35,7 +35,10 @@ DynamicRun::DynamicRun(const Dataset& dataset, const DynamicRunOptions& options,
   if (segmenter_ && !options_.filter)
     spdlog::warn("--segmenter {} without --filter on: segmentation is not used",
                  options_.segmenter);
-  if (options_.filter) filter_.emplace(options_.options);
+  if (options_.filter) {
+    ApplyFlow(options_.flow, &options_.options);
+    filter_.emplace(options_.options);
+  }
   const std::string table = dataset.root + "/instances.txt";
   if (std::filesystem::is_regular_file(table) &&
       std::filesystem::is_directory(dataset.root + "/instance_0"))

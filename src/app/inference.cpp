@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "gpu/executor.h"
+#include "gpu/lk_flow.h"
 #include "gpu/net_engine.h"
 #include "slam/common/error.h"
 
@@ -34,6 +35,33 @@ void ApplyInference(const std::string& inference, YoloOptions* yolo) {
     }
   }
   yolo->engine_factory = gpu::NetEngineFactory(inference);
+}
+
+void ApplyFlow(const std::string& flow, DynamicFilterOptions* filter) {
+  if (flow == "opencv") {
+    filter->flow_factory = nullptr;
+    return;
+  }
+  if (flow == "auto") {
+    std::string why;
+    if (gpu::CudaDeviceCount(&why) > 0) {
+      filter->flow_factory = gpu::LkFlowFactory("cuda");
+    } else {
+      spdlog::info("--flow auto: OpenCV's LK on the CPU ({})", why);
+      filter->flow_factory = nullptr;
+    }
+    return;
+  }
+  if (!gpu::IsLkFlowDevice(flow)) {
+    throw ConfigError("--flow must be opencv, twin, cuda, cuda:N or auto, not '" + flow + "'");
+  }
+  if (flow != "twin") {
+    std::string why;
+    if (gpu::CudaDeviceCount(&why) == 0) {
+      throw ConfigError("--flow " + flow + ": no CUDA device (" + why + ")");
+    }
+  }
+  filter->flow_factory = gpu::LkFlowFactory(flow);
 }
 
 }  // namespace pcr::app

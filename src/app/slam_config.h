@@ -22,6 +22,7 @@ struct DynamicRunOptions {
   std::string segmenter = "none";    // none | yolo | truth (synthetic sequences)
   std::string model_path;            // YOLOv8-seg ONNX for --segmenter yolo
   std::string inference = "opencv";  // --inference: opencv | twin | cuda[:N] | auto
+  std::string flow = "opencv";       // --flow: the filter's LK, the same choices
   bool filter = false;               // run the multi-stage filter (Eq. 2) before tracking
   bool dump = false;                 // write per-keypoint decisions (filter_decisions.txt)
   double truth_miss_rate = 0.0;      // --segmenter truth: emulated detector misses
