@@ -8,6 +8,8 @@
 # PCR_TSAN_INFERENCE (--inference, default opencv; `twin` runs the network executor through
 # the graph's device wait, which TSAN builds implement by blocking: TSAN cannot follow the
 # stack switches of TBB's task suspension),
+# PCR_TSAN_FLOW (--flow, default opencv; `twin` runs the filter's LK passes through the
+# graph's device wait the same way),
 # PCR_JOBS (build jobs, default nproc).
 # oneTBB and OpenCV come from Debian and are not instrumented: scripts/tsan.supp suppresses
 # reports whose frames lie in those libraries only (see the file); reports in our code are not
@@ -17,6 +19,7 @@ cd "$(dirname "$0")/.."
 shared=${PCR_SHARED_DIR:-$(cd .. && pwd)/shared}
 frames=${PCR_TSAN_FRAMES:-0:20}
 inference=${PCR_TSAN_INFERENCE:-opencv}
+flow=${PCR_TSAN_FLOW:-opencv}
 policies=("$@")
 [ ${#policies[@]} -eq 0 ] && policies=(pipelined)
 drive="$shared/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"
@@ -34,12 +37,12 @@ export TSAN_OPTIONS="$opts suppressions=$PWD/scripts/tsan.supp ${TSAN_OPTIONS:-}
 status=0
 for policy in "${policies[@]}"; do
   log=build-tsan/tsan_${policy}.log
-  echo "tsan: pcr_orb pipeline --policy $policy --frames $frames (YOLO 224x640 on $inference," \
+  echo "tsan: pcr_orb pipeline --policy $policy --frames $frames (YOLO 224x640 on $inference, LK on $flow," \
     "--filter on), log in $log"
   set +e
   build-tsan/src/pcr_orb pipeline --sequence "$drive" --config config/kitti03.yaml \
     --frames "$frames" --segmenter yolo --model "$model" --filter on --policy "$policy" \
-    --inference "$inference" --threads 2 --out "build-tsan/out_$policy" >"$log" 2>&1
+    --inference "$inference" --flow "$flow" --threads 2 --out "build-tsan/out_$policy" >"$log" 2>&1
   rc=$?
   set -e
   if grep -q "unexpected memory mapping\|FATAL: ThreadSanitizer" "$log"; then
@@ -48,7 +51,7 @@ for policy in "${policies[@]}"; do
     set +e
     setarch "$(uname -m)" -R build-tsan/src/pcr_orb pipeline --sequence "$drive" \
       --config config/kitti03.yaml --frames "$frames" --segmenter yolo --model "$model" \
-      --filter on --policy "$policy" --inference "$inference" --threads 2 \
+      --filter on --policy "$policy" --inference "$inference" --flow "$flow" --threads 2 \
       --out "build-tsan/out_$policy" >"$log" 2>&1
     rc=$?
     set -e

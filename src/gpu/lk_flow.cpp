@@ -67,7 +67,9 @@ void CheckLkLevelBorder(const cv::Mat& level, int window, const char* what, int 
   }
 }
 
-// The CPU twin: LkTrackPoint per point, points spread over OpenCV's threads.
+// The CPU twin: LkTrackPoint per point, points spread over OpenCV's threads. With a DeviceWait
+// it computes the pass inside the wait's launch and calls done() as the launch's last act, as the
+// network executor's twin does: the scheduler's device path runs with a real engine on the CPU.
 class TwinLkFlowEngine final : public FlowEngine {
  public:
   void Track(const std::vector<cv::Mat>& from, const std::vector<cv::Mat>& to,
@@ -76,11 +78,29 @@ class TwinLkFlowEngine final : public FlowEngine {
     const LkSettings settings =
         lk_detail::CheckTrackInputs(from, to, from_pts.size(), to_pts.size(), pass);
     const LkPyramidViews views = lk_detail::HostViews(from, to, pass.max_level);
-    const int n = static_cast<int>(from_pts.size());
     to_pts.resize(from_pts.size());  // with use_initial_flow the size is already right
     status.resize(from_pts.size());
     error.resize(from_pts.size());
-    if (n == 0) return;
+    if (from_pts.empty()) return;
+    auto compute = [&] { Compute(views, settings, from_pts, to_pts, status, error); };
+    if (!wait_) {
+      compute();
+      return;
+    }
+    wait_([&compute](const DeviceDone& done) {
+      compute();  // a throw here has not called done(), as DeviceWait requires
+      done();
+    });
+  }
+
+  std::string Name() const override { return "cpu-twin"; }
+  void SetDeviceWait(DeviceWait wait) override { wait_ = std::move(wait); }
+
+ private:
+  static void Compute(const LkPyramidViews& views, const LkSettings& settings,
+                      const std::vector<cv::Point2f>& from_pts, std::vector<cv::Point2f>& to_pts,
+                      std::vector<uint8_t>& status, std::vector<float>& error) {
+    const int n = static_cast<int>(from_pts.size());
     const int area = settings.window * settings.window;
     cv::parallel_for_(cv::Range(0, n), [&](const cv::Range& range) {
       std::vector<int16_t> buffer(3 * static_cast<size_t>(area));
@@ -98,7 +118,7 @@ class TwinLkFlowEngine final : public FlowEngine {
     });
   }
 
-  std::string Name() const override { return "cpu-twin"; }
+  DeviceWait wait_;  // empty: compute on the calling thread
 };
 
 }  // namespace

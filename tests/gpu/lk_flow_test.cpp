@@ -547,6 +547,44 @@ struct BlockingWait {
   }
 };
 
+// The twin through a DeviceWait (as the flow graph installs one): the pass runs inside the
+// launch, done() once per pass, bitwise the tracks of the twin without one.
+TEST(LkFlow, TheTwinThroughADeviceWaitGivesTheSameTracks) {
+  const cv::Mat prev = LoadGray(Odometry06(20)), cur = LoadGray(Odometry06(21));
+  const std::vector<cv::Mat> prev_pyr = BuildLkPyramid(prev, PyramidOptions());
+  const std::vector<cv::Mat> cur_pyr = BuildLkPyramid(cur, PyramidOptions());
+  const std::vector<cv::Point2f> pts = TrackedPoints(cur);
+  ASSERT_GT(pts.size(), 500u);
+  std::unique_ptr<FlowEngine> plain = MakeLkFlowEngine("twin");
+  std::unique_ptr<FlowEngine> waited = MakeLkFlowEngine("twin");
+  BlockingWait wait;
+  waited->SetDeviceWait(wait.Get());
+  LkPass pass;
+  std::vector<cv::Point2f> to_a, to_b;
+  std::vector<uint8_t> status_a, status_b;
+  std::vector<float> error_a, error_b;
+  plain->Track(cur_pyr, prev_pyr, pts, to_a, status_a, error_a, pass);
+  waited->Track(cur_pyr, prev_pyr, pts, to_b, status_b, error_b, pass);
+  EXPECT_TRUE(SameResults({to_a, status_a, error_a}, {to_b, status_b, error_b}));
+  EXPECT_GT(std::count(status_b.begin(), status_b.end(), 1), static_cast<long>(pts.size() / 2));
+  EXPECT_EQ(wait.waits, 1);
+  EXPECT_EQ(wait.dones, 1);
+  // No points: nothing to launch.
+  std::vector<cv::Point2f> none, to_none;
+  waited->Track(cur_pyr, prev_pyr, none, to_none, status_b, error_b, pass);
+  EXPECT_EQ(wait.waits, 1);
+  // Bad input throws before the launch.
+  LkPass even = pass;
+  even.window_px = 20;
+  EXPECT_THROW(waited->Track(cur_pyr, prev_pyr, pts, to_b, status_b, error_b, even),
+               std::invalid_argument);
+  EXPECT_EQ(wait.waits, 1);
+  waited->SetDeviceWait({});
+  waited->Track(cur_pyr, prev_pyr, pts, to_b, status_b, error_b, pass);
+  EXPECT_EQ(wait.waits, 1);
+  EXPECT_TRUE(SameResults({to_a, status_a, error_a}, {to_b, status_b, error_b}));
+}
+
 // On a machine with a CUDA device: the CUDA engine against its twin, which runs the same
 // per-point code; skipped, saying why, elsewhere.
 TEST(LkCuda, MatchesTheTwin) {
