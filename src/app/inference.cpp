@@ -8,60 +8,42 @@
 #include "slam/common/error.h"
 
 namespace pcr::app {
+namespace {
+
+// The device of an engine option (`flag` = `value`): "" for the CPU default (`opencv`, or `auto`
+// without a CUDA device, saying so: `cpu` names what runs then), else a device that `is_device`
+// accepts and that exists. Throws ConfigError for anything else, saying why.
+std::string EngineDevice(const char* flag, const std::string& value,
+                         bool (*is_device)(const std::string&), const char* cpu) {
+  if (value == "opencv") return "";
+  std::string why;
+  if (value == "auto") {
+    if (gpu::CudaDeviceCount(&why) > 0) return "cuda";
+    spdlog::info("{} auto: {} ({})", flag, cpu, why);
+    return "";
+  }
+  if (!is_device(value)) {
+    throw ConfigError(std::string(flag) + " must be opencv, twin, cuda, cuda:N or auto, not '" +
+                      value + "'");
+  }
+  if (value != "twin" && gpu::CudaDeviceCount(&why) == 0) {
+    throw ConfigError(std::string(flag) + " " + value + ": no CUDA device (" + why + ")");
+  }
+  return value;
+}
+
+}  // namespace
 
 void ApplyInference(const std::string& inference, YoloOptions* yolo) {
-  if (inference == "opencv") {
-    yolo->engine_factory = nullptr;
-    return;
-  }
-  if (inference == "auto") {
-    std::string why;
-    if (gpu::CudaDeviceCount(&why) > 0) {
-      yolo->engine_factory = gpu::NetEngineFactory("cuda");
-    } else {
-      spdlog::info("--inference auto: OpenCV DNN on the CPU ({})", why);
-      yolo->engine_factory = nullptr;
-    }
-    return;
-  }
-  if (!gpu::IsNetEngineDevice(inference)) {
-    throw ConfigError("--inference must be opencv, twin, cuda, cuda:N or auto, not '" + inference +
-                      "'");
-  }
-  if (inference != "twin") {
-    std::string why;
-    if (gpu::CudaDeviceCount(&why) == 0) {
-      throw ConfigError("--inference " + inference + ": no CUDA device (" + why + ")");
-    }
-  }
-  yolo->engine_factory = gpu::NetEngineFactory(inference);
+  const std::string device =
+      EngineDevice("--inference", inference, gpu::IsNetEngineDevice, "OpenCV DNN on the CPU");
+  yolo->engine_factory = device.empty() ? nullptr : gpu::NetEngineFactory(device);
 }
 
 void ApplyFlow(const std::string& flow, DynamicFilterOptions* filter) {
-  if (flow == "opencv") {
-    filter->flow_factory = nullptr;
-    return;
-  }
-  if (flow == "auto") {
-    std::string why;
-    if (gpu::CudaDeviceCount(&why) > 0) {
-      filter->flow_factory = gpu::LkFlowFactory("cuda");
-    } else {
-      spdlog::info("--flow auto: OpenCV's LK on the CPU ({})", why);
-      filter->flow_factory = nullptr;
-    }
-    return;
-  }
-  if (!gpu::IsLkFlowDevice(flow)) {
-    throw ConfigError("--flow must be opencv, twin, cuda, cuda:N or auto, not '" + flow + "'");
-  }
-  if (flow != "twin") {
-    std::string why;
-    if (gpu::CudaDeviceCount(&why) == 0) {
-      throw ConfigError("--flow " + flow + ": no CUDA device (" + why + ")");
-    }
-  }
-  filter->flow_factory = gpu::LkFlowFactory(flow);
+  const std::string device =
+      EngineDevice("--flow", flow, gpu::IsLkFlowDevice, "OpenCV's LK on the CPU");
+  filter->flow_factory = device.empty() ? nullptr : gpu::LkFlowFactory(device);
 }
 
 }  // namespace pcr::app

@@ -46,5 +46,37 @@ TEST(Inference, UnknownValuesAndMissingDevicesAreConfigErrors) {
   }
 }
 
+TEST(Inference, FlowPicksWhereTheFiltersLucasKanadeRuns) {
+  DynamicFilterOptions filter;
+  ApplyFlow("opencv", &filter);
+  EXPECT_FALSE(filter.flow_factory);
+  EXPECT_EQ(DynamicFilter(filter).flow_engine().Name(), "opencv");
+  ApplyFlow("twin", &filter);
+  ASSERT_TRUE(filter.flow_factory);
+  EXPECT_EQ(DynamicFilter(filter).flow_engine().Name(), "cpu-twin");
+  try {
+    ApplyFlow("farneback", &filter);
+    FAIL() << "farneback accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("--flow"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("farneback"), std::string::npos) << e.what();
+  }
+  std::string why;
+  if (gpu::CudaDeviceCount(&why) == 0) {
+    try {
+      ApplyFlow("cuda:0", &filter);
+      FAIL() << "cuda:0 accepted without a device";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+    ApplyFlow("auto", &filter);  // falls back to OpenCV
+    EXPECT_FALSE(filter.flow_factory);
+  } else {
+    ApplyFlow("auto", &filter);
+    ASSERT_TRUE(filter.flow_factory);
+    EXPECT_EQ(DynamicFilter(filter).flow_engine().Name().rfind("cuda:0", 0), 0u);
+  }
+}
+
 }  // namespace
 }  // namespace pcr::app

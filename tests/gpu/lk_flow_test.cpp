@@ -28,6 +28,7 @@
 #include "slam/dynamic/flow_engine.h"
 #include "slam/dynamic/motion_score.h"
 #include "support/data_paths.h"
+#include "support/device_wait.h"
 
 namespace pcr::gpu::lk_test {
 namespace {
@@ -527,25 +528,7 @@ TEST(LkFlow, CudaWithoutADeviceIsARuntimeError) {
   EXPECT_THROW(factory(), std::runtime_error);
 }
 
-// A DeviceWait that blocks until done() the way a scheduler's resumes: counts its calls and
-// remembers the thread that called done().
-struct BlockingWait {
-  int waits = 0, dones = 0;
-  std::thread::id done_thread;
-  DeviceWait Get() {
-    return [this](const std::function<void(const DeviceDone&)>& launch) {
-      ++waits;
-      std::promise<void> finished;
-      std::future<void> ended = finished.get_future();
-      launch([this, &finished] {
-        ++dones;
-        done_thread = std::this_thread::get_id();
-        finished.set_value();
-      });
-      ended.wait();
-    };
-  }
-};
+using test::BlockingWait;
 
 // The twin through a DeviceWait (as the flow graph installs one): the pass runs inside the
 // launch, done() once per pass, bitwise the tracks of the twin without one.

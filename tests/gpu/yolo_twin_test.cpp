@@ -17,6 +17,7 @@
 #include "slam/common/error.h"
 #include "slam/dynamic/yolo_segmenter.h"
 #include "support/data_paths.h"
+#include "support/device_wait.h"
 
 namespace pcr::gpu {
 namespace {
@@ -50,25 +51,7 @@ float MaxDiff(const cv::Mat& a, const cv::Mat& b, int row_begin = -1, int row_en
   return worst;
 }
 
-// A DeviceWait that blocks until done() the way a scheduler's resumes: counts its calls and
-// remembers the thread that called done().
-struct BlockingWait {
-  int waits = 0, dones = 0;
-  std::thread::id done_thread;
-  DeviceWait Get() {
-    return [this](const std::function<void(const DeviceDone&)>& launch) {
-      ++waits;
-      std::promise<void> finished;
-      std::future<void> ended = finished.get_future();
-      launch([this, &finished] {
-        ++dones;
-        done_thread = std::this_thread::get_id();
-        finished.set_value();
-      });
-      ended.wait();
-    };
-  }
-};
+using test::BlockingWait;
 
 bool BitwiseEqual(const cv::Mat& a, const cv::Mat& b) {
   return a.total() == b.total() &&

@@ -22,6 +22,7 @@
 #include "slam/common/error.h"
 #include "slam/dynamic/yolo_segmenter.h"
 #include "support/data_paths.h"
+#include "support/device_wait.h"
 
 namespace pcr::graph {
 namespace {
@@ -146,14 +147,7 @@ class DeviceSegmenter final : public Segmenter {
       return result;
     }
     ++waited_calls_;
-    std::promise<DeviceDone> launched;
-    std::thread device([&work, started = launched.get_future()]() mutable {
-      const DeviceDone done = started.get();
-      work();
-      done();
-    });
-    wait_([&launched](const DeviceDone& done) { launched.set_value(done); });
-    device.join();
+    test::RunOnDeviceThread(wait_, work);
     return result;
   }
   std::string Name() const override { return "device"; }
@@ -370,6 +364,43 @@ TEST(PipelineTest, SegmentationBranchIsDeterministicWhenWaitedFor) {
                    seq.tracked.back().world_from_cam.matrix());
 }
 
+// Checks a run whose `caller` stage waited through the graph's device wait: every
+// `device_stage` event lies on `lane`, lasts at least min_ns and lies inside its frame's `caller`
+// call; the trace names the lane `lane_name` (trace and chart written under `stem`). Returns how
+// many calls of other stages ran on host threads inside `caller` calls.
+size_t CheckDevicePasses(const PipelineResult& r, const char* caller, const char* device_stage,
+                         int lane, int64_t min_ns, const std::string& lane_name,
+                         const std::string& stem) {
+  for (const StageEvent& d : r.events) {
+    if (std::string_view(d.stage) != device_stage) continue;
+    EXPECT_EQ(d.thread, lane);
+    EXPECT_GE(d.end_ns - d.start_ns, min_ns);
+    bool within = false;
+    for (const StageEvent& c : r.events) {
+      within = within || (std::string_view(c.stage) == caller && c.seq == d.seq &&
+                          c.start_ns <= d.start_ns && d.end_ns <= c.end_ns);
+    }
+    EXPECT_TRUE(within) << device_stage << " pass of frame " << d.frame_index;
+  }
+  const std::string trace = ::testing::TempDir() + "/" + stem + "_trace.json";
+  WriteChromeTrace(trace, r);
+  std::ifstream trace_in(trace);
+  const nlohmann::json events = nlohmann::json::parse(trace_in)["traceEvents"];
+  EXPECT_TRUE(std::any_of(events.begin(), events.end(), [&lane_name](const nlohmann::json& e) {
+    return e["name"] == "thread_name" && e["args"]["name"] == lane_name;
+  }));
+  WriteTimingChart(::testing::TempDir() + "/" + stem + "_timing.png", r);  // draws the lane
+  size_t inside = 0;
+  for (const StageEvent& c : r.events) {
+    if (std::string_view(c.stage) != caller) continue;
+    for (const StageEvent& e : r.events) {
+      inside += !Profiler::IsDeviceLane(e.thread) && std::string_view(e.stage) != caller &&
+                e.start_ns > c.start_ns && e.end_ns < c.end_ns;
+    }
+  }
+  return inside;
+}
+
 TEST(PipelineTest, DeviceInferenceLeavesItsThreadToOtherStages) {
   const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 8);
   DeviceSegmenter on_device(60), reference_device(60);
@@ -390,32 +421,8 @@ TEST(PipelineTest, DeviceInferenceLeavesItsThreadToOtherStages) {
   ASSERT_TRUE(r.stats.stages.count(kStageDevice));
   EXPECT_EQ(r.stats.stages.at(kStageDevice).time.count, 8u);
   EXPECT_GE(r.stats.stages.at(kStageDevice).time.p50_ms, 60.0);
-  for (const StageEvent& d : r.events) {
-    if (std::string_view(d.stage) != kStageDevice) continue;
-    EXPECT_EQ(d.thread, Profiler::kDeviceLane);
-    bool within = false;
-    for (const StageEvent& seg : r.events) {
-      within = within || (std::string_view(seg.stage) == kStageSegment && seg.seq == d.seq &&
-                          seg.start_ns <= d.start_ns && d.end_ns <= seg.end_ns);
-    }
-    EXPECT_TRUE(within) << "device pass of frame " << d.frame_index;
-  }
-  const std::string trace = ::testing::TempDir() + "/device_trace.json";
-  WriteChromeTrace(trace, r);
-  std::ifstream trace_in(trace);
-  const nlohmann::json events = nlohmann::json::parse(trace_in)["traceEvents"];
-  EXPECT_TRUE(std::any_of(events.begin(), events.end(), [](const nlohmann::json& e) {
-    return e["name"] == "thread_name" && e["args"]["name"] == "device (GPU)";
-  }));
-  WriteTimingChart(::testing::TempDir() + "/device_timing.png", r);  // draws the device lane
-  size_t inside = 0;
-  for (const StageEvent& seg : r.events) {
-    if (std::string_view(seg.stage) != kStageSegment) continue;
-    for (const StageEvent& e : r.events) {
-      inside += e.thread != Profiler::kDeviceLane && std::string_view(e.stage) != kStageSegment &&
-                e.start_ns > seg.start_ns && e.end_ns < seg.end_ns;
-    }
-  }
+  const size_t inside = CheckDevicePasses(r, kStageSegment, kStageDevice, Profiler::kDeviceLane,
+                                          60'000'000, "device (GPU)", "device");
   if (kUnderTsan) {
     // TSAN builds wait blocked (SuspendWhileDeviceWorks): TSAN cannot follow TBB's stack switch.
     EXPECT_EQ(inside, 0u);
@@ -618,14 +625,7 @@ class DeviceFlowEngine final : public FlowEngine {
       return;
     }
     ++counts_->waited;
-    std::promise<DeviceDone> launched;
-    std::thread device([&work, started = launched.get_future()]() mutable {
-      const DeviceDone done = started.get();
-      work();
-      done();
-    });
-    wait_([&launched](const DeviceDone& done) { launched.set_value(done); });
-    device.join();
+    test::RunOnDeviceThread(wait_, work);
   }
   std::string Name() const override { return "device flow"; }
   void SetDeviceWait(DeviceWait wait) override { wait_ = std::move(wait); }
@@ -668,33 +668,9 @@ TEST(PipelineTest, DeviceFlowLeavesTheFilterThreadToOtherStages) {
   EXPECT_EQ(r.stats.stages.at(kStageDeviceFlow).time.count,
             static_cast<size_t>(on_device->waited.load()));
   EXPECT_EQ(r.stats.stages.count(kStageDevice), 0u);  // no network on a device here
-  for (const StageEvent& d : r.events) {
-    if (std::string_view(d.stage) != kStageDeviceFlow) continue;
-    EXPECT_EQ(d.thread, Profiler::kFlowDeviceLane);
-    EXPECT_GE(d.end_ns - d.start_ns, 40'000'000);
-    bool within = false;
-    for (const StageEvent& f : r.events) {
-      within = within || (std::string_view(f.stage) == kStageFilter && f.seq == d.seq &&
-                          f.start_ns <= d.start_ns && d.end_ns <= f.end_ns);
-    }
-    EXPECT_TRUE(within) << "LK pass of frame " << d.frame_index;
-  }
-  const std::string trace = ::testing::TempDir() + "/flow_device_trace.json";
-  WriteChromeTrace(trace, r);
-  std::ifstream trace_in(trace);
-  const nlohmann::json events = nlohmann::json::parse(trace_in)["traceEvents"];
-  EXPECT_TRUE(std::any_of(events.begin(), events.end(), [](const nlohmann::json& e) {
-    return e["name"] == "thread_name" && e["args"]["name"] == "device flow (GPU)";
-  }));
-  WriteTimingChart(::testing::TempDir() + "/flow_device_timing.png", r);
-  size_t inside = 0;
-  for (const StageEvent& f : r.events) {
-    if (std::string_view(f.stage) != kStageFilter) continue;
-    for (const StageEvent& e : r.events) {
-      inside += !Profiler::IsDeviceLane(e.thread) && std::string_view(e.stage) != kStageFilter &&
-                e.start_ns > f.start_ns && e.end_ns < f.end_ns;
-    }
-  }
+  const size_t inside =
+      CheckDevicePasses(r, kStageFilter, kStageDeviceFlow, Profiler::kFlowDeviceLane, 40'000'000,
+                        "device flow (GPU)", "flow_device");
   if (kUnderTsan) {
     EXPECT_EQ(inside, 0u);  // TSAN builds wait blocked (SuspendWhileDeviceWorks)
   } else {
