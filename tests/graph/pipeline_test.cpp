@@ -610,11 +610,19 @@ class DeviceFlowEngine final : public FlowEngine {
   struct Counts {
     std::atomic<int> waited{0}, blocking{0};
   };
-  DeviceFlowEngine(int device_ms, std::shared_ptr<Counts> counts)
-      : opencv_(MakeOpenCvFlowEngine()), device_ms_(device_ms), counts_(std::move(counts)) {}
+  // fail_on_pass > 0: that waited pass's launch throws ("device lost") instead of starting.
+  DeviceFlowEngine(int device_ms, std::shared_ptr<Counts> counts, int fail_on_pass = 0)
+      : opencv_(MakeOpenCvFlowEngine()),
+        device_ms_(device_ms),
+        fail_on_pass_(fail_on_pass),
+        counts_(std::move(counts)) {}
   void Track(const std::vector<cv::Mat>& from, const std::vector<cv::Mat>& to,
              const std::vector<cv::Point2f>& from_pts, std::vector<cv::Point2f>& to_pts,
              std::vector<uint8_t>& status, std::vector<float>& error, const LkPass& pass) override {
+    if (wait_ && counts_->waited.load() + 1 == fail_on_pass_) {
+      wait_([](const DeviceDone&) { throw std::runtime_error("device lost"); });
+      ADD_FAILURE() << "the wait returned after a failed launch";
+    }
     auto work = [&] {
       opencv_->Track(from, to, from_pts, to_pts, status, error, pass);
       std::this_thread::sleep_for(std::chrono::milliseconds(device_ms_));
@@ -632,7 +640,7 @@ class DeviceFlowEngine final : public FlowEngine {
 
  private:
   std::unique_ptr<FlowEngine> opencv_;
-  int device_ms_;
+  int device_ms_, fail_on_pass_;
   std::shared_ptr<Counts> counts_;
   DeviceWait wait_;
 };
@@ -695,6 +703,26 @@ TEST(PipelineTest, DeviceFlowLeavesTheFilterThreadToOtherStages) {
   ASSERT_EQ(plain.frames.size(), r.frames.size());
   for (size_t i = 0; i < plain.frames.size(); ++i)
     EXPECT_EQ(plain.frames[i].num_excluded, r.frames[i].num_excluded);
+}
+
+TEST(PipelineTest, AFailedLkPassOnTheDeviceStopsTheRunAndKeepsEarlierPoses) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 8);
+  const SlamOptions slam_options;
+  auto counts = std::make_shared<DeviceFlowEngine::Counts>();
+  DynamicFilterOptions options;
+  // The 8th pass: frames 1..3 have passed (two or three passes each), frame 3 or 4 fails.
+  options.flow_factory = [counts] { return std::make_unique<DeviceFlowEngine>(1, counts, 8); };
+  nodes::DynamicFilterScorer scorer(clip.rig, slam_options.orb.scale_factor, options);
+  const PipelineResult r =
+      RunPipeline(clip, slam_options, Options(Policy::kPipelined, 3), {}, &scorer);
+  EXPECT_NE(r.error.find("device lost"), std::string::npos) << r.error;
+  EXPECT_EQ(r.error_stage, kStageFilter);
+  EXPECT_GE(r.error_frame_index, 3);
+  EXPECT_LE(r.error_frame_index, 4);
+  // Every frame before the failed one finished, nothing after it; the trajectory has them.
+  EXPECT_EQ(static_cast<int64_t>(r.frames.size()), r.error_frame_index);
+  EXPECT_EQ(static_cast<int64_t>(r.tracked.size()), r.error_frame_index);
+  EXPECT_EQ(counts->waited.load(), 7);  // no pass after the failed one
 }
 
 }  // namespace
