@@ -4,6 +4,7 @@
 // Run); the two halves of a pass may come from different threads.
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,31 @@ class Executor {
 // The CPU twin: the same per-element functions (tensor_math.h) as the CUDA kernels, Eigen for
 // the GEMMs. For verifying the CUDA path on machines without a GPU; slower than OpenCV DNN.
 std::unique_ptr<Executor> MakeTwinExecutor(std::shared_ptr<const NetPlan> plan);
+
+// The CUDA device index an engine's device string names (the engines of net_engine.h and
+// lk_flow.h): -1 for "twin" (the CPU twin), 0 for "cuda", N for "cuda:N" (1 to 3 digits). Throws
+// std::invalid_argument for anything else: "unknown <what> device '...' (expected twin, cuda or
+// cuda:N)".
+inline int EngineDeviceIndex(const std::string& device, const std::string& what) {
+  if (device == "twin") return -1;
+  if (device == "cuda") return 0;
+  if (device.rfind("cuda:", 0) == 0 && device.size() > 5 && device.size() < 9 &&
+      device.find_first_not_of("0123456789", 5) == std::string::npos) {
+    return std::stoi(device.substr(5));
+  }
+  throw std::invalid_argument("unknown " + what + " device '" + device +
+                              "' (expected twin, cuda or cuda:N)");
+}
+
+// Whether EngineDeviceIndex accepts `device`.
+inline bool IsEngineDevice(const std::string& device) {
+  try {
+    EngineDeviceIndex(device, "");
+    return true;
+  } catch (const std::invalid_argument&) {
+    return false;
+  }
+}
 
 // Whether this build has the CUDA executor, and how many devices the CUDA runtime sees (0 when
 // the build has no CUDA, there is no GPU or no driver). `why` (optional) gets the runtime's reason

@@ -8,20 +8,10 @@
 #include <utility>
 #include <vector>
 
+#include "gpu/executor.h"
+
 namespace pcr::gpu {
 namespace {
-
-// CUDA device index of "cuda" / "cuda:N", -1 for "twin"; throws for anything else.
-int LkDeviceIndex(const std::string& device) {
-  if (device == "twin") return -1;
-  if (device == "cuda") return 0;
-  if (device.rfind("cuda:", 0) == 0 && device.size() > 5 && device.size() < 9 &&
-      device.find_first_not_of("0123456789", 5) == std::string::npos) {
-    return std::stoi(device.substr(5));
-  }
-  throw std::invalid_argument("unknown flow device '" + device +
-                              "' (expected twin, cuda or cuda:N)");
-}
 
 [[noreturn]] void RejectLkInput(const std::string& why) {
   throw std::invalid_argument("FlowEngine::Track (lk): " + why);
@@ -215,23 +205,16 @@ LkPyramidViews HostViews(const std::vector<cv::Mat>& from, const std::vector<cv:
 
 }  // namespace lk_detail
 
-bool IsLkFlowDevice(const std::string& device) {
-  try {
-    LkDeviceIndex(device);
-    return true;
-  } catch (const std::invalid_argument&) {
-    return false;
-  }
-}
+bool IsLkFlowDevice(const std::string& device) { return IsEngineDevice(device); }
 
 std::unique_ptr<FlowEngine> MakeLkFlowEngine(const std::string& device) {
-  const int index = LkDeviceIndex(device);
+  const int index = EngineDeviceIndex(device, "flow");
   if (index < 0) return std::make_unique<TwinLkFlowEngine>();
   return lk_detail::MakeCudaLkFlowEngine(index);
 }
 
 FlowEngineFactory LkFlowFactory(const std::string& device) {
-  LkDeviceIndex(device);  // reject a bad name now, not at the first engine
+  EngineDeviceIndex(device, "flow");  // reject a bad name now, not at the first engine
   return [device]() { return MakeLkFlowEngine(device); };
 }
 

@@ -11,18 +11,6 @@
 namespace pcr::gpu {
 namespace {
 
-// CUDA device index of "cuda" / "cuda:N", -1 for "twin"; throws for anything else.
-int DeviceIndex(const std::string& device) {
-  if (device == "twin") return -1;
-  if (device == "cuda") return 0;
-  if (device.rfind("cuda:", 0) == 0 && device.size() > 5 && device.size() < 9 &&
-      device.find_first_not_of("0123456789", 5) == std::string::npos) {
-    return std::stoi(device.substr(5));
-  }
-  throw std::invalid_argument("unknown inference device '" + device +
-                              "' (expected twin, cuda or cuda:N)");
-}
-
 class NetEngine final : public InferenceEngine {
  public:
   NetEngine(std::shared_ptr<const NetPlan> plan, std::unique_ptr<Executor> executor)
@@ -70,18 +58,11 @@ class NetEngine final : public InferenceEngine {
 
 }  // namespace
 
-bool IsNetEngineDevice(const std::string& device) {
-  try {
-    DeviceIndex(device);
-    return true;
-  } catch (const std::invalid_argument&) {
-    return false;
-  }
-}
+bool IsNetEngineDevice(const std::string& device) { return IsEngineDevice(device); }
 
 std::unique_ptr<InferenceEngine> MakeNetEngine(const std::vector<uint8_t>& model_bytes,
                                                cv::Size input_size, const std::string& device) {
-  const int index = DeviceIndex(device);
+  const int index = EngineDeviceIndex(device, "inference");
   auto plan = std::make_shared<const NetPlan>(
       BuildNetPlan(model_bytes, input_size.height, input_size.width));
   std::unique_ptr<Executor> executor =
@@ -95,7 +76,7 @@ std::unique_ptr<InferenceEngine> MakeNetEngine(const std::vector<uint8_t>& model
 }
 
 InferenceEngineFactory NetEngineFactory(const std::string& device) {
-  DeviceIndex(device);  // reject a bad name now, not at the first model
+  EngineDeviceIndex(device, "inference");  // reject a bad name now, not at the first model
   return [device](const std::vector<uint8_t>& model_bytes, cv::Size input_size) {
     return MakeNetEngine(model_bytes, input_size, device);
   };
