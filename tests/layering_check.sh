@@ -4,7 +4,8 @@
 #  - src/slam: nothing from nodes, graph, gpu, app, io, eval or sim;
 #  - io, eval, sim: only slam/common from the slam layer, nothing from nodes/graph/app;
 #  - only src/graph includes the TBB flow graph;
-#  - src/gpu builds on src/slam only, and CUDA headers appear in src/gpu/*.cu files only.
+#  - src/gpu builds on src/slam only, and CUDA headers (and the project's .cuh headers, which
+#    include them) appear in src/gpu/*.cu files only.
 set -u
 root=${1:-.}
 cd "$root" || exit 2
@@ -24,6 +25,8 @@ hits=$(grep -rnE '#include *"(nodes|graph|app|io|eval|sim)/' src/gpu 2>/dev/null
 [ -n "$hits" ] && report "src/gpu reaches above src/slam" "$hits"
 hits=$(grep -rnE '#include *[<"](cuda|cublas|cudnn)' src --include='*.h' --include='*.cpp' 2>/dev/null)
 [ -n "$hits" ] && report "CUDA header outside a .cu file" "$hits"
+hits=$(grep -rnE '#include *[<"][^">]*\.cuh[">]' src --include='*.h' --include='*.cpp' 2>/dev/null)
+[ -n "$hits" ] && report "CUDA-only header (.cuh) outside a .cu file" "$hits"
 hits=$(find src -name '*.cu' -not -path 'src/gpu/*')
 [ -n "$hits" ] && report ".cu file outside src/gpu" "$hits"
 if [ $fail -eq 0 ]; then echo "layering: ok"; fi

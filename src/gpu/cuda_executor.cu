@@ -8,7 +8,6 @@
 #include <cuda_runtime.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -19,6 +18,7 @@
 #include <variant>
 #include <vector>
 
+#include "gpu/cuda_pass_end.cuh"
 #include "gpu/executor.h"
 #include "gpu/net_plan.h"
 #include "gpu/tensor_math.h"
@@ -131,7 +131,7 @@ class CudaExecutor final : public Executor {
     // A pass that threw (or was never finished) may have left copies from the staging buffers
     // queued, and its callback may still be running; wait for them.
     Check(cudaStreamSynchronize(stream_), "cudaStreamSynchronize (start of a pass)");
-    callback_status_.store(cudaSuccess);
+    pass_end_.Reset();
     if (input_count_ > 0) {
       if (input == nullptr) throw std::runtime_error("CUDA executor: Launch() given a null input");
       std::memcpy(host_input_, input, static_cast<size_t>(input_count_) * sizeof(float));
@@ -153,14 +153,7 @@ class CudaExecutor final : public Executor {
             "cudaMemcpyAsync (output)");
     }
     if (!done) return;
-    // cudaStreamAddCallback, not cudaLaunchHostFunc: its callback runs exactly once, also after
-    // a device error (with the error), so a waiter is always woken.
-    done_ = done;
-    const cudaError_t e = cudaStreamAddCallback(stream_, &CudaExecutor::OnPassEnd, this, 0);
-    if (e != cudaSuccess) {
-      done_ = nullptr;
-      Check(e, "cudaStreamAddCallback");
-    }
+    Check(pass_end_.Arm(stream_, done), "cudaStreamAddCallback");
     // Nothing after this point: the callback may already have woken the caller's Finish().
   }
 
@@ -172,7 +165,7 @@ class CudaExecutor final : public Executor {
     Check(cudaSetDevice(device_), "cudaSetDevice");
     // Kernel faults surface here, after the last step; they cannot be attributed to a step.
     Check(cudaStreamSynchronize(stream_), "cudaStreamSynchronize (end of a pass)");
-    Check(callback_status_.load(), "the forward pass (as its completion callback saw it)");
+    Check(pass_end_.status(), "the forward pass (as its completion callback saw it)");
     for (size_t i = 0; i < outputs.size(); ++i) {
       const float* begin = host_outputs_ + output_offsets_[i];
       std::copy(begin, begin + output_counts_[i], outputs[i]);
@@ -275,17 +268,6 @@ class CudaExecutor final : public Executor {
     if (stream_) cudaStreamDestroy(stream_);
     stream_ = nullptr;
     cudaGetLastError();  // do not leave a (non-sticky) error behind for the next caller
-  }
-
-  // Runs on a CUDA runtime thread when the pass has ended: no CUDA calls, no blocking.
-  static void CUDART_CB OnPassEnd(cudaStream_t /*stream*/, cudaError_t status, void* self_ptr) {
-    auto* self = static_cast<CudaExecutor*>(self_ptr);
-    self->callback_status_.store(status);
-    // Moved out first: the woken caller may start the next pass (which sets done_) while this
-    // call is still returning.
-    Done done = std::move(self->done_);
-    self->done_ = nullptr;
-    done();
   }
 
   // ---- Error reporting ----
@@ -564,8 +546,7 @@ class CudaExecutor final : public Executor {
   int64_t input_count_ = 0;
   float* host_input_ = nullptr;    // pinned staging of the input
   float* host_outputs_ = nullptr;  // pinned staging of all outputs, back to back
-  Done done_;                      // of the launched pass, for OnPassEnd
-  std::atomic<cudaError_t> callback_status_{cudaSuccess};  // written by OnPassEnd
+  CudaPassEnd pass_end_;           // of the launched pass
   std::vector<int64_t> output_offsets_, output_counts_;
 };
 

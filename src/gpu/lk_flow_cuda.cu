@@ -10,7 +10,6 @@
 #include <cuda_runtime.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
 #include <cstring>
 #include <memory>
@@ -19,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "gpu/cuda_pass_end.cuh"
 #include "gpu/executor.h"
 #include "gpu/lk_flow.h"
 #include "gpu/lk_math.h"
@@ -139,19 +139,12 @@ class CudaLkFlowEngine final : public FlowEngine {
                             stream_),
             "cudaMemcpyAsync (results)");
     };
-    callback_status_.store(cudaSuccess);
+    pass_end_.Reset();
     if (wait_) {
       // A launch that throws has not arranged for done(): the wait passes the exception on.
       wait_([&](const DeviceDone& done) {
         enqueue();
-        // cudaStreamAddCallback, not cudaLaunchHostFunc: its callback runs exactly once, also
-        // after a device error (with the error), so the waiter is always woken.
-        done_ = done;
-        const cudaError_t e = cudaStreamAddCallback(stream_, &CudaLkFlowEngine::OnPassEnd, this, 0);
-        if (e != cudaSuccess) {
-          done_ = nullptr;
-          Check(e, "cudaStreamAddCallback");
-        }
+        Check(pass_end_.Arm(stream_, done), "cudaStreamAddCallback");
         // Nothing after this point: the callback may already have woken the waiter.
       });
       // The wait may have resumed on another thread: the current device is per thread.
@@ -161,7 +154,7 @@ class CudaLkFlowEngine final : public FlowEngine {
     }
     // Kernel faults surface here; they cannot be attributed further.
     Check(cudaStreamSynchronize(stream_), "cudaStreamSynchronize (end of a pass)");
-    Check(callback_status_.load(), "the LK pass (as its completion callback saw it)");
+    Check(pass_end_.status(), "the LK pass (as its completion callback saw it)");
     for (int i = 0; i < n; ++i) {
       const LkPointResult& r = host_results_[i];
       to_pts[i] = cv::Point2f(r.x, r.y);
@@ -361,17 +354,6 @@ class CudaLkFlowEngine final : public FlowEngine {
     cudaGetLastError();  // do not leave a (non-sticky) error behind for the next caller
   }
 
-  // Runs on a CUDA runtime thread when the pass has ended: no CUDA calls, no blocking.
-  static void CUDART_CB OnPassEnd(cudaStream_t /*stream*/, cudaError_t status, void* self_ptr) {
-    auto* self = static_cast<CudaLkFlowEngine*>(self_ptr);
-    self->callback_status_.store(status);
-    // Moved out first: the woken caller may start the next pass (which sets done_) while this
-    // call is still returning.
-    DeviceDone done = std::move(self->done_);
-    self->done_ = nullptr;
-    done();
-  }
-
   void Check(cudaError_t e, const std::string& call) const {
     if (e == cudaSuccess) return;
     cudaGetLastError();  // clear a non-sticky error so that the engine stays usable
@@ -391,9 +373,8 @@ class CudaLkFlowEngine final : public FlowEngine {
   LkPointResult* host_results_ = nullptr;
   float2* device_points_ = nullptr;
   LkPointResult* device_results_ = nullptr;
-  DeviceWait wait_;  // empty: Track() blocks on the stream
-  DeviceDone done_;
-  std::atomic<cudaError_t> callback_status_{cudaSuccess};
+  DeviceWait wait_;       // empty: Track() blocks on the stream
+  CudaPassEnd pass_end_;  // of the pass in flight
 };
 
 }  // namespace
