@@ -60,6 +60,14 @@ void ExpectSameTrajectory(const Trajectory& expected, const Trajectory& actual) 
   }
 }
 
+// The same trajectory and, frame by frame, the same keypoints excluded.
+void ExpectSameRun(const PipelineResult& expected, const PipelineResult& actual) {
+  ExpectSameTrajectory(expected.tracked, actual.tracked);
+  ASSERT_EQ(expected.frames.size(), actual.frames.size());
+  for (size_t i = 0; i < expected.frames.size(); ++i)
+    EXPECT_EQ(expected.frames[i].num_excluded, actual.frames[i].num_excluded) << "frame " << i;
+}
+
 void ExpectSameOutputs(const std::vector<FrameOutput>& expected,
                        const std::vector<FrameRecord>& actual) {
   ASSERT_EQ(expected.size(), actual.size());
@@ -353,10 +361,7 @@ TEST(PipelineTest, SegmentationBranchIsDeterministicWhenWaitedFor) {
     EXPECT_EQ(r->stats.stages.at(kStageSegment).time.count, 8u);
     for (const FrameRecord& f : r->frames) EXPECT_GT(f.num_excluded, 0);
   }
-  ExpectSameTrajectory(seq.tracked, pip.tracked);
-  ASSERT_EQ(seq.frames.size(), pip.frames.size());
-  for (size_t i = 0; i < seq.frames.size(); ++i)
-    EXPECT_EQ(seq.frames[i].num_excluded, pip.frames[i].num_excluded);
+  ExpectSameRun(seq, pip);
   // The filter reached tracking: keypoints on the left quarter were excluded.
   const PipelineResult plain = RunPipeline(clip, SlamOptions{}, Options(Policy::kSequential));
   EXPECT_FALSE(plain.tracked.size() == seq.tracked.size() &&
@@ -445,10 +450,7 @@ TEST(PipelineTest, DeviceInferenceLeavesItsThreadToOtherStages) {
     }
   }
   EXPECT_EQ(seq.stats.stages.count(kStageDevice), 0u);  // no device wait: no device lane
-  ExpectSameTrajectory(seq.tracked, r.tracked);
-  ASSERT_EQ(seq.frames.size(), r.frames.size());
-  for (size_t i = 0; i < seq.frames.size(); ++i)
-    EXPECT_EQ(seq.frames[i].num_excluded, r.frames[i].num_excluded);
+  ExpectSameRun(seq, r);
 }
 
 TEST(PipelineTest, AFailedDeviceLaunchStopsTheRunAndKeepsEarlierPoses) {
@@ -699,10 +701,7 @@ TEST(PipelineTest, DeviceFlowLeavesTheFilterThreadToOtherStages) {
   const PipelineResult plain =
       RunPipeline(clip, slam_options, Options(Policy::kSequential), {}, &opencv_scorer);
   ASSERT_TRUE(plain.error.empty()) << plain.error;
-  ExpectSameTrajectory(plain.tracked, r.tracked);
-  ASSERT_EQ(plain.frames.size(), r.frames.size());
-  for (size_t i = 0; i < plain.frames.size(); ++i)
-    EXPECT_EQ(plain.frames[i].num_excluded, r.frames[i].num_excluded);
+  ExpectSameRun(plain, r);
 }
 
 TEST(PipelineTest, AFailedLkPassOnTheDeviceStopsTheRunAndKeepsEarlierPoses) {
