@@ -391,7 +391,8 @@ int main(int argc, char** argv) {
                    "frame,rss_mib,anon_mib,heap_mib,keyframe,ba_ms,mapping_ms,keyframes,"
                    "map_points,tracked\n");
     }
-    options.on_frame = [&](size_t done, size_t, const pcr::FrameOutput& out) {
+    options.on_frame = [&](size_t done, size_t, const pcr::graph::FrameRecord& record) {
+      const pcr::FrameOutput& out = record.output;
       int64_t file_now = 0;
       const int64_t rss_now = ResidentBytes(&file_now);
       if (per_frame) {

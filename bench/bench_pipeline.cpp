@@ -66,8 +66,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "app/inference.h"
-#include "app/run_slam.h"
+#include "driver/driver.h"
+#include "driver/inference.h"
 #include "eval/association.h"
 #include "eval/evaluation.h"
 #include "graph/heap.h"
@@ -320,19 +320,6 @@ class EmulatedFlowEngine final : public pcr::FlowEngine {
   pcr::DeviceWait wait_;
 };
 
-pcr::nodes::FrameSource SourceOf(const pcr::Dataset& dataset, pcr::app::FrameRange range) {
-  pcr::nodes::FrameSource source;
-  source.name = dataset.name;
-  source.rig = dataset.rig;
-  for (size_t i = range.first; i < range.end; ++i) {
-    source.frame_indices.push_back(static_cast<int64_t>(i));
-    source.t_ns.push_back(dataset.t_ns[i]);
-  }
-  source.load_left = [&dataset](int64_t i) { return dataset.LoadLeft(static_cast<size_t>(i)); };
-  source.load_right = [&dataset](int64_t i) { return dataset.LoadRight(static_cast<size_t>(i)); };
-  return source;
-}
-
 // ATE RMSE (SE(3)-aligned) of the tracked frames; negative without ground truth.
 double AteRmse(const pcr::Dataset& dataset, const pcr::Trajectory& tracked) {
   if (!dataset.ground_truth || tracked.size() < 3) return -1;
@@ -422,12 +409,14 @@ int main(int argc, char** argv) {
     const BenchArgs args = ParseArgs(argc, argv);
     spdlog::set_level(spdlog::level::warn);
     const pcr::Dataset dataset = pcr::OpenDataset(args.sequence);
-    const pcr::app::FrameRange range = pcr::app::FrameRange::Parse(args.frames, dataset.size());
-    const pcr::nodes::FrameSource source = SourceOf(dataset, range);
+    const pcr::driver::FrameRange range =
+        pcr::driver::FrameRange::Parse(args.frames, dataset.size());
+    const pcr::nodes::FrameSource source = pcr::driver::SourceFromDataset(
+        dataset, dataset.rig, range, pcr::SlamMode::kStereo, /*with_color=*/false);
     const pcr::SlamOptions slam_options;
     // The filter's options: where its LK flow runs.
     pcr::DynamicFilterOptions filter_options;
-    pcr::app::ApplyFlow(args.flow, &filter_options);
+    pcr::driver::ApplyFlow(args.flow, &filter_options);
     std::shared_ptr<FlowReplay> flow_replay;
     if (args.flow_device_ms > 0) {
       flow_replay = std::make_shared<FlowReplay>();
@@ -454,7 +443,7 @@ int main(int argc, char** argv) {
       auto load = [&](const std::string& path) {
         pcr::YoloOptions options;
         options.model_path = path;
-        pcr::app::ApplyInference(args.inference, &options);
+        pcr::driver::ApplyInference(args.inference, &options);
         if (args.device_ms > 0) {
           options.engine_factory = [&](const std::vector<uint8_t>& bytes, cv::Size size) {
             auto engine = std::make_unique<EmulatedDeviceEngine>(

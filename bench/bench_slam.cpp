@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "app/run_slam.h"
+#include "driver/driver.h"
 #include "io/dataset.h"
 #include "sim/sequence_writer.h"
 
@@ -78,13 +78,16 @@ int main(int argc, char** argv) {
 
   std::printf("\n%-9s %6s %7s %5s %4s %9s %9s %9s %8s %8s %7s %6s\n", "input", "frames", "tracked",
               "lost", "kf", "ATE rmse", "ATE max", "RPE rmse", "path m", "ATE %", "fps", "repeat");
-  std::vector<std::pair<std::string, pcr::app::RunSummary>> runs;
+  std::vector<std::pair<std::string, pcr::driver::RunSummary>> runs;
   for (const Case& c : cases) {
     const pcr::Dataset dataset = pcr::OpenDataset(c.path);
-    pcr::app::RunConfig config;
-    const pcr::app::FrameRange all{0, dataset.size()};
-    const pcr::app::RunSummary a = pcr::app::RunSlam(dataset, config, c.mode, all);
-    const pcr::app::RunSummary b = pcr::app::RunSlam(dataset, config, c.mode, all);
+    pcr::driver::RunConfig config;
+    const pcr::driver::FrameRange all{0, dataset.size()};
+    pcr::driver::DriverOptions run;
+    run.mode = c.mode;
+    run.pipeline.policy = pcr::graph::Policy::kSequential;
+    const pcr::driver::RunSummary a = pcr::driver::RunDataset(dataset, config, all, run).summary;
+    const pcr::driver::RunSummary b = pcr::driver::RunDataset(dataset, config, all, run).summary;
     const bool repeat = SameTrajectory(a.per_frame, b.per_frame);
     double rmse = -1, mx = -1, rpe = -1, path = 0;
     if (a.evaluation) {
@@ -102,7 +105,7 @@ int main(int argc, char** argv) {
   }
   for (const auto& [name, s] : runs) {
     std::printf("\n== %s: per-stage times on this machine\n", name.c_str());
-    const std::string text = pcr::app::FormatRunSummary(s);
+    const std::string text = pcr::driver::FormatRunSummary(s);
     // Only the frames line and the stage table (the evaluation table is summarised above).
     const auto cut = text.find("matched ");
     std::printf("%s", text.substr(0, cut).c_str());

@@ -14,7 +14,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "app/inference.h"
+#include "driver/inference.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
 namespace {
@@ -56,7 +56,7 @@ ModelState& State(const std::string& model) {
   ModelState& s = states[model];
   pcr::YoloOptions options;
   options.model_path = SharedDir() + "/models/" + model;
-  pcr::app::ApplyInference(Inference(), &options);
+  pcr::driver::ApplyInference(Inference(), &options);
   s.segmenter = std::make_unique<pcr::YoloSegmenter>(options);
   s.blob = s.segmenter->Preprocess(Frame(), &s.letterbox);
   s.outputs = s.segmenter->Forward(s.blob);  // also warms the network up

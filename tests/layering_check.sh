@@ -4,6 +4,8 @@
 #  - src/slam: nothing from nodes, graph, gpu, app, io, eval or sim;
 #  - io, eval, sim: only slam/common from the slam layer, nothing from nodes/graph/app;
 #  - only src/graph includes the TBB flow graph;
+#  - src/driver (the frame path and the public API) and src/app sit on top: nothing below them
+#    includes them, the driver not the app, and include/pcr/*.h nothing internal;
 #  - src/gpu builds on src/slam only, and CUDA headers (and the project's .cuh headers, which
 #    include them) appear in src/gpu/*.cu files only.
 set -u
@@ -29,5 +31,11 @@ hits=$(grep -rnE '#include *[<"][^">]*\.cuh[">]' src --include='*.h' --include='
 [ -n "$hits" ] && report "CUDA-only header (.cuh) outside a .cu file" "$hits"
 hits=$(find src -name '*.cu' -not -path 'src/gpu/*')
 [ -n "$hits" ] && report ".cu file outside src/gpu" "$hits"
+hits=$(grep -rnE '#include *"(driver|app)/' src/slam src/nodes src/graph src/gpu src/io src/eval src/sim 2>/dev/null)
+[ -n "$hits" ] && report "a layer below src/driver includes the driver or the app" "$hits"
+hits=$(grep -rnE '#include *"app/' src/driver 2>/dev/null)
+[ -n "$hits" ] && report "src/driver includes the app" "$hits"
+hits=$(grep -nE '#include *"' include/pcr/*.h | grep -vE '#include *"pcr/')
+[ -n "$hits" ] && report "the public headers include internal headers" "$hits"
 if [ $fail -eq 0 ]; then echo "layering: ok"; fi
 exit $fail

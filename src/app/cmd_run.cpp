@@ -1,83 +1,161 @@
-#include <spdlog/spdlog.h>
+// `pcr_orb run` and `pcr_orb pipeline`: SLAM on a dataset through the public API
+// (include/pcr/api.h), i.e. the flow graph. `run` is the sequential reference policy; `pipeline`
+// chooses the policy. Both write trajectory.txt, trajectory_tum.txt, stats.json, config.yaml,
+// trace.json, timing.png (and evaluation.json, trajectory.png with ground truth).
+#include <fmt/format.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <memory>
+#include <stdexcept>
+#include <thread>
 
 #include "app/commands.h"
-#include "app/inference.h"
 #include "app/progress.h"
-#include "app/run_slam.h"
-#include "io/dataset.h"
-#include "slam/common/error.h"
+#include "driver/inference.h"
+#include "pcr/api.h"
 
 namespace pcr::app {
+namespace {
 
-void AddRunCommand(CLI::App& app) {
-  struct Args {
-    std::string sequence, out = "out/run", config, frames, mode = "stereo";
-    std::vector<std::string> overrides;
-    DynamicRunOptions dynamic;
-  };
-  auto args = std::make_shared<Args>();
-  CLI::App* cmd = app.add_subcommand(
-      "run", "Run SLAM on a KITTI odometry sequence or raw drive; write trajectories and stats");
-  cmd->add_option("--sequence", args->sequence, "sequences/NN directory or raw *_sync drive")
+struct FrameArgs {
+  api::Config config;
+  std::string sequence, frames, mode = "stereo", policy = "sequential";
+};
+
+std::string OnOff(bool v) { return v ? "on" : "off"; }
+
+// Options of both subcommands; `pipeline` adds the scheduling ones.
+void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
+  api::Config& c = a->config;
+  cmd->add_option("--sequence", a->sequence, "sequences/NN directory or raw *_sync drive")
       ->required();
-  cmd->add_option("--out", args->out, "output directory")->capture_default_str();
-  cmd->add_option("--mode", args->mode, "stereo or mono")
+  cmd->add_option("--out", c.out_dir, "output directory")->capture_default_str();
+  cmd->add_option("--mode", a->mode, "stereo or mono (left images only, two-view initialisation)")
       ->check(CLI::IsMember({"stereo", "mono"}))
       ->capture_default_str();
-  cmd->add_option("--frames", args->frames, "frame range A:B (B exclusive)");
-  cmd->add_option("--config", args->config, "YAML configuration (see config/*.yaml)");
-  cmd->add_option("--segmenter", args->dynamic.segmenter,
-                  "dynamic-object segmentation: yolo, truth (synthetic sequences) or none")
-      ->check(CLI::IsMember({"yolo", "truth", "none"}))
+  cmd->add_option("--frames", a->frames, "frame range A:B (B exclusive)");
+  cmd->add_option("--config", c.config_file, "YAML configuration (see config/*.yaml)");
+  cmd->add_option("--set", c.overrides, "override one key: section.key=value (repeatable)");
+  cmd->add_option("--threads", c.threads, "threads for TBB, OpenCV and Ceres")
       ->capture_default_str();
-  cmd->add_option("--model", args->dynamic.model_path,
-                  "YOLOv8-seg ONNX model for --segmenter yolo");
-  cmd->add_option("--inference", args->dynamic.inference, kInferenceHelp)->capture_default_str();
-  cmd->add_option("--flow", args->dynamic.flow, kFlowHelp)->capture_default_str();
   cmd->add_option_function<std::string>(
-         "--filter", [args](const std::string& v) { args->dynamic.filter = v == "on"; },
+         "--filter", [&c](const std::string& v) { c.filter = v == "on"; },
          "multi-stage dynamic-point filter before tracking: on or off (default off)")
       ->check(CLI::IsMember({"on", "off"}));
-  cmd->add_flag("--dump-filter", args->dynamic.dump,
+  cmd->add_option("--segmenter", c.segmenter,
+                  "dynamic-object segmentation: yolo, truth (synthetic sequences) or none; "
+                  "without --filter on its masks alone exclude keypoints")
+      ->check(CLI::IsMember({"yolo", "truth", "none"}))
+      ->capture_default_str();
+  cmd->add_option("--model", c.model,
+                  "YOLOv8-seg ONNX model for --segmenter yolo (e.g. "
+                  "../shared/models/yolov8n-seg_coco_224x640.onnx)");
+  cmd->add_option("--inference", c.inference, driver::kInferenceHelp)->capture_default_str();
+  cmd->add_option("--flow", c.flow, driver::kFlowHelp)->capture_default_str();
+  cmd->add_flag("--dump-filter", c.dump_filter,
                 "write per-keypoint filter decisions to OUT/filter_decisions.txt");
-  cmd->add_option("--truth-miss-rate", args->dynamic.truth_miss_rate,
+  cmd->add_option("--truth-miss-rate", c.truth_miss_rate,
                   "--segmenter truth: probability that an instance is missed in a frame");
   cmd->add_option(
-         "--truth-labels", args->dynamic.truth_labels,
+         "--truth-labels", c.truth_labels,
          "KITTI tracking labels (label_02 file, frame k = sequence frame k) of a raw drive: "
          "score the filter's decisions against the projected 3-D boxes of moving objects")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--set", args->overrides, "override one key: section.key=value (repeatable)");
-  cmd->callback([args] {
-    const Dataset dataset = OpenDataset(args->sequence);
-    std::string config_yaml;
-    RunConfig config = LoadRunConfig(args->config, args->overrides, &config_yaml);
-    const DynamicFilterOptions filter_options = config.dynamic.options;  // from the config file
-    config.dynamic = args->dynamic;
-    config.dynamic.options = filter_options;
-    const SlamMode mode = args->mode == "mono" ? SlamMode::kMonocular : SlamMode::kStereo;
-    const FrameRange range = FrameRange::Parse(args->frames, dataset.size());
-    spdlog::info("run: {} {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m, out {}",
-                 ToString(mode), dataset.name, range.end - range.first, range.first, range.end - 1,
-                 dataset.rig.left.width_px, dataset.rig.left.height_px, dataset.rig.left.fx,
-                 dataset.rig.baseline_m, args->out);
-    spdlog::debug("effective configuration:\n{}", config_yaml);
-    Progress progress("run " + dataset.name, static_cast<int64_t>(range.end - range.first));
-    const RunSummary summary =
-        RunSlam(dataset, config, mode, range, [&](size_t done, size_t, const FrameOutput& out) {
-          progress.Update(static_cast<int64_t>(done),
-                          fmt::format("tracked {} kf {} pts {}", out.num_tracked, out.num_keyframes,
-                                      out.num_map_points));
-        });
-    progress.Finish();
-    WriteRunOutputs(args->out, summary, config_yaml);
-    std::printf("%s", FormatRunSummary(summary).c_str());
-    std::printf("outputs: %s/{trajectory.txt,trajectory_tum.txt,stats.json,config.yaml%s}\n",
-                args->out.c_str(), summary.evaluation ? ",evaluation.json,trajectory.png" : "");
-    if (!summary.error.empty()) throw std::runtime_error(summary.error);
-  });
+  if (!scheduling) return;
+  cmd->add_option("--policy", a->policy, "sequential, pipelined or realtime")
+      ->check(CLI::IsMember({"sequential", "pipelined", "realtime"}))
+      ->capture_default_str();
+  cmd->add_option("--rate", c.rate,
+                  "realtime: frame i is released at (t_i - t_0) * rate (1 = real time, 0.5 = "
+                  "twice as fast)")
+      ->capture_default_str();
+  cmd->add_option("--max-in-flight", c.max_in_flight, "frames in the graph at once")
+      ->capture_default_str();
+  cmd->add_option("--waiting", c.waiting,
+                  "realtime: released frames waiting for a slot before the oldest is dropped")
+      ->capture_default_str();
+  cmd->add_option("--mask-deadline-ms", c.mask_deadline_ms,
+                  "realtime: how long tracking waits for a late mask before using the last one")
+      ->capture_default_str();
+  cmd->add_option_function<std::string>(
+         "--adaptive", [&c](const std::string& v) { c.adaptive = v == "on"; },
+         "adaptive quality control (Eq. 9): on or off (default off)")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd->add_option("--model-high", c.model_high,
+                  "adaptive high-quality model (e.g. yolov8n-seg_coco_384x1280.onnx)");
+  cmd->add_option("--trim-every", c.trim_every,
+                  "hand free heap pages back to the system every N frames (0: never)")
+      ->capture_default_str();
+  cmd->add_option_function<std::string>(
+         "--trim-after-keyframe", [&c](const std::string& v) { c.trim_after_keyframe = v == "on"; },
+         "also right after each keyframe's local mapping: on or off (default " +
+             OnOff(c.trim_after_keyframe) + ")")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd->add_option_function<std::string>(
+         "--device-overlap", [&c](const std::string& v) { c.device_overlap = v == "on"; },
+         "pipelined/realtime with --inference cuda: the segment stage's thread runs other "
+         "stages while the GPU works (off: it waits, blocked): on or off (default " +
+             OnOff(c.device_overlap) + ")")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd->add_option("--delay-ms", c.tracking_delay_ms,
+                  "testing: artificial delay added to every tracking call")
+      ->capture_default_str();
+}
+
+api::Policy ParsePolicy(const std::string& p) {
+  if (p == "pipelined") return api::Policy::kPipelined;
+  if (p == "realtime") return api::Policy::kRealtime;
+  return api::Policy::kSequential;
+}
+
+void RunFrames(const std::string& name, FrameArgs& a) {
+  api::Config& c = a.config;
+  c.mode = a.mode == "mono" ? api::Mode::kMono : api::Mode::kStereo;
+  c.policy = ParsePolicy(a.policy);
+  const api::Source source = api::Source::Dataset(a.sequence, a.frames);
+  std::unique_ptr<Progress> progress;
+  const api::Result result =
+      api::Run(c, source, [&](const api::FrameResult& f, size_t done, size_t total) {
+        if (!progress) progress = std::make_unique<Progress>(name, static_cast<int64_t>(total));
+        progress->Update(static_cast<int64_t>(done),
+                         fmt::format("tracked {} kf {} pts {}", f.tracked_points, f.map_keyframes,
+                                     f.map_points));
+      });
+  if (progress) progress->Finish();
+  std::printf("%s", result.report.c_str());
+  std::printf(
+      "outputs: %s/{trajectory.txt,trajectory_tum.txt,stats.json,config.yaml,trace.json,"
+      "timing.png%s}\n",
+      c.out_dir.c_str(), result.stats.ate_rmse_m ? ",evaluation.json,trajectory.png" : "");
+  if (!result.error.empty()) throw std::runtime_error(result.error);
+}
+
+}  // namespace
+
+void AddRunCommand(CLI::App& app) {
+  auto args = std::make_shared<FrameArgs>();
+  args->config.out_dir = "out/run";
+  args->config.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  CLI::App* cmd = app.add_subcommand(
+      "run",
+      "Run SLAM on a KITTI odometry sequence or raw drive (the flow graph's sequential "
+      "reference policy); write trajectories, stats, trace.json and timing.png");
+  AddFrameOptions(cmd, args.get(), false);
+  cmd->callback([args] { RunFrames("run", *args); });
+}
+
+void AddPipelineCommand(CLI::App& app) {
+  auto args = std::make_shared<FrameArgs>();
+  args->config.out_dir = "out/pipeline";
+  args->policy = "pipelined";
+  CLI::App* cmd = app.add_subcommand(
+      "pipeline",
+      "Run SLAM through the TBB flow graph with a scheduling policy (sequential, pipelined, "
+      "realtime), YOLOv8-seg branch and adaptive quality; write trajectories, stats, trace.json "
+      "and timing.png");
+  AddFrameOptions(cmd, args.get(), true);
+  cmd->callback([args] { RunFrames("pipeline", *args); });
 }
 
 }  // namespace pcr::app

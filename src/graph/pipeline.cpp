@@ -235,7 +235,7 @@ class GraphRun {
         realtime_(options.policy == Policy::kRealtime),
         source_node_(source, SourceOptionsFor(options)),
         controller_(options.controller),
-        preprocess_(source),
+        preprocess_(source, slam->mode() == SlamMode::kMonocular),
         orb_left_(*slam, nodes::Side::kLeft, extra_extractors),
         orb_right_(*slam, nodes::Side::kRight, extra_extractors),
         stereo_(*slam),
@@ -478,7 +478,7 @@ PipelineResult GraphRun::Run() {
       });
 
   // The segmentation branch answers for every frame: its result or a "not run" value. Serial
-  // (every frame is segmented, in arrival order) except in realtime, where the network takes the
+  // (every frame is segmented, in frame order) except in realtime, where the network takes the
   // newest waiting frame when it becomes free and frames it skipped answer "busy" at once.
   tf::function_node<ImagesPtr, tf::continue_msg> segment(
       g, realtime_ ? tf::unlimited : tf::serial, [this](const ImagesPtr& input) {
@@ -584,7 +584,16 @@ PipelineResult GraphRun::Run() {
   tf::make_edge(*limiter_, preprocess);
   tf::make_edge(tf::output_port<0>(preprocess), orb_left);
   tf::make_edge(tf::output_port<0>(preprocess), orb_right);
-  tf::make_edge(tf::output_port<0>(preprocess), segment);
+  // Sequential and pipelined segment frames in frame order (a segmenter may keep state from one
+  // call to the next, e.g. the truth segmenter's seeded detector misses), whatever order the
+  // preprocess calls finish in; realtime takes the newest frame instead.
+  tf::sequencer_node<ImagesPtr> segment_order(g, seq_of);
+  if (realtime_) {
+    tf::make_edge(tf::output_port<0>(preprocess), segment);
+  } else {
+    tf::make_edge(tf::output_port<0>(preprocess), segment_order);
+    tf::make_edge(segment_order, segment);
+  }
   tf::make_edge(tf::output_port<0>(orb_left), tf::input_port<0>(feature_join));
   tf::make_edge(tf::output_port<0>(orb_right), tf::input_port<1>(feature_join));
   tf::make_edge(feature_join, stereo);
@@ -680,6 +689,7 @@ void GraphRun::Complete(const FrameResultPtr& result) {
   r.mask = result->mask;
   r.num_excluded = result->num_excluded;
   r.output = result->output;
+  r.filter_report = result->filter_report;
   r.done_ns = done;
 
   // Eq. 8 for this frame: T_slam (its SLAM-path stage calls, wall time, mapping included),
@@ -725,13 +735,17 @@ void GraphRun::Complete(const FrameResultPtr& result) {
       }
       level_ = after;
     }
-    frames_.push_back(std::move(r));
     ++completed_;
     completed = static_cast<size_t>(completed_);
   }
   // Progress before the token goes back, so an observer never sees more frames in flight than
   // the bound.
-  if (options_.on_frame) options_.on_frame(completed, source_.size(), result->output);
+  if (options_.on_frame) options_.on_frame(completed, source_.size(), r);
+  if (!options_.keep_filter_reports) r.filter_report.reset();
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    frames_.push_back(std::move(r));
+  }
   if (options_.trim_heap_every > 0 &&
       completed % static_cast<size_t>(options_.trim_heap_every) == 0)
     TrimHeap();
@@ -858,12 +872,13 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
                            nodes::FrameScorer* scorer) {
   std::string why;
   if (!options.IsValid(&why)) throw ConfigError("PipelineOptions: " + why);
-  if (!source.IsValid(&why)) throw ConfigError("FrameSource " + source.name + ": " + why);
+  const bool stereo = options.mode == SlamMode::kStereo;
+  if (!source.IsValid(&why, stereo)) throw ConfigError("FrameSource " + source.name + ": " + why);
 
   SlamOptions capped = slam_options;
   capped.mapping.bundle_adjustment.num_threads =
       std::min(capped.mapping.bundle_adjustment.num_threads, options.threads);
-  SlamSystem slam(source.rig, capped);
+  SlamSystem slam(source.rig, capped, options.mode);
 
   // Extractors for the adaptive levels' keypoint counts (same pyramid as the SLAM system's).
   std::vector<std::unique_ptr<OrbExtractor>> extractors;

@@ -9,10 +9,14 @@
 //                                       token ──────┘<───────────── token ─────────────────────┤
 //        limiter.decrement <─ sink (serial: results, profile, quality controller) <────────────┘
 //
+// The segment node takes frames in frame order (a sequencer before it) except in realtime, where
+// the network takes the newest waiting frame.
 // Tracking and local mapping both mutate the map: tracking of frame k+1 starts only after mapping
 // of frame k returned the token, so the map sees exactly the calls of SlamSystem::ProcessFrame
 // in a loop and the trajectory is identical to the sequential one (with Ceres on one thread).
 // Loop closing, when it exists, is one more serial node between mapping and the token return.
+// Monocular runs (PipelineOptions::mode) use the same graph: the right branch emits empty
+// features and stereo matches, so the joins and the ordering are unchanged.
 //
 // Every branch emits one message per admitted frame ("not run", "late" and "busy" segmentations
 // are values), so joins always complete. The in-flight bound is the limiter's token count: a
@@ -50,6 +54,9 @@ struct FrameRecord {
   nodes::MaskStatus mask = nodes::MaskStatus::kSkipped;
   int num_excluded = 0;
   FrameOutput output;
+  // The dynamic filter's decisions (null without the dynamic filter, and after on_frame unless
+  // PipelineOptions::keep_filter_reports).
+  nodes::FilterReportPtr filter_report;
   // Nanoseconds since the start of the run: released by the source (camera time in realtime),
   // admitted into the graph, pose available (tracking done), retired (mapping done: the map holds
   // the frame's edits and its in-flight token is back).

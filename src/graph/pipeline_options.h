@@ -42,8 +42,13 @@ inline constexpr const char* kStageDevice = "device";
 // A filter call's LK pass on a device, the same way (Profiler::kFlowDeviceLane).
 inline constexpr const char* kStageDeviceFlow = "device_flow";
 
+struct FrameRecord;  // pipeline.h
+
 struct PipelineOptions {
   Policy policy = Policy::kPipelined;
+  // Stereo, or monocular (left images only: the right ORB and stereo stages emit empty results,
+  // the map starts from a two-view initialisation; see SlamSystem).
+  SlamMode mode = SlamMode::kStereo;
   // Caps TBB (global_control), OpenCV and Ceres. OpenCV's own parallel loops get `threads` in
   // the sequential policy only; pipelined and realtime run them on the calling stage's thread
   // (the graph already keeps the cores busy with different stages).
@@ -78,8 +83,12 @@ struct PipelineOptions {
   // back end), and a hook called at the start of every stage body (may sleep or throw).
   double tracking_delay_ms = 0;
   std::function<void(std::string_view stage, int64_t frame_index)> stage_hook;
-  // Progress: called after each completed frame (from the serial sink, in frame order).
-  std::function<void(size_t completed, size_t total, const FrameOutput& output)> on_frame;
+  // Called after each completed frame (from the serial sink, in frame order): progress, and
+  // audits of the frame's filter decisions (record.filter_report).
+  std::function<void(size_t completed, size_t total, const FrameRecord& record)> on_frame;
+  // Whether PipelineResult::frames keep each frame's filter report after on_frame (about 0.2 MB
+  // a frame with 2000 keypoints; off for long runs).
+  bool keep_filter_reports = false;
 
   bool IsValid(std::string* why) const;
 };

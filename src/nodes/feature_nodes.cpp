@@ -18,16 +18,22 @@ ImagesPtr PreprocessNode::operator()(const FrameTicket& ticket) const {
   auto msg = std::make_shared<ImagesMsg>();
   msg->ticket = ticket;
   msg->left = source_.load_left(ticket.frame_index);
-  msg->right = source_.load_right(ticket.frame_index);
-  for (const cv::Mat* image : {&msg->left, &msg->right}) {
-    const char* which = image == &msg->left ? "left" : "right";
-    if (image->empty())
+  if (!monocular_) msg->right = source_.load_right(ticket.frame_index);
+  if (ticket.run_inference && source_.load_left_color)
+    msg->left_color = source_.load_left_color(ticket.frame_index);
+  auto check = [&](const cv::Mat& image, const char* which, int type, const char* type_name) {
+    if (image.empty())
       throw std::runtime_error(FrameName(ticket) + ": the " + which + " image is empty");
-    if (image->type() != CV_8UC1)
-      throw std::runtime_error(FrameName(ticket) + ": the " + which + " image is not CV_8UC1");
-  }
-  if (msg->left.size() != msg->right.size())
-    throw std::runtime_error(FrameName(ticket) + ": left and right images differ in size");
+    if (image.type() != type)
+      throw std::runtime_error(FrameName(ticket) + ": the " + which + " image is not " + type_name);
+    if (image.size() != msg->left.size())
+      throw std::runtime_error(FrameName(ticket) + ": the " + which +
+                               " image differs in size from the left one");
+  };
+  check(msg->left, "left", CV_8UC1, "CV_8UC1");
+  if (!monocular_) check(msg->right, "right", CV_8UC1, "CV_8UC1");
+  if (ticket.run_inference && source_.load_left_color)
+    check(msg->left_color, "colour left", CV_8UC3, "CV_8UC3");
   msg->load_ms = MsSince(start);
   return msg;
 }
@@ -41,6 +47,10 @@ FeaturesPtr OrbNode::operator()(const ImagesPtr& images) const {
   msg->ticket = images->ticket;
   msg->side = side_;
   msg->images = images;
+  if (side_ == Side::kRight && slam_.mode() == SlamMode::kMonocular) {
+    msg->extract_ms = MsSince(start);
+    return msg;  // no right camera: empty features
+  }
   const cv::Mat& image = side_ == Side::kLeft ? images->left : images->right;
   const int wanted = images->ticket.settings.orb_features;
   if (wanted == slam_.options().orb.num_features) {

@@ -10,22 +10,26 @@
 
 namespace pcr::nodes {
 
-// Loads the ticket's image pair through the source's loaders. Throws what a loader throws, and
-// std::runtime_error naming the frame when an image is empty, not CV_8UC1, or the two sizes
-// differ.
+// Loads the ticket's image pair through the source's loaders (monocular: the left image only),
+// and the colour left image when the source has one and the frame is segmented
+// (ticket.run_inference). Throws what a loader throws, and std::runtime_error naming the frame
+// when an image is empty, not CV_8UC1 (colour: CV_8UC3), or the sizes differ.
 class PreprocessNode {
  public:
-  explicit PreprocessNode(const FrameSource& source) : source_(source) {}
+  explicit PreprocessNode(const FrameSource& source, bool monocular = false)
+      : source_(source), monocular_(monocular) {}
   ImagesPtr operator()(const FrameTicket& ticket) const;
 
  private:
   const FrameSource& source_;  // outlives the node
+  bool monocular_;
 };
 
 // ORB features of one camera. A ticket asking for slam.options().orb.num_features keypoints uses
 // the SlamSystem's extractor; other counts (adaptive quality levels) use the extractor of
 // `extra` with that count (built with the same pyramid so frames stay compatible with the map).
-// Throws std::invalid_argument when no extractor has the requested count.
+// Throws std::invalid_argument when no extractor has the requested count. A monocular system's
+// right node emits empty features.
 class OrbNode {
  public:
   OrbNode(const SlamSystem& slam, Side side, std::vector<const OrbExtractor*> extra = {});

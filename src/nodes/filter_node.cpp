@@ -21,7 +21,7 @@ MaskScorer::MaskScorer(const MaskScorerOptions& options) : options_(options) {
   if (!options_.IsValid(&why)) throw ConfigError("MaskScorerOptions: " + why);
 }
 
-KeypointFilter MaskScorer::Score(const ScoringInput& input) {
+ScoredFrame MaskScorer::Score(const ScoringInput& input) {
   if (input.mask.status == MaskStatus::kSkipped || !input.mask.segmentation) return {};
   const cv::Mat& confidence = input.mask.segmentation->dynamic_confidence;
   if (confidence.empty()) return {};
@@ -32,7 +32,7 @@ KeypointFilter MaskScorer::Score(const ScoringInput& input) {
   if (options_.weights) {
     filter.weight_map = 1.0 - confidence;  // CV_32FC1
   }
-  return SlamSystem::SampleFilter(filter, input.left.keypoints);
+  return {SlamSystem::SampleFilter(filter, input.left.keypoints), nullptr};
 }
 
 bool MaskCarryOptions::IsValid(std::string* why) const {
@@ -89,7 +89,15 @@ FilteredPtr FilterNode::operator()(const StereoPtr& stereo, const SegmentationPt
   if (scorer_) {
     const ScoringInput input{msg->ticket, *stereo->images, stereo->left->features, stereo->stereo,
                              msg->mask};
-    msg->filter = scorer_->Score(input);
+    ScoredFrame scored = scorer_->Score(input);
+    msg->filter = std::move(scored.filter);
+    if (scored.details) {
+      auto report = std::make_shared<FilterReport>();
+      report->keypoints = stereo->left->features.keypoints;
+      report->depth_m = stereo->stereo.depth_m;
+      report->output = std::move(scored.details);
+      msg->report = std::move(report);
+    }
     const size_t n = stereo->left->features.keypoints.size();
     if ((!msg->filter.excluded.empty() && msg->filter.excluded.size() != n) ||
         (!msg->filter.weight.empty() && msg->filter.weight.size() != n))
@@ -105,7 +113,7 @@ DynamicFilterScorer::DynamicFilterScorer(const StereoRig& rig, double scale_fact
                                          const DynamicFilterOptions& options)
     : rig_(rig), scale_factor_(scale_factor), filter_(options) {}
 
-KeypointFilter DynamicFilterScorer::Score(const ScoringInput& input) {
+ScoredFrame DynamicFilterScorer::Score(const ScoringInput& input) {
   FilterInput f;
   f.frame_index = input.ticket.frame_index;
   f.t_ns = input.ticket.t_ns;
@@ -117,9 +125,10 @@ KeypointFilter DynamicFilterScorer::Score(const ScoringInput& input) {
   f.lk = input.ticket.settings.optical_flow;
   f.segmentation =
       input.mask.status == MaskStatus::kSkipped ? nullptr : input.mask.segmentation.get();
-  FilterOutput out = filter_.Process(f);
-  last_tracked_ = out.num_tracked;
-  return KeypointFilter{std::move(out.filter.weight), std::move(out.filter.excluded)};
+  auto out = std::make_shared<FilterOutput>(filter_.Process(f));
+  last_tracked_ = out->num_tracked;
+  KeypointFilter filter{out->filter.weight, out->filter.excluded};
+  return {std::move(filter), std::move(out)};
 }
 
 }  // namespace pcr::nodes

@@ -20,12 +20,18 @@ struct ScoringInput {
   const MaskMsg& mask;  // kSkipped: no mask for this frame
 };
 
+// A scorer's answer for one frame: per left keypoint, excluded flags and static-confidence
+// weights (empty vectors: none), and the dynamic filter's whole output when it ran (for audits).
+struct ScoredFrame {
+  KeypointFilter filter;
+  std::shared_ptr<const FilterOutput> details;
+};
+
 // The dynamic-point filter plugs in here (paper Eq. 2 / Alg. 3). Called in frame order.
 class FrameScorer {
  public:
   virtual ~FrameScorer() = default;
-  // Per left keypoint: excluded flags and static-confidence weights (empty vectors: none).
-  virtual KeypointFilter Score(const ScoringInput& input) = 0;
+  virtual ScoredFrame Score(const ScoringInput& input) = 0;
   virtual std::string Name() const = 0;
   // For scorers with work on a device (the dynamic filter's LK flow on a GPU): how Score() waits
   // for it (empty: block). Not to be called while Score() runs.
@@ -38,7 +44,7 @@ class DynamicFilterScorer final : public FrameScorer {
  public:
   DynamicFilterScorer(const StereoRig& rig, double scale_factor,
                       const DynamicFilterOptions& options = {});
-  KeypointFilter Score(const ScoringInput& input) override;
+  ScoredFrame Score(const ScoringInput& input) override;
   std::string Name() const override { return "dynamic-filter"; }
   void SetDeviceWait(DeviceWait wait) override { filter_.SetDeviceWait(std::move(wait)); }
   // Where the filter's LK flow runs (FlowEngine::Name).
@@ -65,7 +71,7 @@ struct MaskScorerOptions {
 class MaskScorer final : public FrameScorer {
  public:
   explicit MaskScorer(const MaskScorerOptions& options = {});
-  KeypointFilter Score(const ScoringInput& input) override;
+  ScoredFrame Score(const ScoringInput& input) override;
   std::string Name() const override { return "mask"; }
 
  private:

@@ -13,7 +13,7 @@ double FrameSource::NominalPeriodMs() const {
   return static_cast<double>(dt[dt.size() / 2]) * 1e-6;
 }
 
-bool FrameSource::IsValid(std::string* why) const {
+bool FrameSource::IsValid(std::string* why, bool stereo) const {
   auto fail = [why](const std::string& message) {
     if (why) *why = message;
     return false;
@@ -23,10 +23,10 @@ bool FrameSource::IsValid(std::string* why) const {
   for (size_t i = 1; i < t_ns.size(); ++i) {
     if (t_ns[i] <= t_ns[i - 1]) return fail("timestamps must be strictly increasing");
   }
-  if (!load_left || !load_right) return fail("image loaders must be set");
+  if (!load_left || (stereo && !load_right)) return fail("image loaders must be set");
   std::string inner;
   if (!rig.IsValid(&inner)) return fail("rig: " + inner);
-  if (!rig.IsStereo()) return fail("the pipeline needs a stereo rig");
+  if (stereo && !rig.IsStereo()) return fail("stereo runs need a stereo rig");
   return true;
 }
 

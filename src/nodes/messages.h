@@ -10,6 +10,7 @@
 #include <string>
 
 #include "nodes/quality.h"
+#include "slam/dynamic/dynamic_filter.h"
 #include "slam/dynamic/segmenter.h"
 #include "slam/features/orb_extractor.h"
 #include "slam/features/stereo_matcher.h"
@@ -32,7 +33,10 @@ struct FrameTicket {
 
 struct ImagesMsg {
   FrameTicket ticket;
-  cv::Mat left, right;  // CV_8UC1 rectified pair
+  cv::Mat left, right;  // CV_8UC1 rectified pair (monocular runs: right is empty)
+  // CV_8UC3 BGR left image, for the segmenter: set when the source has colour images and the
+  // frame is segmented (empty otherwise: the segmenter then gets the grey image).
+  cv::Mat left_color;
   double load_ms = 0;
 };
 
@@ -87,12 +91,23 @@ struct MaskMsg {
   int64_t source_seq = -1;                           // frame the mask was computed on
 };
 
+// What the dynamic filter decided for one frame, kept with the frame's record for audits
+// (confusion against ground truth, per-keypoint dumps): the keypoints the decisions refer to,
+// their stereo depth and the filter's whole output.
+struct FilterReport {
+  std::vector<cv::KeyPoint> keypoints;         // left keypoints, index = FilterOutput::points index
+  std::vector<float> depth_m;                  // per keypoint (<= 0: none); empty in monocular runs
+  std::shared_ptr<const FilterOutput> output;  // never null
+};
+using FilterReportPtr = std::shared_ptr<const FilterReport>;
+
 struct FilteredMsg {
   FrameTicket ticket;
   std::shared_ptr<const StereoMsg> stereo;
   SegmentationOutcome segmentation = SegmentationOutcome::kNoSegmenter;  // what the branch said
   MaskMsg mask;
-  KeypointFilter filter;  // empty vectors: nothing excluded, unit weights
+  KeypointFilter filter;   // empty vectors: nothing excluded, unit weights
+  FilterReportPtr report;  // set when the scorer is the dynamic filter
   int num_excluded = 0;
   double filter_ms = 0;
 };
@@ -112,7 +127,8 @@ struct FrameResultMsg {
   MaskStatus mask = MaskStatus::kSkipped;
   int num_excluded = 0;
   double filter_ms = 0;
-  FrameOutput output;  // complete, as SlamSystem::ProcessFrame would return it
+  FilterReportPtr filter_report;  // the filter's decisions (null without the dynamic filter)
+  FrameOutput output;             // complete, as SlamSystem::ProcessFrame would return it
 };
 
 using ImagesPtr = std::shared_ptr<const ImagesMsg>;

@@ -60,7 +60,8 @@ SegmentationPtr SegmentNode::operator()(const ImagesPtr& images) const {
   auto msg = std::make_shared<SegmentationMsg>();
   msg->ticket = ticket;
   msg->outcome = SegmentationOutcome::kFresh;
-  Segmentation segmentation = segmenter->Segment(images->left);
+  Segmentation segmentation = segmenter->SegmentFrame(
+      ticket.frame_index, images->left_color.empty() ? images->left : images->left_color);
   // Downstream stages read the per-pixel maps; full-image per-instance masks would only ride
   // along with every frame in flight (one image each) and make memory follow the object count.
   // instance_map keeps them: instance k covers the pixels where instance_map == k + 1.

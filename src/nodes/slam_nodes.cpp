@@ -28,6 +28,7 @@ TrackedPtr TrackingNode::operator()(const FilteredPtr& filtered) {
   out.times_ms.orb_left = stereo.left->extract_ms;
   out.times_ms.orb_right = stereo.orb_right_ms;
   out.times_ms.stereo = stereo.match_ms;
+  out.times_ms.filter = filtered->filter_ms;
   out.times_ms.tracking = MsSince(start);
   return msg;
 }
@@ -40,6 +41,7 @@ FrameResultPtr MappingNode::operator()(const TrackedPtr& tracked) {
   msg->mask = tracked->filtered->mask.status;
   msg->num_excluded = tracked->filtered->num_excluded;
   msg->filter_ms = tracked->filtered->filter_ms;
+  msg->filter_report = tracked->filtered->report;
   FrameOutput& out = msg->output;
   out = tracked->output;
   out.keyframe_reason = tracked->keyframe.reason;
@@ -54,7 +56,7 @@ FrameResultPtr MappingNode::operator()(const TrackedPtr& tracked) {
   out.num_keyframes = slam_->map().num_keyframes();
   out.num_map_points = slam_->map().num_points();
   out.times_ms.total = out.times_ms.orb_left + out.times_ms.orb_right + out.times_ms.stereo +
-                       out.times_ms.tracking + out.times_ms.local_mapping;
+                       out.times_ms.filter + out.times_ms.tracking + out.times_ms.local_mapping;
   return msg;
 }
 

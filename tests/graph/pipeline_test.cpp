@@ -226,7 +226,7 @@ TEST(PipelineTest, InFlightBoundIsNeverExceeded) {
     started.insert(frame);
     worst = std::max(worst, started.size() - completed);
   };
-  options.on_frame = [&](size_t done, size_t, const FrameOutput&) {
+  options.on_frame = [&](size_t done, size_t, const FrameRecord&) {
     std::lock_guard<std::mutex> lock(mutex);
     completed = done;
   };

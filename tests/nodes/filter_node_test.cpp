@@ -122,7 +122,7 @@ TEST(MaskScorerTest, ExcludesConfidentPixelsAndWeightsTheRest) {
   MaskScorer scorer;
   const ScoringInput input{stereo->ticket, *stereo->images, stereo->left->features, stereo->stereo,
                            mask};
-  const KeypointFilter f = scorer.Score(input);
+  const KeypointFilter f = scorer.Score(input).filter;
   ASSERT_EQ(f.excluded.size(), 4u);
   ASSERT_EQ(f.weight.size(), 4u);
   EXPECT_EQ(f.excluded, (std::vector<uint8_t>{1, 0, 0, 0}));
@@ -131,7 +131,7 @@ TEST(MaskScorerTest, ExcludesConfidentPixelsAndWeightsTheRest) {
   EXPECT_NEAR(f.weight[3], 1.0f, 1e-6);  // clamped to the image: pixel (5, 0)
   mask.status = MaskStatus::kSkipped;
   mask.segmentation = nullptr;
-  const KeypointFilter none = scorer.Score(input);
+  const KeypointFilter none = scorer.Score(input).filter;
   EXPECT_TRUE(none.excluded.empty());
   EXPECT_TRUE(none.weight.empty());
 }
@@ -170,10 +170,10 @@ TEST(DynamicFilterScorerTest, TheTicketsOpticalFlowSettingSwitchesLkOff) {
 class FixedScorer final : public FrameScorer {
  public:
   explicit FixedScorer(std::vector<uint8_t> excluded) : excluded_(std::move(excluded)) {}
-  KeypointFilter Score(const ScoringInput& input) override {
+  ScoredFrame Score(const ScoringInput& input) override {
     last_mask = input.mask.status;
-    KeypointFilter f;
-    f.excluded = excluded_;
+    ScoredFrame f;
+    f.filter.excluded = excluded_;
     return f;
   }
   std::string Name() const override { return "fixed"; }

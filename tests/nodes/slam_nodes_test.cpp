@@ -83,8 +83,10 @@ TEST(SlamNodesTest, NodeChainEqualsProcessFrame) {
     EXPECT_GT(actual.times_ms.tracking, 0.0);
     EXPECT_NEAR(actual.times_ms.total,
                 actual.times_ms.orb_left + actual.times_ms.orb_right + actual.times_ms.stereo +
-                    actual.times_ms.tracking + actual.times_ms.local_mapping,
+                    actual.times_ms.filter + actual.times_ms.tracking +
+                    actual.times_ms.local_mapping,
                 1e-9);
+    EXPECT_EQ(actual.times_ms.filter, filtered->filter_ms);
   }
   EXPECT_EQ(slam.RefinedTrajectory().size(), reference.RefinedTrajectory().size());
   EXPECT_GE(slam.RefinedTrajectory().size(), 3u);

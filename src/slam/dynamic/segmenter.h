@@ -7,6 +7,7 @@
 // detectors do: pixel (u, v) covers [u, u+1) x [v, v+1), so a camera-convention point (x, y) lies
 // in a box when (x + 0.5, y + 0.5) does.
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <opencv2/core.hpp>
 #include <set>
@@ -54,6 +55,12 @@ class Segmenter {
   virtual ~Segmenter() = default;
   // image: grey CV_8UC1 or BGR CV_8UC3. Throws std::invalid_argument on anything else.
   virtual Segmentation Segment(const cv::Mat& image) = 0;
+  // The same for a known frame of a sequence (frame_index: the dataset's frame). Segmenters that
+  // look at the image alone ignore the index; ground-truth segmenters use it.
+  virtual Segmentation SegmentFrame(int64_t frame_index, const cv::Mat& image) {
+    (void)frame_index;
+    return Segment(image);
+  }
   virtual std::string Name() const = 0;
   // For segmenters that run on a device: how Segment() waits for it (empty: block). Segmenters
   // that compute on the calling thread ignore it. Not to be called while Segment() runs.

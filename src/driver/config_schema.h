@@ -12,7 +12,7 @@ namespace YAML {
 class Node;
 }
 
-namespace pcr::app {
+namespace pcr::driver {
 
 class ConfigSchema {
  public:
@@ -41,4 +41,4 @@ class ConfigSchema {
   std::vector<Field> fields_;
 };
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -11,7 +11,7 @@
 #include "sim/instances.h"
 #include "slam/dynamic/segmenter.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 
 struct TruthSegmenterOptions {
   double miss_rate = 0.0;  // probability that an instance is not reported in a frame
@@ -35,6 +35,11 @@ class TruthSegmenter : public Segmenter {
   void SetFrame(size_t frame_index) { frame_ = frame_index; }
   // `image` only gives the expected size (its content is not used).
   Segmentation Segment(const cv::Mat& image) override;
+  // The ground truth of frame_index (sets it for Segment()).
+  Segmentation SegmentFrame(int64_t frame_index, const cv::Mat& image) override {
+    SetFrame(static_cast<size_t>(frame_index));
+    return Segment(image);
+  }
   std::string Name() const override { return "truth"; }
 
   const sim::InstanceTable& instances() const { return table_; }
@@ -48,4 +53,4 @@ class TruthSegmenter : public Segmenter {
   std::mt19937_64 rng_;
 };
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -1,10 +1,10 @@
-#include "app/config_schema.h"
+#include "driver/config_schema.h"
 
 #include <gtest/gtest.h>
 
 #include "slam/common/error.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 namespace {
 
 struct Opts {
@@ -99,4 +99,4 @@ TEST(ConfigSchema, MissingFileNamed) {
 }
 
 }  // namespace
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -3,12 +3,12 @@
 #include <filesystem>
 #include <fstream>
 
-#include "app/run_slam.h"
-#include "app/slam_config.h"
+#include "driver/driver.h"
+#include "driver/slam_config.h"
 #include "slam/common/error.h"
 #include "support/data_paths.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 namespace {
 
 std::string WriteFile(const std::string& dir, const std::string& name, const std::string& text) {
@@ -105,7 +105,7 @@ TEST(FrameRange, Parses) {
 
 // A corrupt image in the middle of a run stops it with an error naming the file, and the poses of
 // the frames before it are still written.
-TEST(RunSlam, CorruptImageKeepsEarlierFrames) {
+TEST(RunDataset, CorruptImageKeepsEarlierFrames) {
   namespace fs = std::filesystem;
   const std::string src = test::SharedPath("data/kitti/sequences/06");
   const std::string root = test::MakeTempDir("pcr_corrupt");
@@ -130,7 +130,9 @@ TEST(RunSlam, CorruptImageKeepsEarlierFrames) {
   const Dataset dataset = OpenDataset(seq);
   RunConfig config;
   config.slam.orb.num_features = 1000;
-  const RunSummary summary = RunSlam(dataset, config, FrameRange{0, 8});
+  DriverOptions sequential;
+  sequential.pipeline.policy = graph::Policy::kSequential;
+  const RunSummary summary = RunDataset(dataset, config, FrameRange{0, 8}, sequential).summary;
   EXPECT_EQ(summary.frames_in, 5u);
   EXPECT_NE(summary.error.find("000005.png"), std::string::npos) << summary.error;
   const std::string out = root + "/out";
@@ -144,4 +146,4 @@ TEST(RunSlam, CorruptImageKeepsEarlierFrames) {
 }
 
 }  // namespace
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -1,4 +1,4 @@
-#include "app/dynamic_run.h"
+#include "driver/filter_audit.h"
 
 #include <gtest/gtest.h>
 
@@ -6,12 +6,12 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "app/run_slam.h"
+#include "driver/driver.h"
 #include "sim/sequence_writer.h"
 #include "slam/common/error.h"
 #include "support/data_paths.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 namespace {
 
 // 20 frames of the synthetic street with movers and parked cars.
@@ -27,13 +27,21 @@ const std::string& TrafficSequence() {
   return dir;
 }
 
-TEST(DynamicRun, FilterExcludesMovingObjectPointsFarMoreThanStaticOnes) {
+DriverOptions Sequential() {
+  DriverOptions o;
+  o.pipeline.policy = graph::Policy::kSequential;
+  return o;
+}
+
+// The filter's per-frame reports travel with the frames' records to the audit, in every policy.
+TEST(FilterAudit, FilterExcludesMovingObjectPointsFarMoreThanStaticOnes) {
   const Dataset dataset = OpenDataset(TrafficSequence());
   RunConfig config;
   config.dynamic.segmenter = "truth";
   config.dynamic.filter = true;
   config.dynamic.dump = true;
-  const RunSummary s = RunSlam(dataset, config, FrameRange{0, dataset.size()});
+  const RunSummary s =
+      RunDataset(dataset, config, FrameRange{0, dataset.size()}, Sequential()).summary;
   EXPECT_EQ(s.frames_lost, 0u);
   EXPECT_EQ(s.frames_tracked, dataset.size());
   ASSERT_TRUE(s.filtered);
@@ -61,21 +69,29 @@ TEST(DynamicRun, FilterExcludesMovingObjectPointsFarMoreThanStaticOnes) {
   EXPECT_TRUE(std::filesystem::exists(out + "/filter_decisions.txt"));
 }
 
-TEST(DynamicRun, BadSegmenterSetupsAreClearErrors) {
+TEST(FilterAudit, BadSegmenterSetupsAreClearErrorsBeforeAnyFrameRuns) {
   const Dataset dataset = OpenDataset(TrafficSequence());
-  DynamicRunOptions o;
+  const FrameRange range{0, 3};
+  RunConfig config;
+  DynamicRunOptions& o = config.dynamic;
   o.filter = true;
   o.segmenter = "yolo";  // no --model
-  EXPECT_THROW(DynamicRun(dataset, o, 1.2), ConfigError);
+  EXPECT_THROW(RunDataset(dataset, config, range, Sequential()), ConfigError);
   o.model_path = "/nonexistent/model.onnx";
-  EXPECT_THROW(DynamicRun(dataset, o, 1.2), InputError);
+  EXPECT_THROW(RunDataset(dataset, config, range, Sequential()), InputError);
   o.segmenter = "magic";
-  EXPECT_THROW(DynamicRun(dataset, o, 1.2), ConfigError);
+  EXPECT_THROW(RunDataset(dataset, config, range, Sequential()), ConfigError);
+  o.segmenter = "none";
+  o.filter = false;
+  o.truth_labels = test::SharedPath("data/kitti_tracking/training/label_02/0000.txt");
+  EXPECT_THROW(RunDataset(dataset, config, range, Sequential()), ConfigError);
   // The truth segmenter needs a synthetic sequence.
   const Dataset kitti = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
+  o.truth_labels.clear();
+  o.filter = true;
   o.segmenter = "truth";
-  EXPECT_THROW(DynamicRun(kitti, o, 1.2), InputError);
+  EXPECT_THROW(RunDataset(kitti, config, range, Sequential()), InputError);
 }
 
 }  // namespace
-}  // namespace pcr::app
+}  // namespace pcr::driver

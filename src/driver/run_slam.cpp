@@ -1,20 +1,18 @@
-#include "app/run_slam.h"
+#include "driver/run_slam.h"
 
 #include <spdlog/spdlog.h>
 
-#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "app/dynamic_run.h"
 #include "eval/plot.h"
 #include "eval/report.h"
 #include "io/trajectory_io.h"
 #include "slam/common/error.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 namespace {
 
 nlohmann::json TimingJson(const TimingSummary& s) {
@@ -39,8 +37,8 @@ StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera) {
   return rig;
 }
 
-FrameRange FrameRange::Parse(const std::string& text, size_t size) {
-  FrameRange r{0, size};
+FrameRange FrameRange::ParseText(const std::string& text) {
+  FrameRange r{0, 0};
   if (text.empty()) return r;
   const auto colon = text.find(':');
   if (colon == std::string::npos) throw ConfigError("--frames '" + text + "' is not A:B");
@@ -48,10 +46,16 @@ FrameRange FrameRange::Parse(const std::string& text, size_t size) {
     const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
     if (!a.empty()) r.first = std::stoul(a);
     if (!b.empty()) r.end = std::stoul(b);
-  } catch (const std::exception&) {
+    if (!b.empty() && r.end == 0) throw ConfigError("--frames '" + text + "' selects no frame");
+  } catch (const std::logic_error&) {
     throw ConfigError("--frames '" + text + "': A and B must be frame numbers");
   }
-  if (r.end > size) r.end = size;
+  return r;
+}
+
+FrameRange FrameRange::Parse(const std::string& text, size_t size) {
+  FrameRange r = ParseText(text);
+  if (r.end == 0 || r.end > size) r.end = size;
   if (r.first >= r.end)
     throw ConfigError("--frames '" + text + "' selects no frame of " + std::to_string(size));
   return r;
@@ -110,60 +114,8 @@ void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool mo
   }
 }
 
-RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, FrameRange range,
-                   const FrameCallback& on_frame) {
-  return RunSlam(dataset, config, SlamMode::kStereo, range, on_frame);
-}
-
-RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, SlamMode mode, FrameRange range,
-                   const FrameCallback& on_frame) {
-  if (range.end == 0 || range.end > dataset.size()) range.end = dataset.size();
-  const bool stereo = mode == SlamMode::kStereo;
-  if (stereo && !dataset.has_right())
-    throw ConfigError(dataset.root + ": stereo mode needs a right image stream (image_1)");
-  RunSummary summary;
-  summary.dataset_name = dataset.name;
-  summary.mode = mode;
-  summary.range = range;
-  const auto start = std::chrono::steady_clock::now();
-
-  SlamSystem slam(EffectiveRig(dataset, config.camera), config.slam, mode);
-  DynamicRun dynamic(dataset, config.dynamic, config.slam.orb.scale_factor);
-  if (dynamic.active()) spdlog::info("dynamic points: {}", dynamic.Describe());
-  std::vector<int64_t> indices;
-  for (size_t i = range.first; i < range.end; ++i) {
-    FrameOutput out;
-    try {
-      const cv::Mat left = dataset.LoadLeft(i);
-      const cv::Mat right = stereo ? dataset.LoadRight(i) : cv::Mat();
-      out = slam.ProcessFrame(static_cast<int64_t>(i), dataset.t_ns[i], left, right,
-                              dynamic.ForFrame(i, left, &summary));
-    } catch (const std::exception& e) {
-      summary.error = e.what();
-      spdlog::error("frame {}: {} (keeping the {} frames done)", i, e.what(), indices.size());
-      break;
-    }
-    spdlog::debug(
-        "frame {}: status {} method {} keypoints {} stereo {} tracked {} (initial {}/{}, local "
-        "{}/{}) keyframe {} {}",
-        i, static_cast<int>(out.status), static_cast<int>(out.method), out.num_keypoints,
-        out.num_stereo, out.num_tracked, out.num_inliers_initial, out.num_matches_initial,
-        out.num_local_matches, out.num_local_projected, out.keyframe_inserted, out.keyframe_reason);
-    indices.push_back(static_cast<int64_t>(i));
-    AddFrameToSummary(out, stereo, &summary);
-    if (on_frame) on_frame(summary.frames_in, range.end - range.first, out);
-  }
-  summary.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-
-  // Refined poses of tracked frames; hold the last known pose elsewhere.
-  summary.tracked = slam.RefinedTrajectory();
-  const int64_t end = indices.empty() ? static_cast<int64_t>(range.first) : indices.back() + 1;
-  CompleteSummary(dataset, static_cast<int64_t>(range.first), end, !stereo, &summary);
-  return summary;
-}
-
 void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
-                     const std::string& config_yaml) {
+                     const std::string& config_yaml, const nlohmann::json& extra) {
   namespace fs = std::filesystem;
   std::error_code ec;
   fs::create_directories(out_dir, ec);
@@ -218,6 +170,8 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
     eval::WriteTrajectoryPlot(out_dir + "/trajectory.png",
                               eval::GroundTruthAndEstimate(e.reference, e.aligned_estimate), plot);
   }
+  if (extra.is_object())
+    for (const auto& [key, value] : extra.items()) j[key] = value;
   std::ofstream stats(out_dir + "/stats.json");
   stats << j.dump(2) << "\n";
   if (!stats) throw InputError(out_dir + "/stats.json", 0, "cannot write");
@@ -253,4 +207,4 @@ std::string FormatRunSummary(const RunSummary& s) {
   return o.str();
 }
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

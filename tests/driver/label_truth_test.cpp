@@ -1,4 +1,4 @@
-#include "app/label_truth.h"
+#include "driver/label_truth.h"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include "slam/common/error.h"
 #include "support/data_paths.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 namespace {
 
 std::string Drive0005() {
@@ -61,4 +61,4 @@ TEST(LabelTruth, MissingLabelFileNamesIt) {
 }
 
 }  // namespace
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -3,11 +3,11 @@
 // edge.
 #include <string>
 
-#include "app/config_schema.h"
+#include "driver/config_schema.h"
 #include "slam/dynamic/dynamic_filter.h"
 #include "slam/system/slam_system.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 
 // Optional camera override (all zero: use the dataset's calibration).
 struct CameraOverride {
@@ -45,4 +45,4 @@ void BindRunConfig(RunConfig& config, ConfigSchema& schema);
 RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>& overrides,
                         std::string* effective_yaml);
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -1,4 +1,4 @@
-#include "app/truth_segmenter.h"
+#include "driver/truth_segmenter.h"
 
 #include <cstdio>
 #include <filesystem>
@@ -10,7 +10,7 @@
 #include "slam/common/error.h"
 #include "slam/dynamic/mask_utils.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 
 bool TruthSegmenterOptions::IsValid(std::string* why) const {
   auto fail = [&](const char* m) {
@@ -113,4 +113,4 @@ Segmentation TruthSegmenter::Segment(const cv::Mat& image) {
   return out;
 }
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -13,7 +13,7 @@
 #include "io/dataset.h"
 #include "io/kitti_tracking.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 
 enum class LabelTruthKind : uint8_t { kStatic, kMoving, kParked };
 
@@ -46,4 +46,4 @@ class LabelTruth {
 
 const char* LabelTruthName(LabelTruthKind kind);
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -1,4 +1,4 @@
-#include "app/truth_segmenter.h"
+#include "driver/truth_segmenter.h"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 #include "slam/common/error.h"
 #include "support/data_paths.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 namespace {
 
 // A small synthetic sequence (quarter size, 3 frames) with movers and parked cars.
@@ -112,4 +112,4 @@ TEST(TruthSegmenter, BadInputIsNamed) {
 }
 
 }  // namespace
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -1,4 +1,4 @@
-#include "app/inference.h"
+#include "driver/inference.h"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 #include "slam/common/error.h"
 #include "support/data_paths.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 namespace {
 
 TEST(Inference, OpenCvIsTheDefaultEngineAndTwinPlugsInTheExecutor) {
@@ -123,4 +123,4 @@ TEST(Inference, TheLkTwinOnTheGraphsDeviceWaitKeepsPoliciesIdentical) {
 }
 
 }  // namespace
-}  // namespace pcr::app
+}  // namespace pcr::driver

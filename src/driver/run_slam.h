@@ -1,24 +1,26 @@
 #pragma once
-// Runs the SLAM system over a dataset frame range and writes the run's outputs. Shared by
-// `pcr_orb run`, the benchmarks and the end-to-end tests.
+// The summary of a run over a dataset frame range (driver/driver.h runs it) and its outputs.
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
-#include "app/slam_config.h"
+#include "driver/slam_config.h"
 #include "eval/confusion.h"
 #include "eval/evaluation.h"
 #include "io/dataset.h"
 #include "slam/common/timing.h"
 #include "slam/system/slam_system.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 
 struct FrameRange {
   size_t first = 0;
   size_t end = 0;  // exclusive; 0 = to the end of the dataset
   // Parses "A:B" (B exclusive, either side may be empty) against a dataset of `size` frames.
   static FrameRange Parse(const std::string& text, size_t size);
+  // The same without a size: end 0 when B is empty. Throws ConfigError when malformed.
+  static FrameRange ParseText(const std::string& text);
 };
 
 struct RunSummary {
@@ -59,26 +61,13 @@ void AddFrameToSummary(const FrameOutput& out, bool stereo, RunSummary* summary)
 void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool monocular,
                      RunSummary* summary);
 
-using FrameCallback = std::function<void(size_t done, size_t total, const FrameOutput&)>;
-
-// Runs frames [range.first, range.end) in the given mode (monocular: left images only, the
-// dataset needs no right stream; stereo: throws ConfigError without one). A failure in frame k
-// (e.g. an unreadable image) stops the run: the summary then covers frames before k and `error`
-// says why. Evaluates against ground truth when the dataset has it: SE(3) alignment for stereo,
-// Sim(3) for monocular runs (their scale is arbitrary).
-RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, SlamMode mode, FrameRange range,
-                   const FrameCallback& on_frame = {});
-// Stereo.
-RunSummary RunSlam(const Dataset& dataset, const RunConfig& config, FrameRange range,
-                   const FrameCallback& on_frame = {});
-
 // trajectory.txt (KITTI, one line per input frame), trajectory_tum.txt (tracked frames),
 // stats.json, config.yaml (effective configuration) and, with ground truth, evaluation.json and
-// trajectory.png. Creates out_dir.
+// trajectory.png. Creates out_dir. extra: more top-level keys of stats.json (e.g. "pipeline").
 void WriteRunOutputs(const std::string& out_dir, const RunSummary& summary,
-                     const std::string& config_yaml);
+                     const std::string& config_yaml, const nlohmann::json& extra = {});
 
 // Human-readable summary (frames, per-stage times, evaluation table when present).
 std::string FormatRunSummary(const RunSummary& summary);
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -1,10 +1,10 @@
-#include "app/label_truth.h"
+#include "driver/label_truth.h"
 
 #include <opencv2/imgproc.hpp>
 
 #include "slam/common/error.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 
 const char* LabelTruthName(LabelTruthKind kind) {
   switch (kind) {
@@ -86,4 +86,4 @@ std::vector<LabelTruthKind> LabelTruth::Classify(size_t frame,
   return out;
 }
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

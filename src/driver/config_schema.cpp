@@ -1,4 +1,4 @@
-#include "app/config_schema.h"
+#include "driver/config_schema.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -9,7 +9,7 @@
 
 #include "slam/common/error.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 namespace {
 
 int LineOf(const YAML::Node& node) { return node.Mark().line >= 0 ? node.Mark().line + 1 : 0; }
@@ -156,4 +156,4 @@ std::string ConfigSchema::Dump() const {
   return std::string(out.c_str()) + "\n";
 }
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

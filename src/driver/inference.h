@@ -5,7 +5,7 @@
 #include "slam/dynamic/dynamic_filter.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 
 // Accepted values, for help texts: opencv, twin, cuda, cuda:N, auto.
 inline constexpr const char* kInferenceHelp =
@@ -25,4 +25,4 @@ inline constexpr const char* kFlowHelp =
 // Sets filter->flow_factory for `flow`; the same values and errors as ApplyInference.
 void ApplyFlow(const std::string& flow, DynamicFilterOptions* filter);
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

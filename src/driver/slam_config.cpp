@@ -1,8 +1,8 @@
-#include "app/slam_config.h"
+#include "driver/slam_config.h"
 
 #include "slam/common/error.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 
 bool CameraOverride::IsValid(std::string* why) const {
   if (!Active()) return true;
@@ -137,4 +137,4 @@ RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>&
   return config;
 }
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

@@ -1,4 +1,4 @@
-#include "app/inference.h"
+#include "driver/inference.h"
 
 #include <spdlog/spdlog.h>
 
@@ -7,7 +7,7 @@
 #include "gpu/net_engine.h"
 #include "slam/common/error.h"
 
-namespace pcr::app {
+namespace pcr::driver {
 namespace {
 
 // The device of an engine option (`flag` = `value`): "" for the CPU default (`opencv`, or `auto`
@@ -46,4 +46,4 @@ void ApplyFlow(const std::string& flow, DynamicFilterOptions* filter) {
   filter->flow_factory = device.empty() ? nullptr : gpu::LkFlowFactory(device);
 }
 
-}  // namespace pcr::app
+}  // namespace pcr::driver

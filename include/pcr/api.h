@@ -1,0 +1,139 @@
+#pragma once
+// PCR-ORB's public API: run stereo or monocular SLAM with dynamic-point filtering on a KITTI
+// sequence and get poses, per-frame results and statistics back as plain values.
+//
+//   pcr::api::Config config;                      // stereo, sequential policy, filter off
+//   config.filter = true;                         // the multi-stage dynamic-point filter
+//   const pcr::api::Result result =
+//       pcr::api::Run(config, pcr::api::Source::Dataset("kitti/sequences/06"));
+//   if (result.stats.ate_rmse_m) std::printf("ATE %.3f m\n", *result.stats.ate_rmse_m);
+//
+// Every run goes through the same flow graph as `pcr_orb run` and `pcr_orb pipeline` (the
+// command line is this API's first user); `sequential` is the deterministic reference policy,
+// `pipelined` overlaps stages and frames, `realtime` replays the sequence as a live camera.
+// Poses are world_from_cam (camera-to-world, metres; the world is the first frame's camera),
+// as KITTI and TUM trajectory files store them.
+//
+// Link: find_package(pcr_orb) and target_link_libraries(you PRIVATE pcr_orb::pcr_orb).
+// Thread-safety: Run() may be called from any thread; concurrent runs do not share state, but
+// each uses `threads` cores.
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace pcr::api {
+
+enum class Mode { kStereo, kMono };
+enum class Policy { kSequential, kPipelined, kRealtime };
+
+struct Config {
+  Mode mode = Mode::kStereo;
+  Policy policy = Policy::kSequential;
+  int threads = 2;               // cores for the graph, OpenCV and Ceres
+  int max_in_flight = 4;         // pipelined/realtime: frames in the graph at once
+  double rate = 1.0;             // realtime: 1 = the sequence's own clock, 0.5 = twice as fast
+  int waiting = 1;               // realtime: released frames that wait for a slot
+  double mask_deadline_ms = 10;  // realtime: how long tracking waits for a late mask
+  bool adaptive = false;         // adaptive quality control (High/Medium/Low from the time budget)
+
+  std::string config_file;             // YAML configuration (config/*.yaml); empty: defaults
+  std::vector<std::string> overrides;  // "section.key=value", applied after the file
+
+  // Dynamic points.
+  bool filter = false;               // the multi-stage dynamic-point filter before tracking
+  std::string segmenter = "none";    // "yolo", "truth" (synthetic sequences) or "none"
+  std::string model;                 // YOLOv8-seg ONNX export for "yolo"
+  std::string model_high;            // adaptive: the accurate model (optional)
+  std::string inference = "opencv";  // network engine: opencv, twin, cuda, cuda:N, auto
+  std::string flow = "opencv";       // the filter's LK flow: the same choices
+  double truth_miss_rate = 0;        // "truth": probability that an instance is missed
+  std::string truth_labels;          // raw drives: KITTI tracking labels to score the filter
+  bool dump_filter = false;          // write every keypoint's decision (filter_decisions.txt)
+
+  // Memory and scheduling details (see `pcr_orb pipeline --help`).
+  int trim_every = 25;
+  bool trim_after_keyframe = false;
+  bool device_overlap = true;
+  double tracking_delay_ms = 0;  // testing: a slower back end
+
+  // Non-empty: write the run's outputs there (trajectory.txt, trajectory_tum.txt, stats.json,
+  // config.yaml, trace.json, timing.png, evaluation.json and trajectory.png with ground truth).
+  std::string out_dir;
+};
+
+// Where the frames come from: a KITTI odometry sequence (sequences/NN, ground truth found at
+// ../../poses/NN.txt) or a KITTI raw drive (*_sync, ground truth from OXTS), or a synthetic
+// sequence written by `pcr_orb synth`.
+struct Source {
+  std::string path;
+  int64_t first = 0;  // frames [first, end)
+  int64_t end = 0;    // 0: to the end of the sequence
+  static Source Dataset(std::string path, int64_t first = 0, int64_t end = 0) {
+    return Source{std::move(path), first, end};
+  }
+  // frames "A:B" (B exclusive; either side may be empty, "" = all). Throws Error when malformed.
+  static Source Dataset(std::string path, const std::string& frames);
+};
+
+struct Pose {
+  int64_t frame_index = -1;
+  int64_t t_ns = 0;
+  Eigen::Matrix4d world_from_cam = Eigen::Matrix4d::Identity();
+};
+
+enum class Status { kTracked, kLost, kNotInitialized };
+
+struct FrameResult {
+  int64_t frame_index = -1;
+  int64_t t_ns = 0;
+  Status status = Status::kNotInitialized;
+  Eigen::Matrix4d world_from_cam = Eigen::Matrix4d::Identity();  // online estimate
+  int keypoints = 0;
+  int tracked_points = 0;   // inlier map points
+  int excluded_points = 0;  // keypoints the filter (or the masks) kept out
+  bool keyframe = false;
+  size_t map_keyframes = 0, map_points = 0;  // the map's size after this frame
+  std::string mask;                          // "fresh", "stale" or "skipped"
+  double latency_ms = 0;                     // to the pose (realtime: from the frame's release)
+};
+
+struct Statistics {
+  size_t frames_in = 0, frames_tracked = 0, frames_lost = 0, frames_not_initialized = 0;
+  size_t frames_dropped = 0;  // realtime
+  size_t keyframes = 0, map_points = 0;
+  double wall_s = 0, fps = 0;
+  double latency_p50_ms = 0, latency_p99_ms = 0;
+  // Against the sequence's ground truth, when it has one (SE(3) alignment; Sim(3) in mono).
+  std::optional<double> ate_rmse_m, rpe_rmse_m;
+};
+
+struct Result {
+  std::vector<Pose> trajectory;     // tracked frames, as refined by local mapping
+  std::vector<Pose> per_frame;      // one pose per input frame (held where not tracked)
+  std::vector<FrameResult> frames;  // completed frames, in order
+  Statistics stats;
+  std::string report;  // the human-readable summary `pcr_orb run` prints
+  std::string error;   // non-empty when a frame failed: the results cover the frames before it
+};
+
+// Raised for an invalid configuration or an unreadable input (naming the file and line).
+class Error : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Called after each completed frame, in frame order, from the run's own threads.
+using FrameCallback = std::function<void(const FrameResult& frame, size_t done, size_t total)>;
+
+// Runs the source's frames. Throws Error before any frame runs when the configuration or the
+// input is bad; a failure while processing frames is reported in Result::error instead.
+Result Run(const Config& config, const Source& source, const FrameCallback& on_frame = {});
+
+// "0.1.0"
+std::string Version();
+
+}  // namespace pcr::api

@@ -1,0 +1,165 @@
+// include/pcr/api.h on the driver (driver/driver.h).
+#include "pcr/api.h"
+
+#include <spdlog/spdlog.h>
+
+#include "driver/driver.h"
+#include "pcr/version.h"
+#include "slam/common/error.h"
+
+namespace pcr::api {
+namespace {
+
+graph::Policy ToPolicy(Policy p) {
+  switch (p) {
+    case Policy::kSequential:
+      return graph::Policy::kSequential;
+    case Policy::kPipelined:
+      return graph::Policy::kPipelined;
+    case Policy::kRealtime:
+      return graph::Policy::kRealtime;
+  }
+  throw Error("unknown policy");
+}
+
+Status ToStatus(TrackingStatus s) {
+  switch (s) {
+    case TrackingStatus::kOk:
+      return Status::kTracked;
+    case TrackingStatus::kLost:
+      return Status::kLost;
+    case TrackingStatus::kNotInitialized:
+      return Status::kNotInitialized;
+  }
+  return Status::kNotInitialized;
+}
+
+Pose ToPose(const StampedPose& p) { return Pose{p.frame_index, p.t_ns, p.world_from_cam.matrix()}; }
+
+FrameResult ToFrameResult(const graph::FrameRecord& r) {
+  FrameResult f;
+  f.frame_index = r.frame_index;
+  f.t_ns = r.t_ns;
+  f.status = ToStatus(r.output.status);
+  f.world_from_cam = r.output.world_from_cam.matrix();
+  f.keypoints = r.output.num_keypoints;
+  f.tracked_points = r.output.num_tracked;
+  f.excluded_points = r.num_excluded;
+  f.keyframe = r.output.keyframe_inserted;
+  f.map_keyframes = r.output.num_keyframes;
+  f.map_points = r.output.num_map_points;
+  f.mask = nodes::ToString(r.mask);
+  f.latency_ms = r.latency_ms;
+  return f;
+}
+
+driver::DriverOptions ToDriverOptions(const Config& c) {
+  driver::DriverOptions o;
+  o.mode = c.mode == Mode::kMono ? SlamMode::kMonocular : SlamMode::kStereo;
+  graph::PipelineOptions& p = o.pipeline;
+  p.policy = ToPolicy(c.policy);
+  p.threads = c.threads;
+  p.max_in_flight = c.max_in_flight;
+  p.rate = c.rate;
+  p.waiting_capacity = c.waiting;
+  p.mask_deadline_ms = c.mask_deadline_ms;
+  p.adaptive = c.adaptive;
+  p.tracking_delay_ms = c.tracking_delay_ms;
+  p.trim_heap_every = c.trim_every;
+  p.trim_heap_after_keyframe = c.trim_after_keyframe;
+  p.device_overlap = c.device_overlap;
+  std::string why;
+  if (!p.IsValid(&why)) throw ConfigError("pipeline options: " + why);
+  o.model_high = c.model_high;
+  return o;
+}
+
+Result RunChecked(const Config& config, const Source& source, const FrameCallback& on_frame) {
+  const Dataset dataset = OpenDataset(source.path);
+  std::string config_yaml;
+  driver::RunConfig run_config =
+      driver::LoadRunConfig(config.config_file, config.overrides, &config_yaml);
+  driver::DynamicRunOptions& d = run_config.dynamic;  // its filter options come from the file
+  d.segmenter = config.segmenter;
+  d.model_path = config.model;
+  d.inference = config.inference;
+  d.flow = config.flow;
+  d.filter = config.filter;
+  d.dump = config.dump_filter;
+  d.truth_miss_rate = config.truth_miss_rate;
+  d.truth_labels = config.truth_labels;
+  driver::DriverOptions options = ToDriverOptions(config);
+  if (source.first < 0 || source.end < 0) throw ConfigError("Source: negative frame number");
+  driver::FrameRange range{static_cast<size_t>(source.first), static_cast<size_t>(source.end)};
+  if (range.end == 0 || range.end > dataset.size()) range.end = dataset.size();
+  if (range.first >= range.end)
+    throw ConfigError("Source: frames " + std::to_string(source.first) + ":" +
+                      std::to_string(source.end) + " select no frame of " +
+                      std::to_string(dataset.size()));
+  spdlog::info("{} {} {}: {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m{}",
+               graph::ToString(options.pipeline.policy), ToString(options.mode),
+               config.filter ? "filter on" : "filter off", dataset.name, range.end - range.first,
+               range.first, range.end - 1, dataset.rig.left.width_px, dataset.rig.left.height_px,
+               dataset.rig.left.fx, dataset.rig.baseline_m,
+               config.out_dir.empty() ? "" : ", out " + config.out_dir);
+  spdlog::debug("effective configuration:\n{}", config_yaml);
+  if (on_frame)
+    options.on_frame = [&on_frame](size_t done, size_t total, const graph::FrameRecord& r) {
+      on_frame(ToFrameResult(r), done, total);
+    };
+
+  const driver::DriverResult run = driver::RunDataset(dataset, run_config, range, options);
+  if (!config.out_dir.empty())
+    driver::WriteDriverOutputs(config.out_dir, run, config_yaml,
+                               driver::DriverOptionsJson(run_config, options));
+
+  Result result;
+  const driver::RunSummary& s = run.summary;
+  for (const StampedPose& p : s.tracked) result.trajectory.push_back(ToPose(p));
+  for (const StampedPose& p : s.per_frame) result.per_frame.push_back(ToPose(p));
+  for (const graph::FrameRecord& r : run.pipeline.frames) result.frames.push_back(ToFrameResult(r));
+  Statistics& st = result.stats;
+  st.frames_in = s.frames_in;
+  st.frames_tracked = s.frames_tracked;
+  st.frames_lost = s.frames_lost;
+  st.frames_not_initialized = s.frames_not_initialized;
+  st.frames_dropped = run.pipeline.stats.frames_dropped;
+  st.keyframes = s.keyframes;
+  st.map_points = s.map_points;
+  st.wall_s = run.pipeline.stats.wall_s;
+  st.fps = run.pipeline.stats.fps;
+  st.latency_p50_ms = run.pipeline.stats.latency.p50_ms;
+  st.latency_p99_ms = run.pipeline.stats.latency.p99_ms;
+  if (s.evaluation) {
+    st.ate_rmse_m = s.evaluation->ape.trans_m.rmse;
+    st.rpe_rmse_m = s.evaluation->rpe.trans_m.rmse;
+  }
+  result.report = driver::FormatDriverSummary(run);
+  result.error = s.error;
+  return result;
+}
+
+}  // namespace
+
+Result Run(const Config& config, const Source& source, const FrameCallback& on_frame) {
+  try {
+    return RunChecked(config, source, on_frame);
+  } catch (const InputError& e) {
+    throw Error(e.what());
+  } catch (const ConfigError& e) {
+    throw Error(e.what());
+  }
+}
+
+Source Source::Dataset(std::string path, const std::string& frames) {
+  try {
+    const driver::FrameRange r = driver::FrameRange::ParseText(frames);
+    return Source{std::move(path), static_cast<int64_t>(r.first), static_cast<int64_t>(r.end)};
+  } catch (const ConfigError& e) {
+    throw Error(e.what());
+  }
+}
+
+std::string Version() { return std::string(kVersion); }
+
+}  // namespace pcr::api

@@ -1,0 +1,187 @@
+#include "driver/driver.h"
+
+#include <spdlog/spdlog.h>
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "driver/filter_audit.h"
+#include "driver/inference.h"
+#include "driver/truth_segmenter.h"
+#include "graph/pipeline_report.h"
+#include "nodes/filter_node.h"
+#include "slam/common/error.h"
+#include "slam/dynamic/yolo_segmenter.h"
+
+namespace pcr::driver {
+namespace {
+
+// The segmenters of a run (owned) and the set the graph gets.
+struct Segmenters {
+  std::vector<std::unique_ptr<Segmenter>> owned;
+  nodes::SegmenterSet set;
+};
+
+Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
+                          const std::string& model_high, const nodes::FrameSource& source) {
+  Segmenters s;
+  if (o.segmenter == "yolo") {
+    if (o.model_path.empty())
+      throw ConfigError("--segmenter yolo needs --model FILE (a YOLOv8-seg ONNX export)");
+    YoloOptions yolo;
+    yolo.model_path = o.model_path;
+    ApplyInference(o.inference, &yolo);
+    s.owned.push_back(std::make_unique<YoloSegmenter>(yolo));
+    s.set.fast = s.owned.back().get();
+    if (!model_high.empty()) {
+      yolo.model_path = model_high;
+      s.owned.push_back(std::make_unique<YoloSegmenter>(yolo));
+      s.set.accurate = s.owned.back().get();
+    }
+    // The first forward pass initialises the network: keep it out of the run's timings.
+    const int64_t first = source.frame_indices.front();
+    const cv::Mat image =
+        source.load_left_color ? source.load_left_color(first) : source.load_left(first);
+    for (const auto& n : s.owned) {
+      const auto* y = static_cast<const YoloSegmenter*>(n.get());
+      spdlog::info("segmenter: {} ({}x{}, {})", y->Name(), y->input_size().width,
+                   y->input_size().height, y->backend());
+      n->Segment(image);
+    }
+  } else if (o.segmenter == "truth") {
+    TruthSegmenterOptions truth;
+    truth.miss_rate = o.truth_miss_rate;
+    s.owned.push_back(std::make_unique<TruthSegmenter>(dataset.root, truth));
+    s.set.fast = s.owned.back().get();
+  } else if (o.segmenter != "none") {
+    throw ConfigError("--segmenter must be yolo, truth or none, not '" + o.segmenter + "'");
+  }
+  return s;
+}
+
+}  // namespace
+
+nodes::FrameSource SourceFromDataset(const Dataset& dataset, const StereoRig& rig, FrameRange range,
+                                     SlamMode mode, bool with_color) {
+  nodes::FrameSource source;
+  source.name = dataset.name;
+  source.rig = rig;
+  for (size_t i = range.first; i < range.end; ++i) {
+    source.frame_indices.push_back(static_cast<int64_t>(i));
+    source.t_ns.push_back(dataset.t_ns[i]);
+  }
+  source.load_left = [&dataset](int64_t i) { return dataset.LoadLeft(static_cast<size_t>(i)); };
+  if (mode == SlamMode::kStereo)
+    source.load_right = [&dataset](int64_t i) { return dataset.LoadRight(static_cast<size_t>(i)); };
+  if (with_color)
+    source.load_left_color = [&dataset](int64_t i) {
+      return dataset.LoadLeftColor(static_cast<size_t>(i));
+    };
+  return source;
+}
+
+DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRange range,
+                        const DriverOptions& options) {
+  if (range.end == 0 || range.end > dataset.size()) range.end = dataset.size();
+  const bool stereo = options.mode == SlamMode::kStereo;
+  if (stereo && !dataset.has_right())
+    throw ConfigError(dataset.root + ": stereo mode needs a right image stream (image_1)");
+  const DynamicRunOptions& dynamic = config.dynamic;
+  if (!dynamic.truth_labels.empty() && !dynamic.filter)
+    throw ConfigError("--truth-labels needs --filter on");
+
+  // One camera for the tracker and the filter.
+  const StereoRig rig = EffectiveRig(dataset, config.camera);
+  const bool color = dynamic.segmenter == "yolo" && dataset.has_color();
+  const nodes::FrameSource source = SourceFromDataset(dataset, rig, range, options.mode, color);
+  Segmenters segmenters = MakeSegmenters(dataset, dynamic, options.model_high, source);
+  std::unique_ptr<nodes::DynamicFilterScorer> scorer;
+  std::optional<FilterAudit> audit;
+  if (dynamic.filter) {
+    DynamicFilterOptions filter_options = dynamic.options;
+    ApplyFlow(dynamic.flow, &filter_options);
+    scorer = std::make_unique<nodes::DynamicFilterScorer>(rig, config.slam.orb.scale_factor,
+                                                          filter_options);
+    audit.emplace(dataset, dynamic.truth_labels, dynamic.dump);
+    spdlog::info("dynamic points: filter on, segmenter {}{}{}", dynamic.segmenter,
+                 audit->Describe().empty() ? "" : ", ", audit->Describe());
+  } else if (dynamic.flow != "opencv") {
+    spdlog::warn("--flow {} without --filter on: no LK flow runs", dynamic.flow);
+  }
+  if (!segmenters.set.empty() && !dynamic.filter)
+    spdlog::info("segmenter {} without --filter on: its masks alone exclude keypoints",
+                 dynamic.segmenter);
+
+  DriverResult result;
+  RunSummary& summary = result.summary;
+  summary.dataset_name = dataset.name;
+  summary.mode = options.mode;
+  summary.range = range;
+  graph::PipelineOptions pipeline = options.pipeline;
+  pipeline.mode = options.mode;
+  pipeline.on_frame = [&](size_t done, size_t total, const graph::FrameRecord& record) {
+    AddFrameToSummary(record.output, stereo, &summary);
+    if (audit && record.filter_report)
+      audit->Add(record.frame_index, *record.filter_report, &summary);
+    spdlog::debug(
+        "frame {}: status {} method {} keypoints {} stereo {} tracked {} (initial {}/{}, local "
+        "{}/{}) keyframe {} {}",
+        record.frame_index, static_cast<int>(record.output.status),
+        static_cast<int>(record.output.method), record.output.num_keypoints,
+        record.output.num_stereo, record.output.num_tracked, record.output.num_inliers_initial,
+        record.output.num_matches_initial, record.output.num_local_matches,
+        record.output.num_local_projected, record.output.keyframe_inserted,
+        record.output.keyframe_reason);
+    if (options.on_frame) options.on_frame(done, total, record);
+  };
+  result.pipeline = graph::RunPipeline(source, config.slam, pipeline, segmenters.set, scorer.get());
+  const graph::PipelineResult& p = result.pipeline;
+  summary.error = p.error;
+  summary.wall_s = p.stats.wall_s;
+  summary.tracked = p.tracked;
+  summary.keyframes = p.keyframes;
+  summary.map_points = p.map_points;
+  int64_t end = static_cast<int64_t>(range.end);
+  if (!p.error.empty() && p.error_frame_index >= 0) end = p.error_frame_index;
+  CompleteSummary(dataset, static_cast<int64_t>(range.first), end, !stereo, &summary);
+  return result;
+}
+
+nlohmann::json DriverOptionsJson(const RunConfig& config, const DriverOptions& options) {
+  const graph::PipelineOptions& p = options.pipeline;
+  const DynamicRunOptions& d = config.dynamic;
+  return {{"mode", ToString(options.mode)},
+          {"policy", graph::ToString(p.policy)},
+          {"threads", p.threads},
+          {"max_in_flight", p.max_in_flight},
+          {"rate", p.rate},
+          {"waiting_capacity", p.waiting_capacity},
+          {"mask_deadline_ms", p.mask_deadline_ms},
+          {"adaptive", p.adaptive ? "on" : "off"},
+          {"segmenter", d.segmenter},
+          {"filter", d.filter ? "on" : "off"},
+          {"model", d.model_path},
+          {"model_high", options.model_high},
+          {"inference", d.inference},
+          {"flow", d.flow},
+          {"delay_ms", p.tracking_delay_ms},
+          {"trim_every", p.trim_heap_every},
+          {"trim_after_keyframe", p.trim_heap_after_keyframe ? "on" : "off"},
+          {"device_overlap", p.device_overlap ? "on" : "off"}};
+}
+
+void WriteDriverOutputs(const std::string& out_dir, const DriverResult& result,
+                        const std::string& config_yaml, const nlohmann::json& options_json) {
+  nlohmann::json pipeline = graph::StatsToJson(result.pipeline.stats);
+  pipeline["options"] = options_json;
+  WriteRunOutputs(out_dir, result.summary, config_yaml, {{"pipeline", pipeline}});
+  graph::WriteChromeTrace(out_dir + "/trace.json", result.pipeline);
+  graph::WriteTimingChart(out_dir + "/timing.png", result.pipeline);
+}
+
+std::string FormatDriverSummary(const DriverResult& result) {
+  return FormatRunSummary(result.summary) + graph::FormatPipelineStats(result.pipeline.stats);
+}
+
+}  // namespace pcr::driver

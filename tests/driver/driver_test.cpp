@@ -1,0 +1,184 @@
+// The one frame path: every policy gives the same run as the sequential reference, in stereo,
+// in monocular mode and with the truth segmenter's filter audit; the tracker and the filter see
+// one camera (the configuration's override).
+#include "driver/driver.h"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "sim/sequence_writer.h"
+#include "support/data_paths.h"
+
+namespace pcr::driver {
+namespace {
+
+DriverOptions WithPolicy(graph::Policy policy, SlamMode mode = SlamMode::kStereo) {
+  DriverOptions o;
+  o.mode = mode;
+  o.pipeline.policy = policy;
+  o.pipeline.max_in_flight = 3;
+  return o;
+}
+
+void ExpectSameSummary(const RunSummary& a, const RunSummary& b) {
+  ASSERT_EQ(a.per_frame.size(), b.per_frame.size());
+  for (size_t i = 0; i < a.per_frame.size(); ++i)
+    EXPECT_TRUE(a.per_frame[i].world_from_cam.matrix() == b.per_frame[i].world_from_cam.matrix())
+        << "frame " << a.per_frame[i].frame_index;
+  EXPECT_EQ(a.frame_tracked, b.frame_tracked);
+  EXPECT_EQ(a.frames_tracked, b.frames_tracked);
+  EXPECT_EQ(a.keyframes, b.keyframes);
+  EXPECT_EQ(a.map_points, b.map_points);
+  EXPECT_EQ(a.filter_reasons, b.filter_reasons);
+  EXPECT_EQ(a.filter_dump, b.filter_dump);
+  ASSERT_EQ(a.filter_confusion.has_value(), b.filter_confusion.has_value());
+  if (a.filter_confusion) {
+    EXPECT_EQ(a.filter_confusion->true_positive, b.filter_confusion->true_positive);
+    EXPECT_EQ(a.filter_confusion->false_positive, b.filter_confusion->false_positive);
+    EXPECT_EQ(a.filter_confusion->false_negative, b.filter_confusion->false_negative);
+    EXPECT_EQ(a.filter_confusion->true_negative, b.filter_confusion->true_negative);
+  }
+}
+
+TEST(Driver, MonocularRunsThroughTheGraphTheSameInEveryPolicy) {
+  const Dataset dataset = OpenDataset(test::SharedPath("data/kitti/sequences/07"));
+  const RunConfig config;
+  const FrameRange range{0, 40};
+  const DriverResult seq = RunDataset(dataset, config, range,
+                                      WithPolicy(graph::Policy::kSequential, SlamMode::kMonocular));
+  const DriverResult pip = RunDataset(dataset, config, range,
+                                      WithPolicy(graph::Policy::kPipelined, SlamMode::kMonocular));
+  ASSERT_TRUE(seq.summary.error.empty()) << seq.summary.error;
+  EXPECT_EQ(seq.summary.mode, SlamMode::kMonocular);
+  // Monocular: the two-view initialisation, then every frame tracked; Sim(3) evaluation.
+  EXPECT_GE(seq.summary.frames_tracked, 35u);
+  ASSERT_TRUE(seq.summary.evaluation.has_value());
+  EXPECT_EQ(seq.summary.eval_options.alignment.mode, eval::AlignMode::kSim3);
+  EXPECT_LT(seq.summary.evaluation->ape.trans_m.rmse, 0.5);
+  EXPECT_EQ(seq.summary.stages.count("orb_right"), 0u);  // no right camera
+  ExpectSameSummary(seq.summary, pip.summary);
+}
+
+// 20 frames of the synthetic street with movers and parked cars.
+std::string StreetWithTraffic() {
+  sim::SynthOptions o;
+  o.frames = 20;
+  o.num_movers = 8;
+  o.num_parked = 8;
+  o.seed = 5;
+  return sim::WriteSequence(o, test::MakeTempDir("pcr_driver_traffic")).sequence_dir;
+}
+
+TEST(Driver, TheTruthSegmenterAndTheFilterAuditWorkInEveryPolicy) {
+  const Dataset dataset = OpenDataset(StreetWithTraffic());
+  RunConfig config;
+  config.dynamic.segmenter = "truth";
+  config.dynamic.truth_miss_rate = 0.2;  // seeded misses, drawn per frame in frame order
+  config.dynamic.filter = true;
+  config.dynamic.dump = true;
+  const FrameRange range{0, dataset.size()};
+  const DriverResult seq =
+      RunDataset(dataset, config, range, WithPolicy(graph::Policy::kSequential));
+  const DriverResult pip =
+      RunDataset(dataset, config, range, WithPolicy(graph::Policy::kPipelined));
+  ASSERT_TRUE(seq.summary.error.empty()) << seq.summary.error;
+  ASSERT_TRUE(seq.summary.filter_confusion.has_value());
+  EXPECT_GT(seq.summary.filter_confusion->true_positive, 50);
+  EXPECT_EQ(seq.summary.filter_dump.size(),
+            static_cast<size_t>(seq.summary.filter_confusion->Total()));
+  EXPECT_GT(seq.summary.stages.count("filter_flow"), 0u);
+  size_t fresh = 0;
+  for (const graph::FrameRecord& r : seq.pipeline.frames)
+    fresh += r.mask == nodes::MaskStatus::kFresh ? 1 : 0;
+  EXPECT_EQ(fresh, dataset.size());
+  ExpectSameSummary(seq.summary, pip.summary);
+
+  // The realtime policy (all frames at once, no drops with enough waiting room) audits too.
+  DriverOptions realtime = WithPolicy(graph::Policy::kRealtime);
+  realtime.pipeline.rate = 0;
+  realtime.pipeline.waiting_capacity = static_cast<int>(dataset.size());
+  realtime.pipeline.mask_deadline_ms = 60000;
+  const DriverResult rt = RunDataset(dataset, config, range, realtime);
+  ASSERT_TRUE(rt.summary.error.empty()) << rt.summary.error;
+  ASSERT_TRUE(rt.summary.filter_confusion.has_value());
+  EXPECT_EQ(rt.summary.filter_dump.size(),
+            static_cast<size_t>(rt.summary.filter_confusion->Total()));
+  EXPECT_EQ(rt.summary.frames_in, dataset.size());
+}
+
+// Writes frames [0, n) of KITTI 06 with a calib.txt whose camera is `rig` (P0 and P1).
+std::string SequenceWithCamera(const StereoRig& rig, int n) {
+  namespace fs = std::filesystem;
+  const std::string src = test::SharedPath("data/kitti/sequences/06");
+  const std::string seq = test::MakeTempDir("pcr_driver_camera") + "/sequences/06";
+  fs::create_directories(seq + "/image_0");
+  fs::create_directories(seq + "/image_1");
+  std::ofstream calib(seq + "/calib.txt");
+  const PinholeCamera& c = rig.left;
+  for (const char* p : {"P0:", "P1:", "P2:", "P3:"}) {
+    const double tx = std::string(p) == "P1:" ? -c.fx * rig.baseline_m : 0.0;
+    calib << p
+          << fmt::format(" {:.12e} 0 {:.12e} {:.12e} 0 {:.12e} {:.12e} 0 0 0 1 0\n", c.fx, c.cx, tx,
+                         c.fy, c.cy);
+  }
+  calib.close();
+  std::ifstream times_in(src + "/times.txt");
+  std::ofstream times_out(seq + "/times.txt");
+  std::string line;
+  for (int i = 0; i < n && std::getline(times_in, line); ++i) times_out << line << "\n";
+  for (int i = 0; i < n; ++i) {
+    char name[16];
+    std::snprintf(name, sizeof(name), "%06d.png", i);
+    for (const char* cam : {"/image_0/", "/image_1/"})
+      fs::copy_file(src + cam + name, seq + cam + name);
+  }
+  return seq;
+}
+
+// The configuration's `camera:` override is the camera of the tracker AND of the filter: a run
+// with the override equals, bit for bit, a run on the same images whose calibration file holds
+// that camera (were the filter given the dataset's calibration, its decisions would differ).
+TEST(Driver, FilterAndTrackerSeeTheConfiguredCamera) {
+  const int n = 10;
+  const Dataset original = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
+  StereoRig camera = original.rig;
+  camera.left.fx *= 1.03;
+  camera.left.fy *= 1.03;
+  camera.left.cx += 4;
+  camera.left.cy -= 3;
+  camera.baseline_m *= 0.98;
+  // The camera exactly as the file gives it back (the text rounds in the last digits).
+  const Dataset calibrated = OpenDataset(SequenceWithCamera(camera, n));
+  ASSERT_NEAR(calibrated.rig.left.fx, camera.left.fx, 1e-6);
+  ASSERT_NEAR(calibrated.rig.baseline_m, camera.baseline_m, 1e-9);
+  const PinholeCamera& c = calibrated.rig.left;
+  RunConfig overridden;
+  overridden.dynamic.filter = true;
+  overridden.dynamic.dump = true;
+  overridden.camera = {c.fx, c.fy, c.cx, c.cy, calibrated.rig.baseline_m};
+  const FrameRange range{0, static_cast<size_t>(n)};
+  const RunSummary a =
+      RunDataset(original, overridden, range, WithPolicy(graph::Policy::kSequential)).summary;
+  RunConfig plain = overridden;
+  plain.camera = {};
+  const RunSummary b =
+      RunDataset(calibrated, plain, range, WithPolicy(graph::Policy::kSequential)).summary;
+  ASSERT_TRUE(a.error.empty() && b.error.empty()) << a.error << b.error;
+  EXPECT_EQ(a.frames_tracked, static_cast<size_t>(n));
+  ASSERT_FALSE(a.filter_dump.empty());
+  ExpectSameSummary(a, b);
+
+  // And the override matters: without it the same images give other decisions.
+  RunConfig none = overridden;
+  none.camera = {};
+  const RunSummary d =
+      RunDataset(original, none, range, WithPolicy(graph::Policy::kSequential)).summary;
+  EXPECT_NE(a.filter_dump, d.filter_dump);
+}
+
+}  // namespace
+}  // namespace pcr::driver
