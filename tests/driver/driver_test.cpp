@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "sim/sequence_writer.h"
+#include "driver/traffic_street.h"
 #include "support/data_paths.h"
 
 namespace pcr::driver {
@@ -63,18 +63,8 @@ TEST(Driver, MonocularRunsThroughTheGraphTheSameInEveryPolicy) {
   ExpectSameSummary(seq.summary, pip.summary);
 }
 
-// 20 frames of the synthetic street with movers and parked cars.
-std::string StreetWithTraffic() {
-  sim::SynthOptions o;
-  o.frames = 20;
-  o.num_movers = 8;
-  o.num_parked = 8;
-  o.seed = 5;
-  return sim::WriteSequence(o, test::MakeTempDir("pcr_driver_traffic")).sequence_dir;
-}
-
 TEST(Driver, TheTruthSegmenterAndTheFilterAuditWorkInEveryPolicy) {
-  const Dataset dataset = OpenDataset(StreetWithTraffic());
+  const Dataset dataset = OpenDataset(test_street::TrafficStreet());
   RunConfig config;
   config.dynamic.segmenter = "truth";
   config.dynamic.truth_miss_rate = 0.2;  // seeded misses, drawn per frame in frame order

@@ -7,25 +7,12 @@
 #include <nlohmann/json.hpp>
 
 #include "driver/driver.h"
-#include "sim/sequence_writer.h"
+#include "driver/traffic_street.h"
 #include "slam/common/error.h"
 #include "support/data_paths.h"
 
 namespace pcr::driver {
 namespace {
-
-// 20 frames of the synthetic street with movers and parked cars.
-const std::string& TrafficSequence() {
-  static const std::string dir = [] {
-    sim::SynthOptions o;
-    o.frames = 20;
-    o.num_movers = 8;
-    o.num_parked = 8;
-    o.seed = 4;
-    return sim::WriteSequence(o, test::MakeTempDir("pcr_dynrun")).sequence_dir;
-  }();
-  return dir;
-}
 
 DriverOptions Sequential() {
   DriverOptions o;
@@ -35,7 +22,7 @@ DriverOptions Sequential() {
 
 // The filter's per-frame reports travel with the frames' records to the audit, in every policy.
 TEST(FilterAudit, FilterExcludesMovingObjectPointsFarMoreThanStaticOnes) {
-  const Dataset dataset = OpenDataset(TrafficSequence());
+  const Dataset dataset = OpenDataset(test_street::TrafficStreet());
   RunConfig config;
   config.dynamic.segmenter = "truth";
   config.dynamic.filter = true;
@@ -70,7 +57,7 @@ TEST(FilterAudit, FilterExcludesMovingObjectPointsFarMoreThanStaticOnes) {
 }
 
 TEST(FilterAudit, BadSegmenterSetupsAreClearErrorsBeforeAnyFrameRuns) {
-  const Dataset dataset = OpenDataset(TrafficSequence());
+  const Dataset dataset = OpenDataset(test_street::TrafficStreet());
   const FrameRange range{0, 3};
   RunConfig config;
   DynamicRunOptions& o = config.dynamic;

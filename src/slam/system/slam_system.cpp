@@ -200,15 +200,6 @@ void FillTrackingOutput(const TrackingResult& tracking, FrameOutput* out) {
 
 FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
                                      const cv::Mat& right, const FrameFilterInput* filter) {
-  if (!filter) return ProcessFrame(frame_index, t_ns, left, right, KeypointFilterProvider{});
-  return ProcessFrame(frame_index, t_ns, left, right,
-                      [filter](const OrbFeatures& features, const StereoMatches&) {
-                        return SampleFilter(*filter, features.keypoints);
-                      });
-}
-
-FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
-                                     const cv::Mat& right, const KeypointFilterProvider& provider) {
   const auto start = std::chrono::steady_clock::now();
   FrameOutput out;
   out.frame_index = frame_index;
@@ -228,9 +219,9 @@ FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv
   }
 
   KeypointFilter keypoint_filter;
-  if (provider) {
+  if (filter) {
     t = std::chrono::steady_clock::now();
-    keypoint_filter = provider(left_features, stereo);
+    keypoint_filter = SampleFilter(*filter, left_features.keypoints);
     out.times_ms.filter = MsSince(t);
   }
   const FramePtr frame = BuildFrame(t_ns, left_features, stereo, keypoint_filter);

@@ -14,7 +14,6 @@
 //
 // Deterministic: the same inputs give bit-identical trajectories.
 #include <cstdint>
-#include <functional>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
@@ -85,17 +84,12 @@ class SlamSystem {
   // and, in stereo mode, be stereo (baseline_m > 0). Monocular mode ignores the baseline.
   SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMode mode = SlamMode::kStereo);
 
-  // All stages for one rectified grey pair (CV_8UC1); in monocular mode right is ignored (may be
-  // empty). filter may be null.
+  // All stages for one rectified grey pair (CV_8UC1), one after another: the reference that the
+  // flow graph's nodes (src/nodes, which call the stages below) are tested equal to. Programs
+  // run frames through the graph (driver/driver.h), not through this loop. In monocular mode
+  // right is ignored (may be empty). filter may be null.
   FrameOutput ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
                            const cv::Mat& right, const FrameFilterInput* filter = nullptr);
-  // Per-keypoint dynamic-filter decisions computed from the frame's left features and stereo
-  // matches (e.g. by pcr::DynamicFilter), called between stereo matching and tracking.
-  using KeypointFilterProvider =
-      std::function<KeypointFilter(const OrbFeatures& left, const StereoMatches& stereo)>;
-  // All stages, with the filter from `provider` (timed as times_ms.filter).
-  FrameOutput ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
-                           const cv::Mat& right, const KeypointFilterProvider& provider);
 
   // --- Stages ---
   OrbFeatures ExtractLeft(const cv::Mat& left) const { return extractor_.Extract(left); }
