@@ -7,9 +7,9 @@
 #include <random>
 #include <vector>
 
+#include "slam/common/lie.h"
 #include "slam/optim/bundle_adjustment.h"
 #include "slam/optim/pose_optimizer.h"
-#include "slam/optim/se3.h"
 
 namespace {
 
@@ -32,9 +32,9 @@ Eigen::Vector3d RandomUnit(std::mt19937_64& rng) {
 }
 
 SE3 Perturb(const SE3& pose, std::mt19937_64& rng, double translation_m, double angle_rad) {
-  pcr::optim::Vector6d delta;
+  pcr::Vector6d delta;
   delta << translation_m * RandomUnit(rng), angle_rad * RandomUnit(rng);
-  return pcr::optim::ExpSE3(delta) * pose;
+  return pcr::ExpSE3(delta) * pose;
 }
 
 // A pixel uniform in the image, depth uniform in [min, max], back-projected from cam_from_world.

@@ -3,8 +3,10 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstdlib>
+#include <random>
 
 #include "slam/common/camera.h"
+#include "slam/common/lie.h"
 #include "slam/common/pose.h"
 
 namespace pcr::test {
@@ -34,6 +36,26 @@ inline bool SameTrajectory(const Trajectory& a, const Trajectory& b) {
 // Angle of the relative rotation, degrees.
 inline double RotationErrorDeg(const SE3& a, const SE3& b) {
   return Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle() * 180.0 / M_PI;
+}
+
+// Angles (rad) that exercise the series branches of slam/common/lie.h, their thresholds and the
+// closed forms up to near pi.
+inline constexpr double kLieTestAngles[] = {0.0,  1e-12,  1e-8, 1e-5,       9.99e-5, 1.001e-4,
+                                            1e-3, 0.0999, 0.1,  0.1001,     0.5,     1.0,
+                                            2.0,  3.0,    3.1,  M_PI - 1e-4};
+
+inline Eigen::Vector3d RandomAxis(std::mt19937_64& rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  return Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
+}
+
+// A twist [rho; phi] with rho uniform in [-5, 5]^3 m and a rotation of angle_rad about a random
+// axis.
+inline Vector6d RandomTwist(std::mt19937_64& rng, double angle_rad) {
+  std::uniform_real_distribution<double> t(-5.0, 5.0);
+  Vector6d xi;
+  xi << t(rng), t(rng), t(rng), angle_rad * RandomAxis(rng);
+  return xi;
 }
 
 }  // namespace pcr::test

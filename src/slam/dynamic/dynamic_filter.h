@@ -219,29 +219,97 @@ class DynamicFilter {
   void SetDeviceWait(DeviceWait wait) { flow_->SetDeviceWait(std::move(wait)); }
 
  private:
+  // What the filter carries from a processed frame to the next one.
+  struct PreviousFrame {
+    int64_t frame = -1;  // frame_index
+    int64_t t_ns = 0;
+    cv::Size size;                   // image size, px
+    std::vector<cv::Mat> pyramid;    // LK pyramid of the left image (empty: no LK that frame)
+    std::vector<cv::Point2f> uv_px;  // keypoints, level-0 px
+    std::vector<float> depth_m;      // stereo depth per keypoint (<= 0: none)
+    std::vector<int64_t> track_ids;
+    std::vector<TrackState> states;  // temporal state per keypoint
+    // Long-baseline test: per keypoint, its positions 1..history_count frames before this frame
+    // (index 0: one frame before it), and the camera motions this frame <- the frames before it
+    // (index m: m + 1 frames back).
+    std::vector<std::array<cv::Point2f, kMaxLongBaseline>> history_px;
+    std::vector<uint8_t> history_count;
+    std::vector<SE3> from_past;
+    std::optional<SE3> cur_from_prev;  // the frame's camera motion, when it had one
+  };
+  // Everything Reset() forgets: a newly constructed one (with the voting options) is the state
+  // before the first frame of a sequence.
+  struct SequenceState {
+    explicit SequenceState(const TemporalVotingOptions& voting_options) : voting(voting_options) {}
+    TemporalVoting voting;                  // per map-point id
+    std::optional<PreviousFrame> previous;  // the last processed frame, none before the first
+    std::vector<RememberedInstance> instance_memory;
+    std::optional<Plane> last_plane;  // the last successful ground RANSAC and its frame_index
+    int64_t last_plane_frame = -1;
+  };
+  // Per-frame working data passed from stage to stage (dynamic_filter.cpp): the input, per
+  // keypoint vectors (index i: input.keypoints[i]) and the FilterOutput under construction.
+  struct FrameWork;
+
+  // The stages of Process(), in order. "w.a -> w.b": reads field a of the frame's FrameWork,
+  // writes b. Pixels are level-0 left-image px, depths metres, motions previous -> current.
+  //
+  // Throws std::invalid_argument on inconsistent input (see Process); returns the frame index.
+  int64_t CheckInput(const FilterInput& input) const;
+  // w.input -> w.cur_uv (px), w.depth (m, -1: none or monocular), w.scale (octave scale factor).
+  static void PrepareKeypoints(FrameWork* w);
+  // Mask + depth check. w.input.segmentation, w.cur_uv, w.depth -> w.confidence (dynamic
+  // confidence in [0, 1]), w.instance (dynamic-class instance id, 0: none), w.sky_instance,
+  // w.mask_outlier, w.margin, w.instance_speed_mps (per instance id, 0: default), w.num_instances.
+  void SampleMask(FrameWork* w) const;
+  // LK flow into the previous left image (or the matched positions) and track association.
+  // w.cur_uv, w.depth -> w.prev_uv (px, -1: none), w.observed, w.continues (previous keypoint
+  // index, -1: none), w.track_ids, w.cur_pyramid, w.out.num_tracked, w.out.num_continued.
+  // Allocates new track ids.
+  void TrackFlow(FrameWork* w);
+  // Ego-motion: PnP RANSAC on the tracked stereo points outside masks, or the prior, by
+  // options().motion_source. w.observed, w.prev_uv, w.depth, w.confidence -> w.out.motion_source,
+  // w.out.cur_from_prev (m, rad), w.out.pnp_candidates, w.out.pnp_inliers, w.out.motion_note.
+  void EstimateCameraMotion(FrameWork* w) const;
+  // Long-baseline tracks and their chained (or PnP re-measured) motions. w.observed, w.prev_uv,
+  // w.continues, w.out.cur_from_prev -> w.history (px), w.history_count (frames back),
+  // w.cur_from_past (index m: current <- m + 1 frames back), w.long_pnp.
+  void ExtendLongBaseline(FrameWork* w) const;
+  // Ground RANSAC on the stereo points (else a recent plane) and the horizon. w.depth ->
+  // w.points (camera frame, m), w.has_depth, w.out.ground, w.out.ground_plane,
+  // w.out.ground_from_previous, w.out.horizon. Remembers a successful plane.
+  void EstimateGround(FrameWork* w);
+  // Mask margin points on the ground plane are road: w.margin, w.points, w.out.ground_plane ->
+  // w.confidence (scaled down), w.instance (0 below MaskDepthOptions::margin_min_confidence).
+  void ReleaseRoadMargins(FrameWork* w) const;
+  // Per-point motion scoring (one-frame and long-baseline tests, depth cross-checks).
+  // w.observed, w.prev_uv, w.depth, w.history, w.cur_from_past, w.out.cur_from_prev ->
+  // w.motions, w.out.num_depth_suspect.
+  void ScoreMotion(FrameWork* w) const;
+  // Temporal voting per map point, else along the LK track. w.motions, w.continues ->
+  // w.votes, w.states, w.has_motion, w.static_prob, w.observability, the per-point diagnostics
+  // (track, instance, test); updates the voting table.
+  void VoteTemporally(FrameWork* w);
+  // Instance-level motion (parked-car protection, remembered verdicts): w.instance,
+  // w.has_motion, w.static_prob, w.observability -> the same for the instance's points,
+  // w.states, w.out.num_recalled_instances; updates the instance memory and the voting table.
+  void ApplyInstanceMotion(FrameWork* w);
+  // The Eq. 2 terms per point (mask, motion, ground, border and sky): w.confidence,
+  // w.has_motion, w.static_prob, w.observability, w.points, w.out.ground_plane, w.out.horizon
+  // -> returned, index i: keypoint i.
+  std::vector<PointTerms> ScorePointTerms(const FrameWork& w) const;
+  // Combines the terms into scores, decisions (votes, clusters) and weights: terms, w.votes,
+  // w.margin -> w.out.points (scores, reasons), w.out.filter, w.out.reason_counts,
+  // w.out.num_excluded, w.out.num_moving.
+  void Decide(const std::vector<PointTerms>& terms, FrameWork* w) const;
+  // Moves this frame's keypoints, tracks, pyramid and motion into sequence_.previous and prunes
+  // the voting table.
+  void StoreForNextFrame(FrameWork* w);
+
   DynamicFilterOptions options_;
   std::unique_ptr<FlowEngine> flow_;
-  TemporalVoting voting_;
-  bool has_previous_ = false;
-  int64_t previous_frame_ = -1;
-  int64_t previous_t_ns_ = 0;
-  cv::Size previous_size_;
-  std::vector<cv::Mat> previous_pyramid_;
-  std::vector<cv::Point2f> previous_uv_;
-  std::vector<float> previous_depth_;  // stereo depth of the previous keypoints (<= 0: none)
-  std::vector<int64_t> previous_track_ids_;
-  std::vector<TrackState> previous_states_;  // temporal state per previous keypoint
-  // Long-baseline test: per previous keypoint, its positions 1..history_count frames before
-  // the previous frame (index 0: one frame before it), and the camera motions previous -> the
-  // frames before it (index m: previous_from_past m + 1 frames back).
-  std::vector<std::array<cv::Point2f, kMaxLongBaseline>> previous_history_;
-  std::vector<uint8_t> previous_history_count_;
-  std::vector<SE3> previous_from_past_;
-  std::vector<RememberedInstance> instance_memory_;
-  int64_t next_track_id_ = 0;
-  std::optional<SE3> last_motion_;  // cur_from_prev of the last frame, when it had one
-  std::optional<Plane> last_plane_;
-  int64_t last_plane_frame_ = -1;
+  SequenceState sequence_;
+  int64_t next_track_id_ = 0;  // not reset: track ids stay unique over the filter's life
 };
 
 }  // namespace pcr

@@ -1,36 +1,18 @@
 #pragma once
-// Small Lie-group helpers on Eigen types for the geometry module: skew matrices, SO(3)/SE(3)
-// exponential and logarithm, and angles between rotations and directions. A twist is ordered
-// (rho, omega): translation part first, rotation part (axis * angle, radians) second.
+// Camera-geometry helpers of the geometry module: projection and intrinsic matrices, angles
+// between directions, degree conversions. The SO(3)/SE(3) maps (Skew, ExpSO3, LogSO3, ExpSE3,
+// LogSE3, Vector6d, rotation angles) are slam/common/lie.h, included here.
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
 #include "slam/common/camera.h"
+#include "slam/common/lie.h"
 #include "slam/common/pose.h"
 
 namespace pcr {
 
-using Vector6d = Eigen::Matrix<double, 6, 1>;
 using Matrix34d = Eigen::Matrix<double, 3, 4>;
 
-// [v]_x, so that Skew(a) * b == a.cross(b).
-Eigen::Matrix3d Skew(const Eigen::Vector3d& v);
-
-// Rotation matrix of the rotation vector omega_rad (axis * angle).
-Eigen::Matrix3d ExpSO3(const Eigen::Vector3d& omega_rad);
-// Rotation vector (axis * angle, angle in [0, pi]) of a rotation matrix. R must be orthonormal
-// with det +1 (it is not re-orthonormalised).
-Eigen::Vector3d LogSO3(const Eigen::Matrix3d& R);
-
-// SE(3) exponential of the twist (rho, omega): rotation ExpSO3(omega), translation V(omega) * rho.
-SE3 ExpSE3(const Vector6d& twist);
-// Inverse of ExpSE3.
-Vector6d LogSE3(const SE3& pose);
-
-// Rotation angle of R in radians, in [0, pi]; robust near 0 and pi.
-double RotationAngleRad(const Eigen::Matrix3d& R);
-// Angle in radians of the rotation that takes a to b (angle of a^T b).
-double RotationDistanceRad(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
 // Angle in radians, in [0, pi], between two non-zero vectors.
 double AngleBetweenRad(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 

@@ -5,7 +5,7 @@
 #include <limits>
 #include <opencv2/features2d.hpp>
 
-#include "slam/geometry/se3.h"
+#include "slam/common/lie.h"
 
 namespace pcr {
 namespace {

@@ -37,10 +37,10 @@ bool EvaluateReprojection(const StereoRig& rig, const ReprojectionTarget& target
   d_r_d_p *= -s;
 
   if (jacobian_pose != nullptr) {
-    // Exp(delta) * p ~ p + rho + phi x p  =>  d p / d delta = [I, -Hat(p)].
+    // Exp(delta) * p ~ p + rho + phi x p  =>  d p / d delta = [I, -Skew(p)].
     Eigen::Map<Eigen::Matrix<double, kRows, kPoseParamSize, Eigen::RowMajor>> j(jacobian_pose);
     j.template leftCols<3>() = d_r_d_p;
-    j.template middleCols<3>(3) = -d_r_d_p * Hat(p_cam);
+    j.template middleCols<3>(3) = -d_r_d_p * Skew(p_cam);
     j.col(6).setZero();
   }
   if (jacobian_point != nullptr) {

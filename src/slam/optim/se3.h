@@ -1,6 +1,6 @@
 #pragma once
-// SE(3)/SO(3) exponential and logarithm maps and the Ceres parameterisation of a pose used by the
-// optimisers in this module.
+// The Ceres parameterisation of a pose used by the optimisers in this module, on the SO(3)/SE(3)
+// maps of slam/common/lie.h (included).
 //
 // Tangent vectors are 6-vectors xi = [rho; phi]: rho (metres) is the translational part and phi
 // (radians) the rotation vector. ExpSE3(xi) = [Exp(phi), V(phi) rho; 0, 1].
@@ -13,30 +13,13 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "slam/common/lie.h"
 #include "slam/common/pose.h"
 
 namespace pcr::optim {
 
-using Vector6d = Eigen::Matrix<double, 6, 1>;
-
 inline constexpr int kPoseParamSize = 7;
 inline constexpr int kPoseTangentSize = 6;
-
-// Cross-product matrix: Hat(a) * b == a.cross(b).
-Eigen::Matrix3d Hat(const Eigen::Vector3d& v);
-
-// Rotation vector (radians) -> unit quaternion, accurate down to phi = 0.
-Eigen::Quaterniond ExpSO3(const Eigen::Vector3d& phi_rad);
-// Unit quaternion -> rotation vector with norm in [0, pi].
-Eigen::Vector3d LogSO3(const Eigen::Quaterniond& q);
-
-// Left Jacobian of SO(3) (the V matrix of the SE(3) exponential) and its inverse.
-Eigen::Matrix3d LeftJacobianSO3(const Eigen::Vector3d& phi_rad);
-Eigen::Matrix3d LeftJacobianInverseSO3(const Eigen::Vector3d& phi_rad);
-
-SE3 ExpSE3(const Vector6d& xi);
-// Inverse of ExpSE3 for rotations of angle < pi (returns some valid logarithm at exactly pi).
-Vector6d LogSE3(const SE3& pose);
 
 // Conversions between SE3 and a 7-double pose parameter block (layout above).
 void PoseToParams(const SE3& pose, double* params);

@@ -6,7 +6,7 @@
 #include <set>
 
 #include "slam/common/error.h"
-#include "slam/geometry/se3.h"
+#include "slam/common/lie.h"
 #include "slam/map/matcher.h"
 #include "slam/map/stereo_points.h"
 

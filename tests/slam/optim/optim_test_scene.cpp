@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "slam/optim/se3.h"
+#include "slam/common/lie.h"
 
 namespace pcr::optim_test {
 namespace {
@@ -57,10 +57,10 @@ SE3 RandomPose(std::mt19937_64& rng, double max_translation_m, double max_angle_
 }
 
 SE3 PerturbPose(const SE3& pose, std::mt19937_64& rng, double translation_m, double angle_rad) {
-  optim::Vector6d delta;
+  Vector6d delta;
   delta.head<3>() = translation_m * RandomUnitVector(rng);
   delta.tail<3>() = angle_rad * RandomUnitVector(rng);
-  return optim::ExpSE3(delta) * pose;
+  return ExpSE3(delta) * pose;
 }
 
 std::vector<Eigen::Vector3d> SamplePointsInView(const StereoRig& rig, const SE3& cam_from_world,

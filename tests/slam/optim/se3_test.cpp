@@ -4,116 +4,21 @@
 
 #include <cmath>
 #include <random>
-#include <unsupported/Eigen/MatrixFunctions>
+
+#include "support/test_helpers.h"
 
 namespace pcr::optim {
 namespace {
 
-// Angles that exercise the series branches, their thresholds and the closed forms up to near pi.
-const double kAngles[] = {0.0, 1e-12,  1e-8, 1e-5, 9.99e-5, 1.001e-4, 1e-3, 0.0999,
-                          0.1, 0.1001, 0.5,  1.0,  2.0,     3.0,      3.1,  M_PI - 1e-4};
+using test::kLieTestAngles;
+using test::RandomAxis;
+using test::RandomTwist;
 
-Eigen::Vector3d RandomAxis(std::mt19937_64& rng) {
-  std::normal_distribution<double> n(0.0, 1.0);
-  return Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
-}
-
-Vector6d RandomTwist(std::mt19937_64& rng, double angle_rad) {
-  std::uniform_real_distribution<double> t(-5.0, 5.0);
-  Vector6d xi;
-  xi << t(rng), t(rng), t(rng), angle_rad * RandomAxis(rng);
-  return xi;
-}
-
-// exp of the 4x4 twist matrix, independent of the closed forms under test.
-Eigen::Matrix4d MatrixExp(const Vector6d& xi) {
-  Eigen::Matrix4d twist = Eigen::Matrix4d::Zero();
-  twist.topLeftCorner<3, 3>() = Hat(xi.tail<3>());
-  twist.topRightCorner<3, 1>() = xi.head<3>();
-  return twist.exp();
-}
-
-TEST(Se3Test, HatIsCrossProduct) {
-  const Eigen::Vector3d a(0.3, -1.2, 2.5), b(-0.7, 0.4, 1.1);
-  EXPECT_LT((Hat(a) * b - a.cross(b)).norm(), 1e-15);
-  EXPECT_LT((Hat(a) + Hat(a).transpose()).norm(), 1e-15);
-}
-
-TEST(Se3Test, ExpSO3MatchesAngleAxis) {
-  std::mt19937_64 rng(1);
-  for (double angle : kAngles) {
-    const Eigen::Vector3d axis = RandomAxis(rng);
-    const Eigen::Matrix3d expected = Eigen::AngleAxisd(angle, axis).toRotationMatrix();
-    const Eigen::Quaterniond q = ExpSO3(angle * axis);
-    EXPECT_NEAR(q.norm(), 1.0, 1e-15) << angle;
-    EXPECT_LT((q.toRotationMatrix() - expected).norm(), 1e-14) << angle;
-  }
-}
-
-TEST(Se3Test, SO3LogInvertsExp) {
-  std::mt19937_64 rng(2);
-  for (double angle : kAngles) {
-    for (int trial = 0; trial < 5; ++trial) {
-      const Eigen::Vector3d phi = angle * RandomAxis(rng);
-      const Eigen::Vector3d back = LogSO3(ExpSO3(phi));
-      EXPECT_LT((back - phi).norm(), 1e-12 * std::max(1.0, angle)) << angle;
-      // The sign of the quaternion does not matter.
-      Eigen::Quaterniond negated = ExpSO3(phi);
-      negated.coeffs() *= -1.0;
-      EXPECT_LT((LogSO3(negated) - phi).norm(), 1e-12 * std::max(1.0, angle)) << angle;
-    }
-  }
-}
-
-TEST(Se3Test, LeftJacobianTimesInverseIsIdentity) {
-  std::mt19937_64 rng(3);
-  for (double angle : kAngles) {
-    const Eigen::Vector3d phi = angle * RandomAxis(rng);
-    const Eigen::Matrix3d product = LeftJacobianSO3(phi) * LeftJacobianInverseSO3(phi);
-    EXPECT_LT((product - Eigen::Matrix3d::Identity()).norm(), 1e-13) << angle;
-  }
-}
-
-TEST(Se3Test, ExpMatchesMatrixExponential) {
-  std::mt19937_64 rng(4);
-  for (double angle : kAngles) {
-    for (int trial = 0; trial < 3; ++trial) {
-      const Vector6d xi = RandomTwist(rng, angle);
-      const Eigen::Matrix4d expected = MatrixExp(xi);
-      EXPECT_LT((ExpSE3(xi).matrix() - expected).norm(), 1e-12) << angle;
-    }
-  }
-}
-
-TEST(Se3Test, LogExpRoundTrip) {
-  std::mt19937_64 rng(5);
-  for (double angle : kAngles) {
-    for (int trial = 0; trial < 5; ++trial) {
-      const Vector6d xi = RandomTwist(rng, angle);
-      const Vector6d back = LogSE3(ExpSE3(xi));
-      // Near pi the translation part is ill-conditioned (V^-1 grows like 1 / (pi - angle)).
-      const double tolerance = angle > 3.0 ? 1e-8 : 1e-11;
-      EXPECT_LT((back - xi).norm(), tolerance) << "angle " << angle << " xi " << xi.transpose();
-    }
-  }
-}
-
-TEST(Se3Test, ExpLogRoundTripOnRandomPoses) {
-  std::mt19937_64 rng(6);
-  std::uniform_real_distribution<double> angle(0.0, 3.0);
-  std::uniform_real_distribution<double> t(-50.0, 50.0);
-  for (int trial = 0; trial < 200; ++trial) {
-    SE3 pose = SE3::Identity();
-    pose.linear() = Eigen::AngleAxisd(angle(rng), RandomAxis(rng)).toRotationMatrix();
-    pose.translation() = Eigen::Vector3d(t(rng), t(rng), t(rng));
-    const SE3 back = ExpSE3(LogSE3(pose));
-    EXPECT_LT((back.matrix() - pose.matrix()).norm(), 1e-11);
-  }
-}
+// The SO(3)/SE(3) maps themselves are tested in tests/slam/common/lie_test.cpp.
 
 TEST(Se3Test, ParamsRoundTrip) {
   std::mt19937_64 rng(7);
-  for (double angle : kAngles) {
+  for (double angle : kLieTestAngles) {
     SE3 pose = ExpSE3(RandomTwist(rng, angle));
     double params[kPoseParamSize];
     PoseToParams(pose, params);
