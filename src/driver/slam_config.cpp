@@ -44,6 +44,10 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("tracking", "motion_search_radius_px", &t.motion_search_radius_px);
   s.Add("tracking", "min_motion_matches", &t.min_motion_matches);
   s.Add("tracking", "min_pose_inliers", &t.min_pose_inliers);
+  s.Add("tracking", "min_motion_inlier_ratio", &t.min_motion_inlier_ratio,
+        "motion-model pose: share of its matches that must be inliers, else reference tracking");
+  s.Add("tracking", "min_motion_inliers_of_last", &t.min_motion_inliers_of_last,
+        "motion-model pose: inliers against the last frame's tracked points, else the same");
   s.Add("tracking", "min_local_map_inliers", &t.min_local_map_inliers);
   s.Add("tracking", "max_local_keyframes", &t.max_local_keyframes);
   s.Add("tracking", "relocalisation_keyframes", &t.relocalisation_keyframes);
@@ -58,6 +62,7 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("keyframe", "min_new_close", &k.min_new_close);
   s.Add("keyframe", "max_interval_s", &k.max_interval_s);
   s.Add("keyframe", "min_interval_s", &k.min_interval_s);
+  s.Add("keyframe", "max_rotation_since_keyframe_deg", &k.max_rotation_since_keyframe_deg);
   s.Add("keyframe", "filtered_ratio_gain", &k.filtered_ratio_gain);
   s.Add("keyframe", "max_filtered_fraction", &k.max_filtered_fraction);
 

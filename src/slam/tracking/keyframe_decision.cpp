@@ -19,6 +19,8 @@ bool KeyframeDecisionOptions::IsValid(std::string* why) const {
     return fail("keyframe point counts must be >= 0");
   if (!(max_interval_s > 0) || min_interval_s < 0 || min_interval_s > max_interval_s)
     return fail("keyframe intervals need 0 <= min_interval_s <= max_interval_s, max > 0");
+  if (!(max_rotation_since_keyframe_deg > 0))
+    return fail("max_rotation_since_keyframe_deg must be > 0");
   if (!in01(min_motion_quality) || !in01(max_filtered_fraction))
     return fail("min_motion_quality and max_filtered_fraction must lie in [0, 1]");
   return true;
@@ -53,12 +55,14 @@ KeyframeDecision ShouldInsertKeyframe(const KeyframeDecisionInput& in,
   const bool few_vs_reference = in.tracked_points < ratio * reference;
   const bool low_quality = in.motion_quality < opt.min_motion_quality;
   const bool timeout = in.seconds_since_last_keyframe >= opt.max_interval_s;
+  const bool turned = in.rotation_since_keyframe_rad * (180.0 / 3.14159265358979323846) >
+                      opt.max_rotation_since_keyframe_deg;
 
   if (filtered_fraction > opt.max_filtered_fraction && !weak && !need_close) {
     d.reason = "too much dynamic content";
     return d;
   }
-  if (in.seconds_since_last_keyframe < opt.min_interval_s && !weak) {
+  if (in.seconds_since_last_keyframe < opt.min_interval_s && !weak && !turned) {
     d.reason = "too soon";
     return d;
   }
@@ -71,6 +75,8 @@ KeyframeDecision ShouldInsertKeyframe(const KeyframeDecisionInput& in,
     d.reason = "few points tracked vs reference";
   else if (low_quality)
     d.reason = "low motion quality";
+  else if (turned)
+    d.reason = "turned since the last keyframe";
   else if (timeout)
     d.reason = "max interval";
   else {

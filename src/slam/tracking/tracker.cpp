@@ -96,6 +96,11 @@ bool TrackerOptions::IsValid(std::string* why) const {
   if (!(pnp_reprojection_px > 0) || pnp_iterations < 1)
     return fail("PnP RANSAC needs a positive threshold and iterations");
   if (!(motion_search_radius_px_monocular > 0)) return fail("search radii must be > 0");
+  if (min_relocalisation_confirmations < 0)
+    return fail("min_relocalisation_confirmations must be >= 0");
+  if (!(min_motion_inlier_ratio >= 0 && min_motion_inlier_ratio <= 1) ||
+      !(min_motion_inliers_of_last >= 0 && min_motion_inliers_of_last <= 1))
+    return fail("min_motion_inlier_ratio and min_motion_inliers_of_last must lie in [0, 1]");
   return pose.IsValid(why) && mono_init.IsValid(why);
 }
 
@@ -195,6 +200,7 @@ void Tracker::StartFromInitialisation(const FramePtr& frame, const SE3& cam_from
   last_.is_keyframe = false;
   reference_ = last_.reference;
   last_keyframe_t_ns_ = frame->t_ns();
+  last_keyframe_cam_from_world_ = cam_from_world;
 }
 
 SE3 Tracker::PredictedMotion(int64_t t_ns) const {
@@ -384,12 +390,34 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches*
       }
       good = OptimizeAndPrune(frame, &candidate_pose, m, nullptr);
     }
-    if (good >= options_.min_relocalisation_inliers) {
-      *pose = candidate_pose;
-      *n0 = static_cast<int>(pairs.size());
-      reference_ = id;
-      return true;
+    if (good < options_.min_relocalisation_inliers) continue;
+    // Verified against the local map before it is accepted: the candidate pose must also
+    // explain map points it was not computed from (the keyframe's other points and its
+    // covisible keyframes' points, found by projection). A pose that only fits the matched
+    // keyframe's points (a look-alike place, a poster of one) finds none and is rejected, and
+    // the next candidate keyframe is tried.
+    Matches verified = *m;
+    SE3 verified_pose = candidate_pose;
+    TrackingResult scratch;
+    const KeyframeId saved_reference = reference_;
+    const int saved_frames = frames_since_relocalisation_;
+    frames_since_relocalisation_ = 0;  // the relocalised window and thresholds
+    const bool tracked = TrackLocalMap(frame, map, &verified_pose, &verified, &scratch);
+    int confirmations = 0;  // inliers of the local map that the candidate was not computed from
+    for (int i = 0; i < frame.size(); ++i)
+      confirmations += verified.kind[i] == 1 && m->kind[i] != 1 ? 1 : 0;
+    const bool explained = tracked && confirmations >= options_.min_relocalisation_confirmations;
+    frames_since_relocalisation_ = saved_frames;
+    reference_ = saved_reference;
+    ++relocalisation_candidates_;
+    if (!explained) {
+      ++relocalisation_rejections_;
+      continue;
     }
+    *pose = candidate_pose;
+    *n0 = static_cast<int>(pairs.size());
+    reference_ = id;
+    return true;
   }
   return false;
 }
@@ -534,6 +562,29 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
       ok = TrackMotionModel(frame, map, &pose, &m, &result.num_matches_initial,
                             &result.num_inliers_initial);
       if (ok) result.method = TrackingMethod::kMotionModel;
+      // Consistency: a doubtful motion-model pose (few of its matches survived) is checked
+      // against reference-keyframe tracking, which does not depend on the prediction; the
+      // better-supported pose wins.
+      const int last_tracked = static_cast<int>(std::count_if(
+          last_.points.begin(), last_.points.end(), [](MapPointId p) { return p.valid(); }));
+      if (ok && (result.num_inliers_initial <
+                     options_.min_motion_inlier_ratio * result.num_matches_initial ||
+                 result.num_inliers_initial <
+                     options_.min_motion_inliers_of_last * static_cast<double>(last_tracked))) {
+        Matches other;
+        other.Reset(frame.size());
+        SE3 other_pose = SE3::Identity();
+        int n0 = 0, n1 = 0;
+        if (TrackReferenceKeyframe(frame, map, &other_pose, &other, &n0, &n1) &&
+            n1 > result.num_inliers_initial) {
+          pose = other_pose;
+          m = std::move(other);
+          result.num_matches_initial = n0;
+          result.num_inliers_initial = n1;
+          result.method = TrackingMethod::kReferenceKeyframe;
+          ++result.motion_model_rejected;
+        }
+      }
     }
     if (!ok) {
       ok = TrackReferenceKeyframe(frame, map, &pose, &m, &result.num_matches_initial,
@@ -597,6 +648,8 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
   in.filtered_points = frame.num_excluded();
   in.total_points = frame.size();
   in.seconds_since_last_keyframe = NsToSeconds(frame.t_ns() - last_keyframe_t_ns_);
+  in.rotation_since_keyframe_rad =
+      RotationAngleRad(pose.linear() * last_keyframe_cam_from_world_.linear().transpose());
   in.keyframes_in_map = static_cast<int>(map.num_keyframes());
   in.recently_relocalised = frames_since_relocalisation_ < options_.relocalised_frames;
   in.stereo = stereo;
@@ -608,6 +661,7 @@ void Tracker::OnKeyframeInserted(KeyframeId id, const Map& map) {
   if (!kf) return;
   reference_ = id;
   last_keyframe_t_ns_ = kf->frame->t_ns();
+  last_keyframe_cam_from_world_ = kf->cam_from_world;
   if (last_.frame && last_.frame->id() == kf->frame->id()) {
     last_.points = kf->points;
     last_.cam_from_world = kf->cam_from_world;

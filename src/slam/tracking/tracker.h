@@ -42,8 +42,17 @@ struct TrackerOptions {
   int min_init_stereo_points = 500;    // stereo initialisation
   double motion_search_radius_px = 7;  // motion-model window (times the octave scale), stereo
   double motion_search_radius_px_monocular = 15;  // the same for a monocular rig
-  int min_motion_matches = 20;         // else the window is doubled, then reference tracking
-  int min_pose_inliers = 10;           // map-point inliers to accept a motion/reference pose
+  int min_motion_matches = 20;  // else the window is doubled, then reference tracking
+  int min_pose_inliers = 10;    // map-point inliers to accept a motion/reference pose
+  // Consistency of a motion-model pose: the share of its projection matches that survive the
+  // pose optimisation as map-point inliers. A prediction far from the truth (a turn the constant
+  // velocity did not foresee) still finds chance matches in its window, most of them outliers;
+  // below this share the frame is also tracked against the reference keyframe by descriptor
+  // matching (independent of the prediction), and the pose with more inliers is kept.
+  double min_motion_inlier_ratio = 0.5;
+  // The same when its inliers collapsed against the last frame's tracked points (a repeated
+  // structure can make a wrong prediction's few matches agree with each other).
+  double min_motion_inliers_of_last = 0.2;
   int reference_max_distance = 50;     // descriptor distance, reference-keyframe matching
   double reference_match_ratio = 0.7;  // best / second best
   int min_reference_matches = 15;
@@ -61,6 +70,9 @@ struct TrackerOptions {
   double relocalisation_match_ratio = 0.75;
   int min_relocalisation_matches = 15;
   int min_relocalisation_inliers = 50;
+  // A relocalisation candidate is accepted only when, tracked against the local map, at least
+  // this many map points it was not computed from are inliers of the pose (Tracker::Relocalise).
+  int min_relocalisation_confirmations = 20;
   double pnp_reprojection_px = 4.0;
   int pnp_iterations = 300;
   int min_temporary_points = 100;  // stereo: temporary points made from the last frame's depth
@@ -82,6 +94,7 @@ struct TrackingResult {
   int num_inliers_initial = 0;
   int num_local_projected = 0;
   int num_local_matches = 0;
+  int motion_model_rejected = 0;  // 1: the consistency check replaced the motion-model pose
   KeyframeId reference_keyframe;  // local keyframe sharing most points
   // Map edits: visible/found counters of the local map points and, at initialisation, the first
   // keyframe with its points (monocular: the second keyframe and the points).
@@ -114,6 +127,10 @@ class Tracker {
   TrackingStatus status() const { return status_; }
   const TrackerOptions& options() const { return options_; }
   const MonoInitializer& mono_initializer() const { return mono_initializer_; }
+  // Relocalisation candidates that passed PnP and pose optimisation so far, and those of them the
+  // local map did not confirm (rejected).
+  int relocalisation_candidates() const { return relocalisation_candidates_; }
+  int relocalisation_rejections() const { return relocalisation_rejections_; }
 
  private:
   // Matches of the frame under construction: per keypoint, a map point or a temporary point.
@@ -165,6 +182,8 @@ class Tracker {
   void StartFromInitialisation(const FramePtr& frame, const SE3& cam_from_world);
   KeyframeId reference_;
   int64_t last_keyframe_t_ns_ = 0;
+  int relocalisation_candidates_ = 0, relocalisation_rejections_ = 0;
+  SE3 last_keyframe_cam_from_world_ = SE3::Identity();
   int64_t frames_since_relocalisation_ = 1 << 30;
 };
 

@@ -145,6 +145,120 @@ TEST(Tracker, LosesTrackOnGarbageAndRelocalises) {
   EXPECT_TRUE(r.keyframe_input.recently_relocalised);
 }
 
+// A frame at `pose` that also shows, as a repeated structure would, `repeats` keypoints looking
+// exactly like what the map shows at `lookalike` (their descriptors, where they would be seen).
+FramePtr FrameWithRepeats(test::SyntheticScene& scene, int64_t id, const SE3& pose,
+                          const SE3& lookalike, int repeats) {
+  test::RenderedFrame r = scene.Render(pose);
+  const test::RenderedFrame fake = scene.Render(lookalike);
+  std::vector<cv::Mat> rows{r.features.descriptors};
+  for (int k = 0, added = 0; k < static_cast<int>(fake.point_of_keypoint.size()) && added < repeats;
+       k += 7) {
+    if (fake.point_of_keypoint[k] < 0 || fake.stereo.depth_m[k] <= 0) continue;
+    r.features.keypoints.push_back(fake.features.keypoints[k]);
+    rows.push_back(fake.features.descriptors.row(k));
+    r.stereo.u_right_px.push_back(fake.stereo.u_right_px[k]);
+    r.stereo.depth_m.push_back(fake.stereo.depth_m[k]);
+    ++r.stereo.num_matched;
+    ++added;
+  }
+  cv::vconcat(rows, r.features.descriptors);
+  return Frame::Create(id, id * 100'000'000, scene.rig(), scene.scale(), r.features, r.stereo, {});
+}
+
+// A turn the constant-velocity model does not foresee: frame 9 yaws 6 degrees away from where
+// frames 0-8 were heading, and a repeated structure makes 60 keypoints look exactly like what the
+// map shows at the predicted pose. The motion model's window finds those and its optimisation
+// agrees with them: a wrong pose with a few, consistent inliers. The consistency check compares
+// it with reference-keyframe tracking and keeps the true pose; the next frames go on from there.
+TEST(Tracker, AWrongMotionPredictionIsCaughtAndRecoveredFrom) {
+  for (const bool check : {true, false}) {
+    test::SyntheticScene scene(25);
+    TrackerRun run;
+    TrackerOptions options;
+    if (!check) options.min_motion_inlier_ratio = options.min_motion_inliers_of_last = 0;
+    run.tracker = Tracker(options);
+    TrackFrames(scene, 0, 9, &run);
+    ASSERT_EQ(run.results.back().method, TrackingMethod::kMotionModel);
+    const auto turned = [](int i) {
+      return test::CamFromWorld({0.05 * i, 0.0, 1.0 * i}, 0.01 * i + (i >= 9 ? 0.105 : 0.0));
+    };
+    int rejected = 0;
+    double turn_error_deg = 0, worst_deg = 0;
+    for (int i = 9; i < 13; ++i) {
+      const FramePtr frame = i == 9 ? FrameWithRepeats(scene, i, turned(i), TruePose(i), 60)
+                                    : scene.MakeFrame(i, turned(i), nullptr);
+      const TrackingResult r = run.tracker.Track(frame, run.map);
+      run.map.Apply(r.map_delta);
+      rejected += r.motion_model_rejected;
+      const double error =
+          r.status == TrackingStatus::kOk ? RotationErrorDeg(r.cam_from_world, turned(i)) : 180.0;
+      if (i == 9) turn_error_deg = error;
+      worst_deg = std::max(worst_deg, error);
+      if (r.status == TrackingStatus::kOk && ShouldInsertKeyframe(r.keyframe_input).insert)
+        InsertKeyframe(frame, r, &run.map, &run.tracker);
+    }
+    if (check) {
+      EXPECT_EQ(rejected, 1) << "the turn's frame: its motion-model pose replaced";
+      EXPECT_LT(worst_deg, 0.1);
+    } else {
+      // Without the check the wrong pose is accepted (so this test can fail).
+      EXPECT_EQ(rejected, 0);
+      EXPECT_GT(turn_error_deg, 1.0);
+    }
+  }
+}
+
+// A lost frame elsewhere that shows a look-alike of a mapped place in a small part of the image
+// (a poster, a repeated facade): 150 keypoints exactly as the map saw them from frame 5, the rest
+// an unrelated scene. Descriptor matching and PnP support frame 5's pose with 150 inliers, but the
+// local map around that pose finds nothing else in the frame: the candidate is rejected and the
+// frame stays lost. Without the verification it would be accepted.
+TEST(Tracker, ARelocalisationCandidateTheLocalMapDoesNotConfirmIsRejected) {
+  for (const bool verify : {true, false}) {
+    test::SyntheticScene scene(26);
+    TrackerRun run;
+    TrackerOptions options;
+    if (!verify) options.min_relocalisation_confirmations = 0;
+    run.tracker = Tracker(options);
+    TrackFrames(scene, 0, 8, &run);
+    test::SyntheticScene::Options junk_options;
+    junk_options.num_points = 0;
+    junk_options.num_clutter = 1500;
+    test::SyntheticScene junk(98, junk_options);
+    ASSERT_EQ(run.tracker.Track(junk.MakeFrame(8, SE3::Identity(), nullptr), run.map).status,
+              TrackingStatus::kLost);
+
+    test::SyntheticScene::Options other_options;
+    other_options.num_clutter = 0;
+    test::SyntheticScene other(97, other_options);
+    test::RenderedFrame r = other.Render(TruePose(3));
+    const test::RenderedFrame place = scene.Render(TruePose(5));
+    std::vector<cv::Mat> rows{r.features.descriptors};
+    for (int k = 0, added = 0; k < static_cast<int>(place.point_of_keypoint.size()) && added < 150;
+         ++k) {
+      if (place.point_of_keypoint[k] < 0) continue;
+      r.features.keypoints.push_back(place.features.keypoints[k]);
+      rows.push_back(place.features.descriptors.row(k));
+      r.stereo.u_right_px.push_back(place.stereo.u_right_px[k]);
+      r.stereo.depth_m.push_back(place.stereo.depth_m[k]);
+      ++added;
+    }
+    cv::vconcat(rows, r.features.descriptors);
+    const FramePtr poster =
+        Frame::Create(9, 9 * 100'000'000, scene.rig(), scene.scale(), r.features, r.stereo, {});
+    const TrackingResult result = run.tracker.Track(poster, run.map);
+    EXPECT_GE(run.tracker.relocalisation_candidates(), 1) << "PnP supported a candidate";
+    if (verify) {
+      EXPECT_EQ(result.status, TrackingStatus::kLost);
+      EXPECT_EQ(run.tracker.relocalisation_rejections(), run.tracker.relocalisation_candidates());
+    } else {
+      EXPECT_EQ(result.status, TrackingStatus::kOk);
+      EXPECT_EQ(result.method, TrackingMethod::kRelocalisation);
+    }
+  }
+}
+
 TEST(Tracker, ExcludedKeypointsNeverEnterTracking) {
   test::SyntheticScene scene(24);
   Map map;
