@@ -8,6 +8,7 @@
 
 #include "driver/filter_audit.h"
 #include "driver/inference.h"
+#include "driver/map_outputs.h"
 #include "driver/truth_segmenter.h"
 #include "graph/pipeline_report.h"
 #include "nodes/filter_node.h"
@@ -58,6 +59,22 @@ Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
     throw ConfigError("--segmenter must be yolo, truth or none, not '" + o.segmenter + "'");
   }
   return s;
+}
+
+// The keypoints the filter kept out of the map that have stereo depth, in the world frame.
+void AddRemovedPoints(const nodes::FilterReport& report, const PinholeCamera& camera,
+                      const SE3& world_from_cam, RunSummary* summary) {
+  const FilterOutput& out = *report.output;
+  for (size_t k = 0; k < report.keypoints.size() && k < report.depth_m.size(); ++k) {
+    const float z = report.depth_m[k];
+    if (!out.filter.excluded[k] || !(z > 0)) continue;
+    const cv::Point2f& uv = report.keypoints[k].pt;
+    const Eigen::Vector3d p_in_cam((uv.x - camera.cx) * z / camera.fx,
+                                   (uv.y - camera.cy) * z / camera.fy, z);
+    summary->removed_points.push_back({world_from_cam * p_in_cam,
+                                       report.grey.empty() ? uint8_t{128} : report.grey[k],
+                                       out.points[k].reason});
+  }
 }
 
 }  // namespace
@@ -122,8 +139,11 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   pipeline.mode = options.mode;
   pipeline.on_frame = [&](size_t done, size_t total, const graph::FrameRecord& record) {
     AddFrameToSummary(record.output, stereo, &summary);
-    if (audit && record.filter_report)
+    if (audit && record.filter_report) {
       audit->Add(record.frame_index, *record.filter_report, &summary);
+      if (record.output.status == TrackingStatus::kOk)
+        AddRemovedPoints(*record.filter_report, rig.left, record.output.world_from_cam, &summary);
+    }
     spdlog::debug(
         "frame {}: status {} method {} keypoints {} stereo {} tracked {} (initial {}/{}, local "
         "{}/{}) keyframe {} {}",
@@ -175,7 +195,8 @@ void WriteDriverOutputs(const std::string& out_dir, const DriverResult& result,
                         const std::string& config_yaml, const nlohmann::json& options_json) {
   nlohmann::json pipeline = graph::StatsToJson(result.pipeline.stats);
   pipeline["options"] = options_json;
-  WriteRunOutputs(out_dir, result.summary, config_yaml, {{"pipeline", pipeline}});
+  const nlohmann::json map = WriteMapOutputs(out_dir, result.pipeline.map, result.summary);
+  WriteRunOutputs(out_dir, result.summary, config_yaml, {{"pipeline", pipeline}, {"map", map}});
   graph::WriteChromeTrace(out_dir + "/trace.json", result.pipeline);
   graph::WriteTimingChart(out_dir + "/timing.png", result.pipeline);
 }

@@ -45,6 +45,14 @@ struct RunSummary {
   std::optional<eval::ConfusionMatrix> filter_confusion;
   int64_t parked_points = 0, parked_points_kept = 0;  // keypoints on parked objects
   std::vector<std::string> filter_dump;               // "frame keypoint x y excluded reason score"
+  // Keypoints the filter kept out of the map that had stereo depth, placed in the world by their
+  // frame's pose (the refined-away cloud, OUT/map_removed.ply).
+  struct RemovedPoint {
+    Eigen::Vector3d p_in_world = Eigen::Vector3d::Zero();
+    uint8_t grey = 128;
+    FilterReason reason = FilterReason::kKept;
+  };
+  std::vector<RemovedPoint> removed_points;
   std::string error;  // non-empty when the run stopped early (outputs cover the frames done)
 };
 

@@ -761,6 +761,23 @@ PipelineResult GraphRun::Collect() {
   out.tracked = slam_->RefinedTrajectory();
   out.keyframes = slam_->map().num_keyframes();
   out.map_points = slam_->map().num_points();
+  const Map& map = slam_->map();
+  for (const auto& [id, mp] : map.points()) {
+    MapCloudPoint c;
+    c.p_in_world = mp.p_in_world;
+    c.observations = static_cast<int>(mp.observations.size());
+    if (const Keyframe* kf = map.keyframe(mp.reference_keyframe)) {
+      const auto it = mp.observations.find(mp.reference_keyframe);
+      if (it != mp.observations.end()) c.grey = kf->frame->grey(it->second);
+    }
+    out.map.points.push_back(c);
+  }
+  std::vector<const Keyframe*> keyframes;
+  for (const auto& [id, kf] : map.keyframes()) keyframes.push_back(&kf);
+  std::sort(keyframes.begin(), keyframes.end(),
+            [](const Keyframe* a, const Keyframe* b) { return a->index < b->index; });
+  for (const Keyframe* kf : keyframes)
+    out.map.keyframes.push_back({kf->frame->t_ns(), -1, kf->cam_from_world.inverse()});
   out.events = profiler_.Events();
   if (error_) {
     out.error_frame_index = error_->frame_index;

@@ -99,12 +99,24 @@ struct PipelineStats {
   std::string allocator;  // AllocatorName()
 };
 
+// The map when the run ended: its points (world frame) and its keyframes.
+struct MapCloudPoint {
+  Eigen::Vector3d p_in_world = Eigen::Vector3d::Zero();
+  uint8_t grey = 128;    // the reference keyframe's grey level at the point's keypoint
+  int observations = 0;  // keyframes that observe it
+};
+struct MapSnapshot {
+  std::vector<MapCloudPoint> points;
+  Trajectory keyframes;  // world_from_cam of every keyframe, by insertion order
+};
+
 struct PipelineResult {
   std::vector<FrameRecord> frames;  // completed frames, in order
   std::vector<int64_t> dropped_frame_indices;
   std::vector<int64_t> dropped_release_ns;
   Trajectory tracked;  // SlamSystem::RefinedTrajectory() at the end
   size_t keyframes = 0, map_points = 0;
+  MapSnapshot map;
   PipelineStats stats;
   std::vector<StageEvent> events;
   std::string error;  // empty when every frame ran; else "frame N, stage S: what"

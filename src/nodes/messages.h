@@ -97,6 +97,7 @@ struct MaskMsg {
 struct FilterReport {
   std::vector<cv::KeyPoint> keypoints;         // left keypoints, index = FilterOutput::points index
   std::vector<float> depth_m;                  // per keypoint (<= 0: none); empty in monocular runs
+  std::vector<uint8_t> grey;                   // per keypoint: the left image's grey level there
   std::shared_ptr<const FilterOutput> output;  // never null
 };
 using FilterReportPtr = std::shared_ptr<const FilterReport>;

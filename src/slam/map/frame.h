@@ -50,6 +50,8 @@ class Frame {
   float depth_m(int i) const { return depth_m_[i]; }
   bool has_stereo(int i) const { return depth_m_[i] > 0; }
   float weight(int i) const { return weight_[i]; }
+  // Grey level of the left image at the keypoint (its nearest pixel), for coloured map clouds.
+  uint8_t grey(int i) const { return grey_[i]; }
   bool excluded(int i) const { return excluded_[i] != 0; }
   int num_stereo() const { return num_stereo_; }
   int num_excluded() const { return num_excluded_; }
@@ -76,7 +78,7 @@ class Frame {
   std::vector<cv::KeyPoint> keypoints_;
   cv::Mat descriptors_;
   std::vector<float> u_right_px_, depth_m_, weight_;
-  std::vector<uint8_t> excluded_;
+  std::vector<uint8_t> excluded_, grey_;
   int num_stereo_ = 0, num_excluded_ = 0;
   double cell_width_px_ = 1, cell_height_px_ = 1;
   std::vector<std::vector<int>> grid_;  // row-major kGridRows x kGridCols

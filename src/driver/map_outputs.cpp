@@ -1,0 +1,129 @@
+#include "driver/map_outputs.h"
+
+#include <algorithm>
+#include <bit>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "io/trajectory_io.h"
+#include "slam/common/error.h"
+
+namespace pcr::driver {
+namespace {
+
+static_assert(std::endian::native == std::endian::little,
+              "PLY bodies are written as little-endian");
+
+// One vertex record: x y z (float), red green blue (uchar), then the extra property.
+template <typename Extra>
+void PutVertex(std::string* body, const Eigen::Vector3d& p, uint8_t grey, Extra extra) {
+  const float xyz[3] = {static_cast<float>(p.x()), static_cast<float>(p.y()),
+                        static_cast<float>(p.z())};
+  body->append(reinterpret_cast<const char*>(xyz), sizeof(xyz));
+  const uint8_t rgb[3] = {grey, grey, grey};
+  body->append(reinterpret_cast<const char*>(rgb), sizeof(rgb));
+  body->append(reinterpret_cast<const char*>(&extra), sizeof(extra));
+}
+
+void WritePly(const std::string& path, size_t count, const std::string& comments,
+              const std::string& extra_property, const std::string& body) {
+  std::ofstream out(path, std::ios::binary);
+  out << "ply\nformat binary_little_endian 1.0\n"
+      << "comment PCR-ORB map, world frame = the first camera (x right, y down, z forward), m\n"
+      << comments << "element vertex " << count << "\n"
+      << "property float x\nproperty float y\nproperty float z\n"
+      << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+      << extra_property << "\nend_header\n";
+  out.write(body.data(), static_cast<std::streamsize>(body.size()));
+  if (!out) throw InputError(path, 0, "cannot write");
+}
+
+// Top view (x right, z up the picture) of kept points, removed points and keyframes.
+void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
+                     const RunSummary& summary) {
+  std::vector<double> xs, zs;
+  for (const graph::MapCloudPoint& p : map.points) {
+    xs.push_back(p.p_in_world.x());
+    zs.push_back(p.p_in_world.z());
+  }
+  for (const StampedPose& k : map.keyframes) {
+    xs.push_back(k.world_from_cam.translation().x());
+    zs.push_back(k.world_from_cam.translation().z());
+  }
+  if (xs.empty()) xs = zs = {0.0};
+  // The 1st-99th percentiles, so that a few far points do not shrink the picture.
+  auto range = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const size_t lo = v.size() / 100, hi = v.size() - 1 - v.size() / 100;
+    return std::pair<double, double>(v[lo] - 5, v[hi] + 5);
+  };
+  const auto [x0, x1] = range(xs);
+  const auto [z0, z1] = range(zs);
+  const int size = 1000;
+  const double scale = (size - 40) / std::max(x1 - x0, z1 - z0);
+  cv::Mat canvas(size, size, CV_8UC3, cv::Scalar(255, 255, 255));
+  auto pixel = [&](double x, double z) {
+    return cv::Point(20 + static_cast<int>((x - x0) * scale),
+                     size - 20 - static_cast<int>((z - z0) * scale));
+  };
+  auto inside = [&](const cv::Point& q) {
+    return q.x >= 0 && q.y >= 0 && q.x < size && q.y < size;
+  };
+  for (const graph::MapCloudPoint& p : map.points) {
+    const cv::Point q = pixel(p.p_in_world.x(), p.p_in_world.z());
+    if (inside(q)) canvas.at<cv::Vec3b>(q) = cv::Vec3b(110, 110, 110);
+  }
+  for (const RunSummary::RemovedPoint& p : summary.removed_points) {
+    const cv::Point q = pixel(p.p_in_world.x(), p.p_in_world.z());
+    if (inside(q)) cv::circle(canvas, q, 1, cv::Scalar(0, 0, 230), cv::FILLED);
+  }
+  for (size_t i = 1; i < map.keyframes.size(); ++i) {
+    const auto& a = map.keyframes[i - 1].world_from_cam.translation();
+    const auto& b = map.keyframes[i].world_from_cam.translation();
+    cv::line(canvas, pixel(a.x(), a.z()), pixel(b.x(), b.z()), cv::Scalar(200, 80, 0), 2);
+  }
+  cv::putText(canvas,
+              std::to_string(map.points.size()) + " map points (grey), " +
+                  std::to_string(summary.removed_points.size()) +
+                  " removed by the filter (red), keyframes (blue); top view, x right, z up",
+              cv::Point(10, 15), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1);
+  if (!cv::imwrite(path, canvas)) throw InputError(path, 0, "cannot write");
+}
+
+}  // namespace
+
+nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnapshot& map,
+                               const RunSummary& summary) {
+  std::error_code ec;
+  std::filesystem::create_directories(out_dir, ec);
+  if (ec) throw InputError(out_dir, 0, "cannot create output directory: " + ec.message());
+  std::string body;
+  body.reserve(map.points.size() * 19);
+  for (const graph::MapCloudPoint& p : map.points)
+    PutVertex(&body, p.p_in_world, p.grey, static_cast<int32_t>(p.observations));
+  WritePly(out_dir + "/map.ply", map.points.size(), "", "property int observations", body);
+
+  body.clear();
+  std::string reasons;
+  nlohmann::json by_reason = nlohmann::json::object();
+  for (int r = 0; r < kNumFilterReasons; ++r)
+    reasons += "comment reason " + std::to_string(r) + " = " +
+               FilterReasonName(static_cast<FilterReason>(r)) + "\n";
+  for (const RunSummary::RemovedPoint& p : summary.removed_points) {
+    PutVertex(&body, p.p_in_world, p.grey, static_cast<uint8_t>(p.reason));
+    by_reason[FilterReasonName(p.reason)] = by_reason.value(FilterReasonName(p.reason), 0) + 1;
+  }
+  WritePly(out_dir + "/map_removed.ply", summary.removed_points.size(), reasons,
+           "property uchar reason", body);
+  WriteTumTrajectory(out_dir + "/keyframes.txt", map.keyframes);
+  WriteMapPicture(out_dir + "/map.png", map, summary);
+  return {{"points", map.points.size()},
+          {"removed_points", summary.removed_points.size()},
+          {"removed_by_reason", by_reason},
+          {"keyframes", map.keyframes.size()}};
+}
+
+}  // namespace pcr::driver
