@@ -125,7 +125,8 @@ void RunFrames(const std::string& name, FrameArgs& a) {
   if (progress) progress->Finish();
   std::printf("%s", result.report.c_str());
   std::printf(
-      "outputs: %s/{trajectory.txt,trajectory_tum.txt,stats.json,config.yaml,trace.json,"
+      "outputs: %s/{trajectory.txt,trajectory_tum.txt,stats.json,config.yaml,trace.json,map.ply,"
+      "map_removed.ply,keyframes.txt,map.png,"
       "timing.png%s}\n",
       c.out_dir.c_str(), result.stats.ate_rmse_m ? ",evaluation.json,trajectory.png" : "");
   if (!result.error.empty()) throw std::runtime_error(result.error);
