@@ -24,13 +24,17 @@ fi
 "$bin" pipeline "${args[@]}" --filter on --policy pipelined --threads 2 --out "$out"
 echo
 echo "demo outputs in $out/:"
-for f in trace.json timing.png trajectory.png trajectory.txt trajectory_tum.txt stats.json \
-  evaluation.json config.yaml; do
+for f in trace.json timing.png trajectory.png map.png map.ply map_removed.ply keyframes.txt \
+  trajectory.txt trajectory_tum.txt stats.json evaluation.json config.yaml; do
   if [ -f "$out/$f" ]; then
     case $f in
       trace.json) what="Chrome trace of every stage call (open in https://ui.perfetto.dev)" ;;
       timing.png) what="per-thread Gantt chart and per-stage p50/p95 bars" ;;
       trajectory.png) what="top view of the trajectory against ground truth" ;;
+      map.png) what="top view of the map: points grey, removed by the filter red, keyframes blue" ;;
+      map.ply) what="the map's points (binary PLY: position, grey, observations)" ;;
+      map_removed.ply) what="the points the filter refined away (binary PLY, with the reason)" ;;
+      keyframes.txt) what="keyframe poses, TUM format" ;;
       trajectory.txt) what="KITTI format, one pose per input frame" ;;
       trajectory_tum.txt) what="tracked frames, TUM format" ;;
       stats.json) what="frames, stage times, pipeline statistics, ATE" ;;
