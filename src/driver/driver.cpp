@@ -62,8 +62,8 @@ Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
 }
 
 // The keypoints the filter kept out of the map that have stereo depth, in the world frame.
-void AddRemovedPoints(const nodes::FilterReport& report, const PinholeCamera& camera,
-                      const SE3& world_from_cam, RunSummary* summary) {
+void AddRemovedPoints(const nodes::FilterReport& report, const std::vector<char>& truth,
+                      const PinholeCamera& camera, const SE3& world_from_cam, RunSummary* summary) {
   const FilterOutput& out = *report.output;
   for (size_t k = 0; k < report.keypoints.size() && k < report.depth_m.size(); ++k) {
     const float z = report.depth_m[k];
@@ -73,7 +73,7 @@ void AddRemovedPoints(const nodes::FilterReport& report, const PinholeCamera& ca
                                    (uv.y - camera.cy) * z / camera.fy, z);
     summary->removed_points.push_back({world_from_cam * p_in_cam,
                                        report.grey.empty() ? uint8_t{128} : report.grey[k],
-                                       out.points[k].reason});
+                                       out.points[k].reason, k < truth.size() ? truth[k] : '-'});
   }
 }
 
@@ -140,9 +140,11 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   pipeline.on_frame = [&](size_t done, size_t total, const graph::FrameRecord& record) {
     AddFrameToSummary(record.output, stereo, &summary);
     if (audit && record.filter_report) {
-      audit->Add(record.frame_index, *record.filter_report, &summary);
+      std::vector<char> truth;
+      audit->Add(record.frame_index, *record.filter_report, &summary, &truth);
       if (record.output.status == TrackingStatus::kOk)
-        AddRemovedPoints(*record.filter_report, rig.left, record.output.world_from_cam, &summary);
+        AddRemovedPoints(*record.filter_report, truth, rig.left, record.output.world_from_cam,
+                         &summary);
     }
     spdlog::debug(
         "frame {}: status {} method {} keypoints {} stereo {} tracked {} (initial {}/{}, local "

@@ -41,8 +41,8 @@ std::string FilterAudit::Describe() const {
   return "";
 }
 
-void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report,
-                      RunSummary* summary) const {
+void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report, RunSummary* summary,
+                      std::vector<char>* truth_out) const {
   const FilterOutput& out = *report.output;
   const std::vector<cv::KeyPoint>& keypoints = report.keypoints;
   const size_t i = static_cast<size_t>(frame_index);
@@ -64,6 +64,7 @@ void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report,
   std::vector<LabelTruthKind> label_kinds;
   if (labels_) label_kinds = labels_->Classify(i, keypoints);
   if ((instances_ || labels_) && !summary->filter_confusion) summary->filter_confusion.emplace();
+  if (truth_out) truth_out->assign(keypoints.size(), '-');
 
   for (size_t k = 0; k < keypoints.size(); ++k) {
     const cv::Point2f& p = keypoints[k].pt;
@@ -89,6 +90,7 @@ void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report,
       if (kind != LabelTruthKind::kStatic)
         truth.label += ":" + std::to_string(labels_->TrackAt(i, p));
     }
+    if (truth.known && truth_out) (*truth_out)[k] = truth.moving ? 'm' : (truth.parked ? 'p' : 's');
     if (truth.known) {
       // Predicted dynamic: excluded as moving or as a dynamic-class mask (sky, border and ground
       // exclusions are not dynamic-object predictions).

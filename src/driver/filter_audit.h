@@ -25,8 +25,10 @@ class FilterAudit {
   // "scored against ..." or "" when the dataset has no ground truth for the filter.
   std::string Describe() const;
   // One frame's decisions into the summary (filtered, reasons, filter stage times, confusion,
-  // parked-object counts, dump lines).
-  void Add(int64_t frame_index, const nodes::FilterReport& report, RunSummary* summary) const;
+  // parked-object counts, dump lines). truth (optional): per keypoint 'm' (moving object), 'p'
+  // (parked object), 's' (static scene) or '-' (no ground truth).
+  void Add(int64_t frame_index, const nodes::FilterReport& report, RunSummary* summary,
+           std::vector<char>* truth = nullptr) const;
 
  private:
   const Dataset& dataset_;

@@ -108,13 +108,17 @@ nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnaps
 
   body.clear();
   std::string reasons;
-  nlohmann::json by_reason = nlohmann::json::object();
+  nlohmann::json by_reason = nlohmann::json::object(), by_truth = nlohmann::json::object();
   for (int r = 0; r < kNumFilterReasons; ++r)
     reasons += "comment reason " + std::to_string(r) + " = " +
                FilterReasonName(static_cast<FilterReason>(r)) + "\n";
   for (const RunSummary::RemovedPoint& p : summary.removed_points) {
     PutVertex(&body, p.p_in_world, p.grey, static_cast<uint8_t>(p.reason));
     by_reason[FilterReasonName(p.reason)] = by_reason.value(FilterReasonName(p.reason), 0) + 1;
+    if (p.truth != '-') {
+      const char* kind = p.truth == 'm' ? "moving" : (p.truth == 'p' ? "parked" : "static");
+      by_truth[kind] = by_truth.value(kind, 0) + 1;
+    }
   }
   WritePly(out_dir + "/map_removed.ply", summary.removed_points.size(), reasons,
            "property uchar reason", body);
@@ -123,6 +127,7 @@ nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnaps
   return {{"points", map.points.size()},
           {"removed_points", summary.removed_points.size()},
           {"removed_by_reason", by_reason},
+          {"removed_by_truth", by_truth},
           {"keyframes", map.keyframes.size()}};
 }
 

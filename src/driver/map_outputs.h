@@ -14,7 +14,8 @@
 namespace pcr::driver {
 
 // Writes the four files into out_dir (created if needed); returns their summary for stats.json
-// ("points", "removed_points", "removed_by_reason", "keyframes"). Throws InputError naming the
+// ("points", "removed_points", "removed_by_reason", "removed_by_truth": moving / parked / static
+// against the dataset's ground truth where it has one, "keyframes"). Throws InputError naming the
 // file when one cannot be written.
 nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnapshot& map,
                                const RunSummary& summary);

@@ -51,6 +51,7 @@ struct RunSummary {
     Eigen::Vector3d p_in_world = Eigen::Vector3d::Zero();
     uint8_t grey = 128;
     FilterReason reason = FilterReason::kKept;
+    char truth = '-';  // 'm' moving object, 'p' parked object, 's' static, '-' unknown
   };
   std::vector<RemovedPoint> removed_points;
   std::string error;  // non-empty when the run stopped early (outputs cover the frames done)
