@@ -3,13 +3,12 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <algorithm>
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
 #include "slam/common/error.h"
+#include "slam/common/image.h"
 
 namespace pcr::driver {
 namespace {
@@ -72,9 +71,7 @@ void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report, Ru
     const bool excluded = out.filter.excluded[k] != 0;
     KeypointTruth truth;
     if (!ids.empty()) {
-      const int u = std::clamp(static_cast<int>(std::lround(p.x)), 0, ids.cols - 1);
-      const int v = std::clamp(static_cast<int>(std::lround(p.y)), 0, ids.rows - 1);
-      const uint16_t id = ids.at<uint16_t>(v, u);
+      const uint16_t id = ids.at<uint16_t>(NearestPixel(ids, p));
       truth.known = true;
       truth.moving = instances_->IsMoving(id);
       truth.parked = instances_->IsObject(id) && !truth.moving;

@@ -1,11 +1,10 @@
 #include "nodes/filter_node.h"
 
-#include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <stdexcept>
 
 #include "slam/common/error.h"
+#include "slam/common/image.h"
 #include "slam/common/timing.h"
 
 namespace pcr::nodes {
@@ -97,12 +96,7 @@ FilteredPtr FilterNode::operator()(const StereoPtr& stereo, const SegmentationPt
       auto report = std::make_shared<FilterReport>();
       report->keypoints = stereo->left->features.keypoints;
       report->depth_m = stereo->stereo.depth_m;
-      const cv::Mat& left = stereo->images->left;
-      report->grey.reserve(report->keypoints.size());
-      for (const cv::KeyPoint& kp : report->keypoints)
-        report->grey.push_back(
-            left.at<uint8_t>(std::clamp(static_cast<int>(std::lround(kp.pt.y)), 0, left.rows - 1),
-                             std::clamp(static_cast<int>(std::lround(kp.pt.x)), 0, left.cols - 1)));
+      report->grey = GreyAtKeypoints(stereo->images->left, report->keypoints);
       report->output = std::move(scored.details);
       msg->report = std::move(report);
     }

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "slam/common/image.h"
+
 namespace pcr {
 
 std::shared_ptr<const Frame> Frame::Create(int64_t id, int64_t t_ns, const StereoRig& rig,
@@ -38,16 +40,10 @@ std::shared_ptr<const Frame> Frame::Create(int64_t id, int64_t t_ns, const Stere
     frame->depth_m_.assign(n, -1.f);
   }
   // Grey level at each keypoint (nearest level-0 pixel; 128 without the image).
-  frame->grey_.assign(n, 128);
-  if (!features.pyramid.empty() && features.pyramid[0].type() == CV_8UC1) {
-    const cv::Mat& image = features.pyramid[0];
-    for (size_t i = 0; i < n; ++i) {
-      const cv::Point2f& p = frame->keypoints_[i].pt;
-      const int x = std::clamp(static_cast<int>(std::lround(p.x)), 0, image.cols - 1);
-      const int y = std::clamp(static_cast<int>(std::lround(p.y)), 0, image.rows - 1);
-      frame->grey_[i] = image.at<uint8_t>(y, x);
-    }
-  }
+  const bool has_image = !features.pyramid.empty() && !features.pyramid[0].empty() &&
+                         features.pyramid[0].type() == CV_8UC1;
+  frame->grey_ = has_image ? GreyAtKeypoints(features.pyramid[0], frame->keypoints_)
+                           : std::vector<uint8_t>(n, 128);
   frame->weight_ = filter.weight.empty() ? std::vector<float>(n, 1.f) : filter.weight;
   frame->excluded_ = filter.excluded.empty() ? std::vector<uint8_t>(n, 0) : filter.excluded;
   for (size_t i = 0; i < n; ++i) {

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "slam/common/error.h"
+#include "slam/common/image.h"
 #include "slam/common/timing.h"
 
 namespace pcr {
@@ -80,25 +81,20 @@ StereoMatches SlamSystem::MatchStereoFeatures(const OrbFeatures& left,
 KeypointFilter SlamSystem::SampleFilter(const FrameFilterInput& filter,
                                         const std::vector<cv::KeyPoint>& keypoints) {
   KeypointFilter out;
-  auto pixel = [](const cv::Mat& image, const cv::KeyPoint& kp) {
-    const int x = std::clamp(static_cast<int>(std::lround(kp.pt.x)), 0, image.cols - 1);
-    const int y = std::clamp(static_cast<int>(std::lround(kp.pt.y)), 0, image.rows - 1);
-    return cv::Point(x, y);
-  };
   if (!filter.excluded_mask.empty()) {
     if (filter.excluded_mask.type() != CV_8UC1)
       throw std::invalid_argument("FrameFilterInput: excluded_mask must be CV_8UC1");
     out.excluded.reserve(keypoints.size());
     for (const cv::KeyPoint& kp : keypoints)
-      out.excluded.push_back(filter.excluded_mask.at<uint8_t>(pixel(filter.excluded_mask, kp)) ? 1
-                                                                                               : 0);
+      out.excluded.push_back(
+          filter.excluded_mask.at<uint8_t>(NearestPixel(filter.excluded_mask, kp.pt)) ? 1 : 0);
   }
   if (!filter.weight_map.empty()) {
     if (filter.weight_map.type() != CV_32FC1)
       throw std::invalid_argument("FrameFilterInput: weight_map must be CV_32FC1");
     out.weight.reserve(keypoints.size());
     for (const cv::KeyPoint& kp : keypoints) {
-      const float w = filter.weight_map.at<float>(pixel(filter.weight_map, kp));
+      const float w = filter.weight_map.at<float>(NearestPixel(filter.weight_map, kp.pt));
       out.weight.push_back(std::isfinite(w) ? std::clamp(w, 1e-3f, 1.0f) : 1.0f);
     }
   }
