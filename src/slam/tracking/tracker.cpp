@@ -399,16 +399,13 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches*
     Matches verified = *m;
     SE3 verified_pose = candidate_pose;
     TrackingResult scratch;
-    const KeyframeId saved_reference = reference_;
-    const int saved_frames = frames_since_relocalisation_;
-    frames_since_relocalisation_ = 0;  // the relocalised window and thresholds
-    const bool tracked = TrackLocalMap(frame, map, &verified_pose, &verified, &scratch);
+    KeyframeId scratch_reference;
+    const bool tracked = TrackLocalMap(frame, map, /*relocalised=*/options_.relocalised_frames > 0,
+                                       &verified_pose, &verified, &scratch, &scratch_reference);
     int confirmations = 0;  // inliers of the local map that the candidate was not computed from
     for (int i = 0; i < frame.size(); ++i)
       confirmations += verified.kind[i] == 1 && m->kind[i] != 1 ? 1 : 0;
     const bool explained = tracked && confirmations >= options_.min_relocalisation_confirmations;
-    frames_since_relocalisation_ = saved_frames;
-    reference_ = saved_reference;
     ++relocalisation_candidates_;
     if (!explained) {
       ++relocalisation_rejections_;
@@ -457,14 +454,14 @@ LocalMap CollectLocalKeyframes(const Map& map, const std::vector<MapPointId>& ma
   return local;
 }
 
-bool Tracker::TrackLocalMap(const Frame& frame, const Map& map, SE3* pose, Matches* m,
-                            TrackingResult* result) {
+bool Tracker::TrackLocalMap(const Frame& frame, const Map& map, bool relocalised, SE3* pose,
+                            Matches* m, TrackingResult* result, KeyframeId* local_reference) const {
   std::vector<MapPointId> matched;
   for (int i = 0; i < frame.size(); ++i)
     if (m->kind[i] == 1) matched.push_back(m->point[i]);
   const LocalMap local = CollectLocalKeyframes(map, matched, options_.max_local_keyframes,
                                                options_.local_neighbours_per_keyframe);
-  if (local.reference.valid()) reference_ = local.reference;
+  *local_reference = local.reference;
   std::set<MapPointId> seen(matched.begin(), matched.end());
   for (MapPointId p : matched) result->map_delta.visible_increments.push_back(p);
   std::vector<ProjectedPoint> projected;
@@ -483,13 +480,12 @@ bool Tracker::TrackLocalMap(const Frame& frame, const Map& map, SE3* pose, Match
       result->map_delta.visible_increments.push_back(p);
     }
   }
-  const bool recently_relocalised = frames_since_relocalisation_ < options_.relocalised_frames;
   result->num_local_projected = static_cast<int>(projected.size());
   std::vector<int> assigned = FreeMask(frame, *m);
   result->num_local_matches = SearchLocalPoints(
       frame, projected,
-      recently_relocalised ? options_.local_search_radius_factor_relocalised
-                           : options_.local_search_radius_factor,
+      relocalised ? options_.local_search_radius_factor_relocalised
+                  : options_.local_search_radius_factor,
       &assigned, options_.local_search_levels_below, options_.local_search_levels_above);
   for (int i = 0; i < frame.size(); ++i) {
     if (assigned[i] < 0) continue;
@@ -503,8 +499,8 @@ bool Tracker::TrackLocalMap(const Frame& frame, const Map& map, SE3* pose, Match
   result->keyframe_input.motion_quality = inlier_ratio;
   for (int i = 0; i < frame.size(); ++i)
     if (m->kind[i] == 1) result->map_delta.found_increments.push_back(m->point[i]);
-  const int needed = recently_relocalised ? options_.min_local_map_inliers_relocalised
-                                          : options_.min_local_map_inliers;
+  const int needed =
+      relocalised ? options_.min_local_map_inliers_relocalised : options_.min_local_map_inliers;
   return inliers >= needed;
 }
 
@@ -600,7 +596,12 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
       frames_since_relocalisation_ = 0;
     }
   }
-  if (ok) ok = TrackLocalMap(frame, map, &pose, &m, &result);
+  if (ok) {
+    KeyframeId local_reference;
+    ok = TrackLocalMap(frame, map, frames_since_relocalisation_ < options_.relocalised_frames,
+                       &pose, &m, &result, &local_reference);
+    if (local_reference.valid()) reference_ = local_reference;
+  }
 
   if (!ok) {
     status_ = TrackingStatus::kLost;

@@ -161,8 +161,10 @@ class Tracker {
   bool TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
                               int* n1);
   bool Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0);
-  bool TrackLocalMap(const Frame& frame, const Map& map, SE3* pose, Matches* m,
-                     TrackingResult* result);
+  // relocalised: the frame counts as recently relocalised (wider window, more inliers needed).
+  // *local_reference: the local keyframe sharing most points (invalid when none).
+  bool TrackLocalMap(const Frame& frame, const Map& map, bool relocalised, SE3* pose, Matches* m,
+                     TrackingResult* result, KeyframeId* local_reference) const;
   // Optimises *pose on the matches and drops outliers; returns the map-point inliers.
   int OptimizeAndPrune(const Frame& frame, SE3* pose, Matches* m, double* inlier_ratio) const;
   std::vector<int> FreeMask(const Frame& frame, const Matches& m) const;
