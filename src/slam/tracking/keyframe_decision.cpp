@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "slam/geometry/se3.h"
+
 namespace pcr {
 
 bool KeyframeDecisionOptions::IsValid(std::string* why) const {
@@ -55,8 +57,8 @@ KeyframeDecision ShouldInsertKeyframe(const KeyframeDecisionInput& in,
   const bool few_vs_reference = in.tracked_points < ratio * reference;
   const bool low_quality = in.motion_quality < opt.min_motion_quality;
   const bool timeout = in.seconds_since_last_keyframe >= opt.max_interval_s;
-  const bool turned = in.rotation_since_keyframe_rad * (180.0 / 3.14159265358979323846) >
-                      opt.max_rotation_since_keyframe_deg;
+  const bool turned =
+      RadToDeg(in.rotation_since_keyframe_rad) > opt.max_rotation_since_keyframe_deg;
 
   if (filtered_fraction > opt.max_filtered_fraction && !weak && !need_close) {
     d.reason = "too much dynamic content";
