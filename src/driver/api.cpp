@@ -90,12 +90,10 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   d.truth_labels = config.truth_labels;
   driver::DriverOptions options = ToDriverOptions(config);
   if (source.first < 0 || source.end < 0) throw ConfigError("Source: negative frame number");
-  driver::FrameRange range{static_cast<size_t>(source.first), static_cast<size_t>(source.end)};
-  if (range.end == 0 || range.end > dataset.size()) range.end = dataset.size();
-  if (range.first >= range.end)
-    throw ConfigError("Source: frames " + std::to_string(source.first) + ":" +
-                      std::to_string(source.end) + " select no frame of " +
-                      std::to_string(dataset.size()));
+  const driver::FrameRange range =
+      driver::FrameRange{static_cast<size_t>(source.first), static_cast<size_t>(source.end)}.Within(
+          dataset.size(),
+          "Source frames " + std::to_string(source.first) + ":" + std::to_string(source.end));
   spdlog::info("{} {} {}: {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m{}",
                graph::ToString(options.pipeline.policy), ToString(options.mode),
                config.filter ? "filter on" : "filter off", dataset.name, range.end - range.first,

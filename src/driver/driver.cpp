@@ -100,7 +100,8 @@ nodes::FrameSource SourceFromDataset(const Dataset& dataset, const StereoRig& ri
 
 DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRange range,
                         const DriverOptions& options) {
-  if (range.end == 0 || range.end > dataset.size()) range.end = dataset.size();
+  range = range.Within(dataset.size(),
+                       "frames " + std::to_string(range.first) + ":" + std::to_string(range.end));
   const bool stereo = options.mode == SlamMode::kStereo;
   if (stereo && !dataset.has_right())
     throw ConfigError(dataset.root + ": stereo mode needs a right image stream (image_1)");

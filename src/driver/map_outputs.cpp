@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <bit>
 #include <cstring>
-#include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -97,9 +96,7 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
 
 nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnapshot& map,
                                const RunSummary& summary) {
-  std::error_code ec;
-  std::filesystem::create_directories(out_dir, ec);
-  if (ec) throw InputError(out_dir, 0, "cannot create output directory: " + ec.message());
+  CreateOutputDirectory(out_dir);
   std::string body;
   body.reserve(map.points.size() * 19);
   for (const graph::MapCloudPoint& p : map.points)

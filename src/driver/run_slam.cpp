@@ -53,12 +53,15 @@ FrameRange FrameRange::ParseText(const std::string& text) {
   return r;
 }
 
-FrameRange FrameRange::Parse(const std::string& text, size_t size) {
-  FrameRange r = ParseText(text);
+FrameRange FrameRange::Within(size_t size, const std::string& what) const {
+  FrameRange r = *this;
   if (r.end == 0 || r.end > size) r.end = size;
-  if (r.first >= r.end)
-    throw ConfigError("--frames '" + text + "' selects no frame of " + std::to_string(size));
+  if (r.first >= r.end) throw ConfigError(what + " selects no frame of " + std::to_string(size));
   return r;
+}
+
+FrameRange FrameRange::Parse(const std::string& text, size_t size) {
+  return ParseText(text).Within(size, "--frames '" + text + "'");
 }
 
 void AddFrameToSummary(const FrameOutput& out, bool stereo, RunSummary* s) {
@@ -114,12 +117,15 @@ void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool mo
   }
 }
 
+void CreateOutputDirectory(const std::string& out_dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(out_dir, ec);
+  if (ec) throw InputError(out_dir, 0, "cannot create output directory: " + ec.message());
+}
+
 void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
                      const std::string& config_yaml, const nlohmann::json& extra) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throw InputError(out_dir, 0, "cannot create output directory: " + ec.message());
+  CreateOutputDirectory(out_dir);
   WriteKittiTrajectory(out_dir + "/trajectory.txt", s.per_frame);
   WriteTumTrajectory(out_dir + "/trajectory_tum.txt", s.tracked);
   {

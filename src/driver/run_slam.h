@@ -21,6 +21,9 @@ struct FrameRange {
   static FrameRange Parse(const std::string& text, size_t size);
   // The same without a size: end 0 when B is empty. Throws ConfigError when malformed.
   static FrameRange ParseText(const std::string& text);
+  // This range in a dataset of `size` frames: end 0 or past the end becomes size. Throws
+  // ConfigError "<what> selects no frame of <size>" when nothing is left.
+  FrameRange Within(size_t size, const std::string& what) const;
 };
 
 struct RunSummary {
@@ -69,6 +72,9 @@ void AddFrameToSummary(const FrameOutput& out, bool stereo, RunSummary* summary)
 // dataset's ground truth when present (SE(3) alignment, Sim(3) for monocular runs).
 void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool monocular,
                      RunSummary* summary);
+
+// Creates out_dir and its parents; throws InputError naming it when that fails.
+void CreateOutputDirectory(const std::string& out_dir);
 
 // trajectory.txt (KITTI, one line per input frame), trajectory_tum.txt (tracked frames),
 // stats.json, config.yaml (effective configuration) and, with ground truth, evaluation.json and
