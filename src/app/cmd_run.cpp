@@ -23,7 +23,13 @@ struct FrameArgs {
   std::string sequence, frames, mode = "stereo", policy = "sequential";
 };
 
-std::string OnOff(bool v) { return v ? "on" : "off"; }
+// An "on|off" option for a bool; the help text gets ": on or off (default ...)".
+void AddOnOff(CLI::App* cmd, const std::string& name, bool* flag, const std::string& help) {
+  cmd->add_option_function<std::string>(
+         name, [flag](const std::string& v) { *flag = v == "on"; },
+         help + ": on or off (default " + (*flag ? "on" : "off") + ")")
+      ->check(CLI::IsMember({"on", "off"}));
+}
 
 // Options of both subcommands; `pipeline` adds the scheduling ones.
 void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
@@ -39,10 +45,7 @@ void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
   cmd->add_option("--set", c.overrides, "override one key: section.key=value (repeatable)");
   cmd->add_option("--threads", c.threads, "threads for TBB, OpenCV and Ceres")
       ->capture_default_str();
-  cmd->add_option_function<std::string>(
-         "--filter", [&c](const std::string& v) { c.filter = v == "on"; },
-         "multi-stage dynamic-point filter before tracking: on or off (default off)")
-      ->check(CLI::IsMember({"on", "off"}));
+  AddOnOff(cmd, "--filter", &c.filter, "multi-stage dynamic-point filter before tracking");
   cmd->add_option("--segmenter", c.segmenter,
                   "dynamic-object segmentation: yolo, truth (synthetic sequences) or none; "
                   "without --filter on its masks alone exclude keypoints")
@@ -78,26 +81,17 @@ void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
   cmd->add_option("--mask-deadline-ms", c.mask_deadline_ms,
                   "realtime: how long tracking waits for a late mask before using the last one")
       ->capture_default_str();
-  cmd->add_option_function<std::string>(
-         "--adaptive", [&c](const std::string& v) { c.adaptive = v == "on"; },
-         "adaptive quality control (Eq. 9): on or off (default off)")
-      ->check(CLI::IsMember({"on", "off"}));
+  AddOnOff(cmd, "--adaptive", &c.adaptive, "adaptive quality control (Eq. 9)");
   cmd->add_option("--model-high", c.model_high,
                   "adaptive high-quality model (e.g. yolov8n-seg_coco_384x1280.onnx)");
   cmd->add_option("--trim-every", c.trim_every,
                   "hand free heap pages back to the system every N frames (0: never)")
       ->capture_default_str();
-  cmd->add_option_function<std::string>(
-         "--trim-after-keyframe", [&c](const std::string& v) { c.trim_after_keyframe = v == "on"; },
-         "also right after each keyframe's local mapping: on or off (default " +
-             OnOff(c.trim_after_keyframe) + ")")
-      ->check(CLI::IsMember({"on", "off"}));
-  cmd->add_option_function<std::string>(
-         "--device-overlap", [&c](const std::string& v) { c.device_overlap = v == "on"; },
-         "pipelined/realtime with --inference cuda: the segment stage's thread runs other "
-         "stages while the GPU works (off: it waits, blocked): on or off (default " +
-             OnOff(c.device_overlap) + ")")
-      ->check(CLI::IsMember({"on", "off"}));
+  AddOnOff(cmd, "--trim-after-keyframe", &c.trim_after_keyframe,
+           "also right after each keyframe's local mapping");
+  AddOnOff(cmd, "--device-overlap", &c.device_overlap,
+           "pipelined/realtime with --inference cuda: the segment stage's thread runs other "
+           "stages while the GPU works (off: it waits, blocked)");
   cmd->add_option("--delay-ms", c.tracking_delay_ms,
                   "testing: artificial delay added to every tracking call")
       ->capture_default_str();
