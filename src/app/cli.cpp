@@ -40,6 +40,7 @@ int Main(int argc, char** argv) {
   AddInfoCommand(app);
   AddEvalCommand(app);
   AddSynthCommand(app);
+  AddVocabCommand(app);
 
   try {
     app.parse(argc, argv);

@@ -11,6 +11,7 @@ void AddEvalCommand(CLI::App& app);      // cmd_eval.cpp: ATE / RPE / KITTI metr
 void AddSynthCommand(CLI::App& app);     // cmd_synth.cpp: write a synthetic KITTI-format sequence
 void AddRunCommand(CLI::App& app);       // cmd_run.cpp: SLAM on a dataset
 void AddPipelineCommand(CLI::App& app);  // cmd_pipeline.cpp: the TBB flow-graph pipeline
+void AddVocabCommand(CLI::App& app);     // cmd_vocab.cpp: train the place-recognition vocabulary
 
 // Runs the command line; returns the process exit code.
 int Main(int argc, char** argv);

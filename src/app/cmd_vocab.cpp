@@ -1,0 +1,158 @@
+// pcr_orb vocab: trains the place-recognition vocabulary (slam/loop/vocabulary.h) on the ORB
+// descriptors (default OrbOptions) of PNG images and, optionally, of frames of a synthetic street
+// rendered in memory, and writes it (driver/vocabulary_file.h); --check FILE reads one back.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "app/commands.h"
+#include "app/progress.h"
+#include "driver/vocabulary_file.h"
+#include "io/dataset.h"
+#include "sim/synthetic_world.h"
+#include "slam/common/error.h"
+#include "slam/features/orb_extractor.h"
+#include "slam/loop/vocabulary.h"
+#include "slam/loop/vocabulary_io.h"
+
+namespace pcr::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool IsPng(const fs::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return ext == ".png";
+}
+
+// The PNG files of dir and of its direct subdirectories (e.g. a raw drive's image_00/data),
+// sorted by path; every stride-th one, at most max_images (0: all).
+std::vector<std::string> ImagesOf(const std::string& dir, int stride, int max_images) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw InputError(dir, 0, "not a directory");
+  std::vector<std::string> all;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    if (e.is_regular_file() && IsPng(e.path())) {
+      all.push_back(e.path().string());
+    } else if (e.is_directory()) {
+      for (const fs::directory_entry& f : fs::directory_iterator(e.path()))
+        if (f.is_regular_file() && IsPng(f.path())) all.push_back(f.path().string());
+    }
+  }
+  std::sort(all.begin(), all.end());
+  std::vector<std::string> picked;
+  for (size_t i = 0; i < all.size(); i += static_cast<size_t>(stride)) {
+    if (max_images > 0 && static_cast<int>(picked.size()) >= max_images) break;
+    picked.push_back(all[i]);
+  }
+  if (picked.empty()) throw InputError(dir, 0, "no PNG image in it or its subdirectories");
+  return picked;
+}
+
+}  // namespace
+
+void AddVocabCommand(CLI::App& app) {
+  struct Args {
+    std::vector<std::string> image_dirs;
+    std::string out;
+    std::string check;
+    VocabularyOptions options;
+    int stride = 1;
+    int max_images = 0;
+    int synth_frames = 0;
+  };
+  auto args = std::make_shared<Args>();
+  CLI::App* cmd = app.add_subcommand(
+      "vocab", "Train the place-recognition vocabulary (bag of binary words) on ORB descriptors");
+  cmd->add_option("--images", args->image_dirs,
+                  "Directories of PNG images (their direct subdirectories too), sorted by path");
+  cmd->add_option("--out", args->out, "Vocabulary file to write");
+  cmd->add_option("--check", args->check,
+                  "Only read this vocabulary file and describe it (nothing is trained)");
+  cmd->add_option("--branching", args->options.branching, "Children per node (k)")
+      ->capture_default_str();
+  cmd->add_option("--depth", args->options.depth, "Levels below the root (L)")
+      ->capture_default_str();
+  cmd->add_option("--iterations", args->options.max_iterations, "k-medians iterations per node")
+      ->capture_default_str();
+  cmd->add_option("--seed", args->options.seed, "Seed of the k-means++ sampling")
+      ->capture_default_str();
+  cmd->add_option("--stride", args->stride, "Every stride-th image of each directory")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--max-images", args->max_images,
+                  "At most this many images per directory (0: all)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--synth-frames", args->synth_frames,
+                  "Also this many left frames of the default synthetic street, rendered in memory")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->callback([args] {
+    if (!args->check.empty()) {
+      const Vocabulary v = driver::LoadVocabulary(args->check);
+      fmt::print("{}: k={} L={} (seed {}), {} words, {} nodes, {} bytes\n", args->check,
+                 v.branching(), v.depth(), v.options().seed, v.num_words(), v.num_nodes(),
+                 fs::file_size(args->check));
+      return;
+    }
+    if (args->out.empty()) throw ConfigError("vocab: --out FILE is required to train");
+    std::string why;
+    if (!args->options.IsValid(&why)) throw ConfigError("vocab: " + why);
+    std::vector<std::string> paths;
+    for (const std::string& dir : args->image_dirs) {
+      const std::vector<std::string> images = ImagesOf(dir, args->stride, args->max_images);
+      fmt::print("{}: {} images\n", dir, images.size());
+      paths.insert(paths.end(), images.begin(), images.end());
+    }
+    if (paths.empty() && args->synth_frames == 0)
+      throw ConfigError("vocab: no images (give --images DIR... or --synth-frames N)");
+
+    const OrbExtractor extractor{OrbOptions()};
+    std::vector<cv::Mat> descriptors;
+    size_t num_descriptors = 0;
+    const auto t0 = std::chrono::steady_clock::now();
+    {
+      Progress progress("orb", static_cast<int64_t>(paths.size()) + args->synth_frames);
+      for (const std::string& path : paths) {
+        descriptors.push_back(extractor.Extract(LoadGreyImage(path)).descriptors);
+        num_descriptors += descriptors.back().rows;
+        progress.Update(static_cast<int64_t>(descriptors.size()));
+      }
+      if (args->synth_frames > 0) {
+        sim::SynthOptions synth;
+        synth.frames = args->synth_frames;
+        const sim::SyntheticWorld world(synth);
+        for (int f = 0; f < args->synth_frames; ++f) {
+          descriptors.push_back(extractor.Extract(world.RenderFrame(f).left).descriptors);
+          num_descriptors += descriptors.back().rows;
+          progress.Update(static_cast<int64_t>(descriptors.size()));
+        }
+      }
+      progress.Finish();
+    }
+    const auto t1 = std::chrono::steady_clock::now();
+    fmt::print("read {} images ({} real, {} synthetic): {} descriptors, {:.1f} s\n",
+               descriptors.size(), paths.size(), args->synth_frames, num_descriptors,
+               std::chrono::duration<double>(t1 - t0).count());
+    const Vocabulary vocabulary = Vocabulary::Train(descriptors, args->options);
+    const auto t2 = std::chrono::steady_clock::now();
+    fmt::print("trained k={} L={} seed {}: {} words, {} nodes, {:.1f} s\n", vocabulary.branching(),
+               vocabulary.depth(), args->options.seed, vocabulary.num_words(),
+               vocabulary.num_nodes(), std::chrono::duration<double>(t2 - t1).count());
+    driver::SaveVocabulary(args->out, vocabulary);
+    if (SerializeVocabulary(driver::LoadVocabulary(args->out)) != SerializeVocabulary(vocabulary))
+      throw InputError(args->out, 0, "reads back differently from what was written");
+    fmt::print("wrote {} ({} bytes, read back)\n", args->out, fs::file_size(args->out));
+  });
+}
+
+}  // namespace pcr::app
