@@ -1,5 +1,6 @@
 #include "slam/optim/bundle_adjustment.h"
 
+#include <ceres/iteration_callback.h>
 #include <ceres/loss_function.h>
 #include <ceres/ordered_groups.h>
 #include <ceres/problem.h>
@@ -13,6 +14,7 @@
 #include "slam/common/error.h"
 #include "slam/optim/reprojection_cost.h"
 #include "slam/optim/se3.h"
+#include "slam/optim/solver_helpers.h"
 #include "slam/optim/weighted_loss.h"
 
 namespace pcr {
@@ -30,10 +32,6 @@ struct PreparedObservation {
 };
 
 // Huber rho(s) as Ceres defines it, for delta^2 = threshold.
-double Huber(double chi2, double threshold) {
-  if (chi2 <= threshold) return chi2;
-  return 2.0 * std::sqrt(threshold * chi2) - threshold;
-}
 
 class BundleAdjuster {
  public:
@@ -42,6 +40,7 @@ class BundleAdjuster {
                  const BundleAdjustmentOptions& options)
       : rig_(rig),
         keyframes_(keyframes),
+        points_in_(points),
         observations_(observations),
         options_(options),
         poses_(keyframes.size()),
@@ -65,11 +64,12 @@ class BundleAdjuster {
 
     BundleAdjustmentResult result;
     result.initial_cost = RobustCost(first_set);
-    bool changed = Solve(active, /*robust=*/true, &result.iterations);
-    if (options_.optimise_twice) {
+    bool changed = !Aborted() && Solve(active, /*robust=*/true, &result.iterations);
+    if (options_.optimise_twice && !aborted_) {
       Classify(&active);
       changed = Solve(active, /*robust=*/false, &result.iterations) || changed;
     }
+    if (aborted_) return AbortedResult(first_set, result);
     Classify(&active);
     result.final_cost = RobustCost(first_set);
     result.observation_inlier = active;
@@ -85,6 +85,25 @@ class BundleAdjuster {
   }
 
  private:
+  bool Aborted() {
+    if (options_.abort && options_.abort->load(std::memory_order_acquire)) aborted_ = true;
+    return aborted_;
+  }
+
+  // The input estimate, as documented for BundleAdjustmentResult::aborted.
+  BundleAdjustmentResult AbortedResult(const std::vector<bool>& first_set,
+                                       BundleAdjustmentResult result) const {
+    result.aborted = true;
+    result.final_cost = result.initial_cost;
+    result.observation_inlier = first_set;
+    result.cam_from_world.clear();
+    for (const BaKeyframe& keyframe : keyframes_)
+      result.cam_from_world.push_back(keyframe.cam_from_world);
+    result.p_in_world.clear();
+    for (const BaPoint& point : points_in_) result.p_in_world.push_back(point.p_in_world);
+    return result;
+  }
+
   void Prepare(size_t i) {
     const BaObservation& obs = observations_[i];
     if (obs.keyframe < 0 || static_cast<size_t>(obs.keyframe) >= keyframes_.size() ||
@@ -133,7 +152,7 @@ class BundleAdjuster {
       const double threshold = prepared_[i].chi2_threshold;
       const optim::ReprojectionCheck check = Check(i);
       cost += 0.5 * prepared_[i].weight *
-              Huber(std::isfinite(check.chi2) ? check.chi2 : threshold, threshold);
+              optim::HuberCost(std::isfinite(check.chi2) ? check.chi2 : threshold, threshold);
     }
     return cost;
   }
@@ -184,14 +203,18 @@ class BundleAdjuster {
     solver_options.logging_type = ceres::SILENT;
     solver_options.minimizer_progress_to_stdout = false;
     solver_options.function_tolerance = options_.function_tolerance;
+    optim::AbortCallback abort_callback(options_.abort);
+    if (options_.abort) solver_options.callbacks.push_back(&abort_callback);
     ceres::Solver::Summary summary;
     ceres::Solve(solver_options, &problem, &summary);
     *iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+    if (options_.abort && summary.termination_type == ceres::USER_FAILURE) aborted_ = true;
     return true;
   }
 
   const StereoRig& rig_;
   const std::vector<BaKeyframe>& keyframes_;
+  const std::vector<BaPoint>& points_in_;
   const std::vector<BaObservation>& observations_;
   const BundleAdjustmentOptions& options_;
   std::vector<PoseParams> poses_;
@@ -202,6 +225,7 @@ class BundleAdjuster {
   ceres::HuberLoss huber_mono_{std::sqrt(options_.chi2_mono)};
   ceres::HuberLoss huber_stereo_{std::sqrt(options_.chi2_stereo)};
   ceres::Problem::Options problem_options_;
+  bool aborted_ = false;  // the abort flag was seen
 };
 
 }  // namespace

@@ -5,6 +5,7 @@
 // reported as outliers (and, as in ORB-SLAM, the problem is re-solved without them when
 // optimise_twice is set).
 #include <Eigen/Core>
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -47,6 +48,10 @@ struct BundleAdjustmentOptions {
   // (Ceres' function_tolerance). 1e-6 leaves ~0.1 mm on a 10-keyframe window; 1e-10 converges
   // fully for ~30% more iterations.
   double function_tolerance = 1e-6;
+  // When set (by the caller, from any thread; e.g. a newer loop closure), the solve stops at its
+  // next iteration and the result is the input estimate (see BundleAdjustmentResult::aborted).
+  // Null (the default): no callback is installed and the behaviour is unchanged.
+  const std::atomic<bool>* abort = nullptr;
   bool IsValid(std::string* why) const;
 };
 
@@ -59,6 +64,10 @@ struct BundleAdjustmentResult {
   // its camera counts as Huber(chi2 threshold)).
   double initial_cost = 0, final_cost = 0;
   int iterations = 0;  // solver iterations over both solves
+  // The abort flag was seen (before or during a solve): cam_from_world and p_in_world are the
+  // input values bitwise, observation_inlier is the set that would have entered the first solve,
+  // final_cost == initial_cost.
+  bool aborted = false;
 };
 
 // Contract:

@@ -1,0 +1,145 @@
+#include "slam/optim/sim3_optimizer.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "slam/common/error.h"
+#include "support/test_helpers.h"
+
+namespace pcr {
+namespace {
+
+struct MatchScene {
+  Sim3 cam1_from_cam2;
+  std::vector<Sim3Correspondence> matches;
+  std::vector<bool> is_outlier;
+};
+
+// Points seen by both cameras (depth 4-30 m in camera 1, inside both images); outliers pair a
+// point with another point's position and keypoint in camera 2.
+MatchScene MakeScene(uint64_t seed, int count, double outlier_fraction, double scale,
+                     double noise_px) {
+  const PinholeCamera camera = test::KittiCamera();
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, noise_px);
+  std::uniform_int_distribution<int> octave(0, 3);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, camera.width_px - 1.0);
+  std::uniform_real_distribution<double> v(0.0, camera.height_px - 1.0);
+  std::uniform_real_distribution<double> depth(4.0, 30.0);
+  MatchScene scene;
+  scene.cam1_from_cam2.scale = scale;
+  scene.cam1_from_cam2.rotation = ExpSO3(Eigen::Vector3d(-0.02, 0.1, 0.04));
+  scene.cam1_from_cam2.translation = Eigen::Vector3d(-0.3, 0.05, -1.2);
+  const Sim3 cam2_from_cam1 = scene.cam1_from_cam2.Inverse();
+  auto sample = [&](Eigen::Vector3d* p1, Eigen::Vector3d* p2) {
+    do {
+      *p1 = camera.Unproject({u(rng), v(rng)}, depth(rng));
+      *p2 = cam2_from_cam1.Map(*p1);
+    } while (!(p2->z() > 1.0 && camera.InImage(camera.Project(*p2))));
+  };
+  for (int i = 0; i < count; ++i) {
+    Sim3Correspondence m;
+    sample(&m.p_in_cam1, &m.p_in_cam2);
+    const double level1 = std::pow(1.2, octave(rng)), level2 = std::pow(1.2, octave(rng));
+    m.sigma2_1 = level1 * level1;
+    m.sigma2_2 = level2 * level2;
+    m.uv1_px = camera.Project(m.p_in_cam1) + level1 * Eigen::Vector2d(noise(rng), noise(rng));
+    const bool outlier = unit(rng) < outlier_fraction;
+    if (outlier) {
+      Eigen::Vector3d other_in_cam1;
+      sample(&other_in_cam1, &m.p_in_cam2);
+    }
+    m.uv2_px = camera.Project(m.p_in_cam2) + level2 * Eigen::Vector2d(noise(rng), noise(rng));
+    scene.matches.push_back(m);
+    scene.is_outlier.push_back(outlier);
+  }
+  return scene;
+}
+
+Sim3 Perturb(const Sim3& s, double angle_rad, double translation_m, double scale_factor) {
+  Sim3 p = s;
+  p.rotation = ExpSO3(Eigen::Vector3d(1, -2, 1).normalized() * angle_rad) * s.rotation;
+  p.translation += Eigen::Vector3d(1, 1, -1).normalized() * translation_m;
+  p.scale *= scale_factor;
+  return p;
+}
+
+double RotationErrorDeg(const Sim3& a, const Sim3& b) {
+  return RotationDistanceRad(a.rotation, b.rotation) / test::kDegToRad;
+}
+
+TEST(Sim3Optimizer, PerturbedStartConvergesToTruth) {
+  const MatchScene scene = MakeScene(21, 150, 0.0, 0.8, 0.0);
+  const Sim3 start = Perturb(scene.cam1_from_cam2, 1.0 * test::kDegToRad, 0.15, 1.03);
+  const Sim3OptimizerResult result =
+      OptimizeSim3(test::KittiCamera(), scene.matches, start, Sim3OptimizerOptions{});
+  ASSERT_TRUE(result.success);
+  EXPECT_EQ(result.num_inliers, 150);
+  EXPECT_NEAR(result.cam1_from_cam2.scale, 0.8, 1e-6);
+  EXPECT_LT(RotationErrorDeg(result.cam1_from_cam2, scene.cam1_from_cam2), 1e-4);
+  EXPECT_LT((result.cam1_from_cam2.translation - scene.cam1_from_cam2.translation).norm(), 1e-5);
+  EXPECT_LT(result.final_cost, 1e-8);
+  EXPECT_GT(result.initial_cost, 100.0);
+}
+
+TEST(Sim3Optimizer, OutliersAreFlaggedAndNoisyDataConverges) {
+  const MatchScene scene = MakeScene(22, 200, 0.2, 1.25, 0.7);
+  const Sim3 start = Perturb(scene.cam1_from_cam2, 0.5 * test::kDegToRad, 0.1, 0.98);
+  const Sim3OptimizerResult result =
+      OptimizeSim3(test::KittiCamera(), scene.matches, start, Sim3OptimizerOptions{});
+  ASSERT_TRUE(result.success);
+  int true_inliers = 0, kept = 0, false_inliers = 0;
+  for (size_t i = 0; i < scene.matches.size(); ++i) {
+    true_inliers += !scene.is_outlier[i];
+    kept += result.inliers[i] && !scene.is_outlier[i];
+    false_inliers += result.inliers[i] && scene.is_outlier[i];
+  }
+  EXPECT_EQ(false_inliers, 0);
+  EXPECT_GE(kept, 0.95 * true_inliers);
+  EXPECT_EQ(result.num_inliers, kept);
+  EXPECT_NEAR(result.cam1_from_cam2.scale, 1.25, 0.01);
+  EXPECT_LT(RotationErrorDeg(result.cam1_from_cam2, scene.cam1_from_cam2), 0.1);
+  EXPECT_LT((result.cam1_from_cam2.translation - scene.cam1_from_cam2.translation).norm(), 0.03);
+  EXPECT_LT(result.final_cost, result.initial_cost);
+
+  // Deterministic.
+  const Sim3OptimizerResult again =
+      OptimizeSim3(test::KittiCamera(), scene.matches, start, Sim3OptimizerOptions{});
+  EXPECT_EQ(again.inliers, result.inliers);
+  EXPECT_EQ(again.cam1_from_cam2.translation, result.cam1_from_cam2.translation);
+  EXPECT_EQ(again.cam1_from_cam2.scale, result.cam1_from_cam2.scale);
+}
+
+TEST(Sim3Optimizer, FixedScaleKeepsTheInputScale) {
+  const MatchScene scene = MakeScene(23, 100, 0.1, 1.0, 0.5);
+  const Sim3 start = Perturb(scene.cam1_from_cam2, 0.5 * test::kDegToRad, 0.1, 1.0);
+  Sim3OptimizerOptions options;
+  options.fix_scale = true;
+  const Sim3OptimizerResult result =
+      OptimizeSim3(test::KittiCamera(), scene.matches, start, options);
+  ASSERT_TRUE(result.success);
+  EXPECT_EQ(result.cam1_from_cam2.scale, 1.0);
+  EXPECT_LT(RotationErrorDeg(result.cam1_from_cam2, scene.cam1_from_cam2), 0.1);
+  EXPECT_LT((result.cam1_from_cam2.translation - scene.cam1_from_cam2.translation).norm(), 0.03);
+}
+
+TEST(Sim3Optimizer, NoUsableMatchesReturnsTheInput) {
+  const Sim3 start = Perturb(Sim3{}, 0.1, 0.2, 1.1);
+  std::vector<Sim3Correspondence> matches(3);
+  for (Sim3Correspondence& m : matches) m.sigma2_1 = 0;  // unusable
+  const Sim3OptimizerResult result = OptimizeSim3(test::KittiCamera(), matches, start);
+  EXPECT_FALSE(result.success);
+  EXPECT_EQ(result.num_inliers, 0);
+  EXPECT_EQ(result.cam1_from_cam2.translation, start.translation);
+  EXPECT_EQ(result.cam1_from_cam2.scale, start.scale);
+  Sim3OptimizerOptions bad;
+  bad.chi2_threshold = -1;
+  EXPECT_THROW(OptimizeSim3(test::KittiCamera(), matches, start, bad), ConfigError);
+}
+
+}  // namespace
+}  // namespace pcr
