@@ -54,6 +54,13 @@ struct Config {
   std::string truth_labels;          // raw drives: KITTI tracking labels to score the filter
   bool dump_filter = false;          // write every keypoint's decision (filter_decisions.txt)
 
+  // Loop closing and place recognition (relocalisation in the whole map). The vocabulary file
+  // (`pcr_orb vocab`); empty: the one shipped with PCR-ORB (vocabulary/pcr_orb_voc.bin; loop
+  // closing is off, with a warning, when it cannot be found). The configuration's `loop`
+  // section holds the thresholds.
+  bool loop_closing = true;
+  std::string vocabulary;
+
   // Memory and scheduling details (see `pcr_orb pipeline --help`).
   int trim_every = 25;
   bool trim_after_keyframe = false;
@@ -109,6 +116,8 @@ struct Statistics {
   double latency_p50_ms = 0, latency_p99_ms = 0;
   // Against the sequence's ground truth, when it has one (SE(3) alignment; Sim(3) in mono).
   std::optional<double> ate_rmse_m, rpe_rmse_m;
+  // Loop closing: loops corrected, jobs whose candidates all failed the geometry, global BAs.
+  int loops_closed = 0, loop_jobs_rejected = 0, global_bas = 0;
 };
 
 struct Result {

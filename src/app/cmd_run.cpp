@@ -65,6 +65,11 @@ void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
          "KITTI tracking labels (label_02 file, frame k = sequence frame k) of a raw drive: "
          "score the filter's decisions against the projected 3-D boxes of moving objects")
       ->check(CLI::ExistingFile);
+  AddOnOff(cmd, "--loop", &c.loop_closing,
+           "loop closing and place recognition (relocalisation in the whole map)");
+  cmd->add_option("--vocabulary", c.vocabulary,
+                  "place-recognition vocabulary (pcr_orb vocab); default: the shipped "
+                  "vocabulary/pcr_orb_voc.bin");
   if (!scheduling) return;
   cmd->add_option("--policy", a->policy, "sequential, pipelined or realtime")
       ->check(CLI::IsMember({"sequential", "pipelined", "realtime"}))

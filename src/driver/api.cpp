@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include "driver/driver.h"
+#include "driver/loop_vocabulary.h"
 #include "pcr/version.h"
 #include "slam/common/error.h"
 
@@ -89,6 +90,8 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   d.truth_miss_rate = config.truth_miss_rate;
   d.truth_labels = config.truth_labels;
   driver::DriverOptions options = ToDriverOptions(config);
+  if (config.loop_closing && run_config.slam.loop.enabled)
+    options.pipeline.vocabulary = driver::LoadLoopVocabulary(config.vocabulary);
   if (source.first < 0 || source.end < 0) throw ConfigError("Source: negative frame number");
   const driver::FrameRange range =
       driver::FrameRange{static_cast<size_t>(source.first), static_cast<size_t>(source.end)}.Within(
@@ -128,6 +131,9 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   st.fps = run.pipeline.stats.fps;
   st.latency_p50_ms = run.pipeline.stats.latency.p50_ms;
   st.latency_p99_ms = run.pipeline.stats.latency.p99_ms;
+  st.loops_closed = run.pipeline.loop_stats.corrections;
+  st.loop_jobs_rejected = run.pipeline.loop_stats.rejected;
+  st.global_bas = run.pipeline.loop_stats.global_bas;
   if (s.evaluation) {
     st.ate_rmse_m = s.evaluation->ape.trans_m.rmse;
     st.rpe_rmse_m = s.evaluation->rpe.trans_m.rmse;

@@ -199,13 +199,16 @@ void WriteDriverOutputs(const std::string& out_dir, const DriverResult& result,
   nlohmann::json pipeline = graph::StatsToJson(result.pipeline.stats);
   pipeline["options"] = options_json;
   const nlohmann::json map = WriteMapOutputs(out_dir, result.pipeline.map, result.summary);
-  WriteRunOutputs(out_dir, result.summary, config_yaml, {{"pipeline", pipeline}, {"map", map}});
+  WriteRunOutputs(
+      out_dir, result.summary, config_yaml,
+      {{"pipeline", pipeline}, {"map", map}, {"loop", graph::LoopToJson(result.pipeline)}});
   graph::WriteChromeTrace(out_dir + "/trace.json", result.pipeline);
   graph::WriteTimingChart(out_dir + "/timing.png", result.pipeline);
 }
 
 std::string FormatDriverSummary(const DriverResult& result) {
-  return FormatRunSummary(result.summary) + graph::FormatPipelineStats(result.pipeline.stats);
+  return FormatRunSummary(result.summary) + graph::FormatLoopSummary(result.pipeline) +
+         graph::FormatPipelineStats(result.pipeline.stats);
 }
 
 }  // namespace pcr::driver

@@ -80,6 +80,23 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("mapping", "max_keyframes", &m.max_keyframes,
         "0: unbounded; else the oldest keyframes beyond it are forgotten (bounded memory)");
 
+  LoopClosingOptions& l = c.slam.loop;
+  s.Add("loop", "enabled", &l.enabled, "loop closing and place recognition (needs a vocabulary)");
+  s.Add("loop", "min_keyframes", &l.min_keyframes);
+  s.Add("loop", "exclude_recent_keyframes", &l.exclude_recent_keyframes,
+        "keyframes this close (insertion order) to the query are never loop candidates");
+  s.Add("loop", "consistency", &l.consistency,
+        "consecutive keyframes whose candidate groups must agree");
+  s.Add("loop", "min_bow_matches", &l.min_bow_matches);
+  s.Add("loop", "min_ransac_inliers", &l.min_ransac_inliers);
+  s.Add("loop", "min_sim3_inliers", &l.min_sim3_inliers);
+  s.Add("loop", "min_loop_matches", &l.min_loop_matches);
+  s.Add("loop", "covisibility_edge_weight", &l.covisibility_edge_weight);
+  s.Add("loop", "pose_graph_iterations", &l.pose_graph_iterations);
+  s.Add("loop", "global_bundle_adjustment", &l.global_bundle_adjustment);
+  s.Add("loop", "global_ba_iterations", &l.global_ba_iterations);
+  s.Add("loop", "skip_keyframes_after_loop", &l.skip_keyframes_after_loop);
+
   DynamicFilterOptions& f = c.dynamic.options;
   s.Add("filter", "exclude_below", &f.scoring.exclude_below, "Eq. 2 scores below this: excluded");
   s.Add("filter", "weight_mask", &f.scoring.weights.mask, "Eq. 2 weights (sum 1)");

@@ -48,6 +48,11 @@ using nodes::TrackedPtr;
 using Token = int;
 using StereoAndMask = std::tuple<StereoPtr, SegmentationPtr>;
 using TrackingInput = std::tuple<FilteredPtr, Token>;
+// A loop job for the loop node, with the ticket of the frame whose keyframe made it.
+struct LoopWork {
+  FrameTicket ticket;
+  nodes::LoopJobPtr job;
+};
 template <typename In, typename... Out>
 using StageNode = tf::multifunction_node<In, std::tuple<Out...>>;
 
@@ -331,9 +336,11 @@ class GraphRun {
       auto out = f();
       const int64_t end = NowNs();
       if (profile) profiler_.Record(stage, ticket.seq, ticket.frame_index, start, end);
-      FrameClock& clock = clocks_[ticket.seq];
-      (std::string_view(stage) == kStageSegment ? clock.inference_ns : clock.slam_ns)
-          .fetch_add(end - start);
+      const std::string_view name(stage);
+      if (name != kStageLoop && name != kStageGlobalBa) {  // off the frame's path
+        FrameClock& clock = clocks_[ticket.seq];
+        (name == kStageSegment ? clock.inference_ns : clock.slam_ns).fetch_add(end - start);
+      }
       return out;
     } catch (const std::exception& e) {
       RecordError(stage, ticket, e.what());
@@ -369,6 +376,30 @@ class GraphRun {
       last_inference_ms_.store((*fresh)->segment_ms);
       board_->OnSegmentation(*fresh);
     }
+  }
+  // Outcomes of the loop lane, handed to the map's owner (the mapping node) at its next call.
+  void PostLoopOutcome(nodes::LoopOutcomePtr outcome) {
+    std::lock_guard<std::mutex> lock(loop_mutex_);
+    loop_arrived_.push_back(std::move(outcome));
+  }
+  std::vector<nodes::LoopOutcomePtr> TakeLoopOutcomes() {
+    std::lock_guard<std::mutex> lock(loop_mutex_);
+    return std::exchange(loop_arrived_, {});
+  }
+  // The loop lane's work on a job (verification and correction, then the global BA), each step
+  // profiled; `post` receives the outcomes. Inline (sequential) or on the loop node.
+  void RunLoopJob(const LoopWork& work, const std::function<void(nodes::LoopOutcomePtr)>& post) {
+    const auto corrected =
+        Guarded(kStageLoop, work.ticket, [&] { return nodes::LoopNode::Close(*work.job); });
+    if (!corrected) return;
+    post(*corrected);
+    if ((*corrected)->kind != LoopOutcomeKind::kCorrected ||
+        !work.job->options.global_bundle_adjustment)
+      return;
+    if (auto ba = Guarded(kStageGlobalBa, work.ticket, [&] {
+          return nodes::LoopNode::GlobalBundleAdjustment(*work.job, **corrected, &loop_abort_);
+        }))
+      post(*ba);
   }
   void ClockLoop();
   void Complete(const FrameResultPtr& result);
@@ -414,6 +445,11 @@ class GraphRun {
   nodes::FilterNode filter_;
   nodes::TrackingNode tracking_;
   nodes::MappingNode mapping_;
+  // Loop lane: outcomes not yet applied (loop_mutex_), and the flag that aborts a running global
+  // BA when a newer job is sent.
+  std::mutex loop_mutex_;
+  std::vector<nodes::LoopOutcomePtr> loop_arrived_;
+  std::atomic<bool> loop_abort_{false};
   std::unique_ptr<FrameClock[]> clocks_;  // by seq (< source size)
   const nodes::QualitySettings fixed_settings_;
   Profiler profiler_;
@@ -552,22 +588,46 @@ PipelineResult GraphRun::Run() {
         }
       });
   // Mapping (keyframes only; other frames pass through unprofiled) hands the token back once the
-  // map holds frame k's edits. Loop closing will sit here: one more serial node between mapping
-  // and the token return.
-  StageNode<TrackedPtr, FrameResultPtr, Token> mapping(
-      g, tf::serial, [this](const TrackedPtr& input, auto& ports) {
+  // map holds frame k's edits. As the map's owner it also applies what the loop lane sent since
+  // its last call and looks for loops on the new keyframe: a job goes to the loop node (its own
+  // serial lane, off the frames' path) or, in the sequential policy, runs inline before the token
+  // goes back (so that sequential runs stay the deterministic reference).
+  const bool inline_loop = options_.policy == Policy::kSequential;
+  StageNode<TrackedPtr, FrameResultPtr, Token, LoopWork> mapping(
+      g, tf::serial, [this, inline_loop](const TrackedPtr& input, auto& ports) {
         TsanAfterSetup();  // before the next line reads a member
         const TsanBody tsan_body(&mapping_);
         const auto& tracked = TsanReceive(input);
+        const std::vector<nodes::LoopOutcomePtr> arrived = TakeLoopOutcomes();
         const bool keyframe = nodes::MappingNode::NeedsMapping(*tracked);
         if (auto out = Guarded(
-                kStageMapping, tracked->ticket, [&] { return mapping_(tracked); }, keyframe)) {
+                kStageMapping, tracked->ticket, [&] { return mapping_.Run(tracked, arrived); },
+                keyframe || !arrived.empty())) {
+          if (out->loop_job) {
+            const LoopWork work{tracked->ticket, out->loop_job};
+            if (inline_loop) {
+              RunLoopJob(work, [&](nodes::LoopOutcomePtr o) {
+                mapping_.ApplyLoopOutcome(*o, tracked->ticket.frame_index);
+              });
+            } else {
+              loop_abort_.store(true);  // a running global BA gives way to the newer loop
+              std::get<2>(ports).try_put(work);
+            }
+          }
           if (keyframe && options_.trim_heap_after_keyframe) TrimHeap();
           TsanRelease(slam_);  // the map edits of this frame, before the token goes back
           std::get<1>(ports).try_put(Token{0});
-          std::get<0>(ports).try_put(*out);
+          std::get<0>(ports).try_put(out->result);
         }
       });
+  tf::function_node<LoopWork, tf::continue_msg> loop(g, tf::serial, [this](const LoopWork& input) {
+    TsanAfterSetup();  // before the next line reads a member
+    const TsanBody tsan_body(&loop_abort_);
+    const auto& work = TsanReceive(input);
+    loop_abort_.store(false);
+    RunLoopJob(work, [this](nodes::LoopOutcomePtr o) { PostLoopOutcome(std::move(o)); });
+    return tf::continue_msg();
+  });
   tf::function_node<FrameResultPtr, tf::continue_msg> sink(
       g, tf::serial, [this](const FrameResultPtr& input) {
         TsanAfterSetup();  // before the next line reads a member
@@ -607,6 +667,7 @@ PipelineResult GraphRun::Run() {
   tf::make_edge(tf::output_port<0>(tracking), mapping);
   tf::make_edge(tf::output_port<0>(mapping), sink);
   tf::make_edge(tf::output_port<1>(mapping), tokens);
+  tf::make_edge(tf::output_port<2>(mapping), loop);
   tokens.try_put(Token{0});
 
   g.reserve_wait();  // released by the clock when it is done
@@ -758,6 +819,11 @@ PipelineResult GraphRun::Collect() {
   out.frames = std::move(frames_);
   out.dropped_frame_indices = std::move(dropped_indices_);
   out.dropped_release_ns = std::move(dropped_release_ns_);
+  // Loop outcomes that came after the last frame's mapping (the graph has finished: this thread
+  // is the map's owner now), so that no correction is lost at the end of a run.
+  for (const nodes::LoopOutcomePtr& o : TakeLoopOutcomes()) mapping_.ApplyLoopOutcome(*o, -1);
+  out.loop_events = slam_->loop_events();
+  out.loop_stats = slam_->loop_closer().stats();
   out.tracked = slam_->RefinedTrajectory();
   out.keyframes = slam_->map().num_keyframes();
   out.map_points = slam_->map().num_points();
@@ -895,7 +961,7 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
   SlamOptions capped = slam_options;
   capped.mapping.bundle_adjustment.num_threads =
       std::min(capped.mapping.bundle_adjustment.num_threads, options.threads);
-  SlamSystem slam(source.rig, capped, options.mode);
+  SlamSystem slam(source.rig, capped, options.mode, options.vocabulary);
 
   // Extractors for the adaptive levels' keypoint counts (same pyramid as the SLAM system's).
   std::vector<std::unique_ptr<OrbExtractor>> extractors;

@@ -14,7 +14,9 @@
 // Tracking and local mapping both mutate the map: tracking of frame k+1 starts only after mapping
 // of frame k returned the token, so the map sees exactly the calls of SlamSystem::ProcessFrame
 // in a loop and the trajectory is identical to the sequential one (with Ceres on one thread).
-// Loop closing, when it exists, is one more serial node between mapping and the token return.
+// Loop closing is a serial node off the frames' path: mapping sends it a job (a keyframe whose
+// place-recognition candidates stayed consistent, with a snapshot of the map); its outcomes come
+// back to mapping, which applies them as map deltas at its next call. Sequential runs it inline.
 // Monocular runs (PipelineOptions::mode) use the same graph: the right branch emits empty
 // features and stereo matches, so the joins and the ordering are unchanged.
 //
@@ -119,6 +121,9 @@ struct PipelineResult {
   MapSnapshot map;
   PipelineStats stats;
   std::vector<StageEvent> events;
+  // Loop closing: every outcome the map's owner dealt with, and the closer's counters.
+  std::vector<LoopEvent> loop_events;
+  LoopStats loop_stats;
   std::string error;  // empty when every frame ran; else "frame N, stage S: what"
   int64_t error_frame_index = -1;
   std::string error_stage;

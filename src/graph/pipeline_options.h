@@ -13,6 +13,7 @@
 //               mask, marked stale.
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <string_view>
 
@@ -41,6 +42,10 @@ inline constexpr const char* kStageMapping = "mapping";
 inline constexpr const char* kStageDevice = "device";
 // A filter call's LK pass on a device, the same way (Profiler::kFlowDeviceLane).
 inline constexpr const char* kStageDeviceFlow = "device_flow";
+// Loop closing, on its own serial node (the sequential policy runs it inline, in the mapping
+// call): the verification and correction of a loop job, and the global BA after a correction.
+inline constexpr const char* kStageLoop = "loop";
+inline constexpr const char* kStageGlobalBa = "global_ba";
 
 struct FrameRecord;  // pipeline.h
 
@@ -89,6 +94,8 @@ struct PipelineOptions {
   // Whether PipelineResult::frames keep each frame's filter report after on_frame (about 0.2 MB
   // a frame with 2000 keypoints; off for long runs).
   bool keep_filter_reports = false;
+  // Loop closing and place recognition (SlamOptions::loop): the vocabulary; null: off.
+  std::shared_ptr<const Vocabulary> vocabulary;
 
   bool IsValid(std::string* why) const;
 };

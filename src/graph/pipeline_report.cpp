@@ -24,9 +24,10 @@ double Us(int64_t ns) { return static_cast<double>(ns) * 1e-3; }
 
 // Stages in pipeline order (others after, by name).
 std::vector<std::string> OrderedStages(const std::vector<std::string>& present) {
-  const std::vector<std::string> order = {
-      kStagePreprocess, kStageOrbLeft,  kStageOrbRight, kStageSegment, kStageStereo,
-      kStageFilter,     kStageTracking, kStageMapping,  kStageDevice,  kStageDeviceFlow};
+  const std::vector<std::string> order = {kStagePreprocess, kStageOrbLeft, kStageOrbRight,
+                                          kStageSegment,    kStageStereo,  kStageFilter,
+                                          kStageTracking,   kStageMapping, kStageLoop,
+                                          kStageGlobalBa,   kStageDevice,  kStageDeviceFlow};
   std::vector<std::string> out;
   for (const std::string& s : order) {
     if (std::find(present.begin(), present.end(), s) != present.end()) out.push_back(s);
@@ -47,6 +48,8 @@ cv::Scalar StageColour(const std::string& stage) {
   if (stage == kStageFilter) return {40, 170, 230};
   if (stage == kStageTracking) return {60, 170, 60};
   if (stage == kStageMapping) return {40, 110, 40};
+  if (stage == kStageLoop) return {200, 40, 40};
+  if (stage == kStageGlobalBa) return {140, 30, 90};
   if (stage == kStageDevice) return {30, 30, 140};
   if (stage == kStageDeviceFlow) return {20, 100, 140};
   return {120, 120, 120};
@@ -164,6 +167,105 @@ std::string FormatPipelineStats(const PipelineStats& s) {
                      st.wait.p95_ms, st.max_queue_depth);
   }
   return o.str();
+}
+
+nlohmann::json LoopToJson(const PipelineResult& result) {
+  const LoopStats& st = result.loop_stats;
+  TimingSeries detect, verify, correct, graph, ba;
+  for (double ms : st.detect_ms) detect.Add(ms);
+  nlohmann::json events = nlohmann::json::array();
+  for (const LoopEvent& e : result.loop_events) {
+    const LoopOutcome& o = e.outcome;
+    nlohmann::json j = {{"frame", e.frame_index},
+                        {"job", o.job},
+                        {"kind", ToString(o.kind)},
+                        {"query_keyframe", o.query.value},
+                        {"candidates_tried", o.candidates_tried}};
+    if (o.match) {
+      j["matched_keyframe"] = o.match->matched.value;
+      j["bow_matches"] = o.match->bow_matches;
+      j["ransac_inliers"] = o.match->ransac_inliers;
+      j["sim3_inliers"] = o.match->sim3_inliers;
+      j["loop_matches"] = o.match->matches.size();
+      j["scale"] = o.match->query_from_matched.scale;
+    }
+    switch (o.kind) {
+      case LoopOutcomeKind::kRejected:
+        j["rejection"] = o.rejection;
+        j["verify_ms"] = o.verify_ms;
+        verify.Add(o.verify_ms);
+        break;
+      case LoopOutcomeKind::kCorrected:
+        j["correction_m"] = o.correction_m;
+        j["correction_deg"] = o.correction_deg;
+        j["fused_points"] = o.fused_points;
+        j["pose_graph_edges"] = o.pose_graph_edges;
+        j["pose_graph_iterations"] = o.pose_graph_iterations;
+        j["pose_graph_cost"] = {o.pose_graph_initial_cost, o.pose_graph_final_cost};
+        j["verify_ms"] = o.verify_ms;
+        j["correct_ms"] = o.correct_ms;
+        j["pose_graph_ms"] = o.pose_graph_ms;
+        verify.Add(o.verify_ms);
+        correct.Add(o.correct_ms);
+        graph.Add(o.pose_graph_ms);
+        break;
+      case LoopOutcomeKind::kGlobalBundleAdjustment:
+        j["keyframes"] = o.ba_keyframes;
+        j["points"] = o.ba_points;
+        j["iterations"] = o.ba_iterations;
+        j["aborted"] = o.ba_aborted;
+        j["ba_ms"] = o.ba_ms;
+        if (!o.ba_aborted) ba.Add(o.ba_ms);
+        break;
+    }
+    events.push_back(j);
+  }
+  return {{"keyframes_seen", st.keyframes_seen},
+          {"detections", st.detections},
+          {"candidates", st.candidates},
+          {"consistent", st.consistent},
+          {"jobs", st.jobs},
+          {"loops_closed", st.corrections},
+          {"jobs_rejected", st.rejected},
+          {"candidates_rejected", st.candidates_rejected},
+          {"candidates_prechecked", st.candidates_prechecked},
+          {"global_bas", st.global_bas},
+          {"global_bas_aborted", st.global_bas_aborted},
+          {"detect_ms", TimingJson(detect.Summarize())},
+          {"verify_ms", TimingJson(verify.Summarize())},
+          {"correct_ms", TimingJson(correct.Summarize())},
+          {"pose_graph_ms", TimingJson(graph.Summarize())},
+          {"global_ba_ms", TimingJson(ba.Summarize())},
+          {"events", events}};
+}
+
+std::string FormatLoopSummary(const PipelineResult& result) {
+  const LoopStats& st = result.loop_stats;
+  if (st.keyframes_seen == 0) return "";
+  TimingSeries detect;
+  for (double ms : st.detect_ms) detect.Add(ms);
+  const TimingSummary d = detect.Summarize();
+  std::string out = fmt::format(
+      "loop closing: {} loops closed, {} global BAs ({} aborted); {} keyframes in the database, "
+      "{} queries, {} candidates, {} jobs rejected ({} candidates failed the geometry); "
+      "detection p50 {:.2f} p99 {:.2f} ms\n",
+      st.corrections, st.global_bas, st.global_bas_aborted, st.keyframes_seen, st.detections,
+      st.candidates, st.rejected, st.candidates_rejected, d.p50_ms, d.p99_ms);
+  for (const LoopEvent& e : result.loop_events) {
+    const LoopOutcome& o = e.outcome;
+    if (o.kind == LoopOutcomeKind::kCorrected && o.match)
+      out += fmt::format(
+          "  loop: keyframe {} -> {} ({} matches, scale {:.4f}): moved {:.3f} m / {:.2f} deg, "
+          "{} points fused, pose graph {} edges in {:.0f} ms\n",
+          o.query.value, o.match->matched.value, o.match->matches.size(),
+          o.match->query_from_matched.scale, o.correction_m, o.correction_deg, o.fused_points,
+          o.pose_graph_edges, o.verify_ms + o.correct_ms + o.pose_graph_ms);
+    else if (o.kind == LoopOutcomeKind::kGlobalBundleAdjustment)
+      out += fmt::format("  global BA: {} keyframes, {} points, {} iterations, {:.0f} ms{}\n",
+                         o.ba_keyframes, o.ba_points, o.ba_iterations, o.ba_ms,
+                         o.ba_aborted ? " (aborted by a newer loop)" : "");
+  }
+  return out;
 }
 
 void WriteChromeTrace(const std::string& path, const PipelineResult& result) {

@@ -15,6 +15,12 @@ nlohmann::json StatsToJson(const PipelineStats& stats);
 // The same as a console table.
 std::string FormatPipelineStats(const PipelineStats& stats);
 
+// Loop closing: the closer's counters, detection times (p50/p99 per keyframe), and every outcome
+// the map's owner dealt with (kind, keyframes, matches, correction size, step times).
+nlohmann::json LoopToJson(const PipelineResult& result);
+// One or two lines: loops closed, rejected jobs and candidates, times ("" without loop closing).
+std::string FormatLoopSummary(const PipelineResult& result);
+
 // Chrome trace: one "X" (complete) event per stage call on pid 1 with the thread as tid; one per
 // frame (release -> pose) on pid 2, lanes by seq modulo the in-flight bound; an instant event per
 // dropped frame. ts/dur in microseconds. Throws InputError when the file cannot be written.

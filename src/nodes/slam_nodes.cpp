@@ -60,4 +60,36 @@ FrameResultPtr MappingNode::operator()(const TrackedPtr& tracked) {
   return msg;
 }
 
+void MappingNode::ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_index) {
+  slam_->ApplyLoopOutcome(outcome, frame_index);
+  if (outcome.kind != LoopOutcomeKind::kGlobalBundleAdjustment) loop_in_flight_ = false;
+}
+
+MappingNode::Output MappingNode::Run(const TrackedPtr& tracked,
+                                     const std::vector<LoopOutcomePtr>& arrived) {
+  const auto start = std::chrono::steady_clock::now();
+  Output out;
+  FrameResultPtr mapped = (*this)(tracked);
+  const int64_t frame_index = tracked->ticket.frame_index;
+  for (const LoopOutcomePtr& outcome : arrived) ApplyLoopOutcome(*outcome, frame_index);
+  if (tracked->keyframe.insert) {
+    out.loop_job = slam_->DetectLoop(KeyframeId(tracked->frame->id()), loop_in_flight_);
+    if (out.loop_job) loop_in_flight_ = true;
+  }
+  if (arrived.empty() && !out.loop_job) {
+    out.result = std::move(mapped);
+    return out;
+  }
+  auto msg = std::make_shared<FrameResultMsg>(*mapped);
+  msg->output.loop_outcomes_applied = static_cast<int>(arrived.size());
+  msg->output.loop_job = out.loop_job != nullptr;
+  const double mapping_ms = MsSince(start);
+  msg->output.times_ms.total += mapping_ms - msg->output.times_ms.local_mapping;
+  msg->output.times_ms.local_mapping = mapping_ms;
+  msg->output.num_keyframes = slam_->map().num_keyframes();
+  msg->output.num_map_points = slam_->map().num_points();
+  out.result = std::move(msg);
+  return out;
+}
+
 }  // namespace pcr::nodes

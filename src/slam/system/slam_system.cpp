@@ -1,5 +1,7 @@
 #include "slam/system/slam_system.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -52,16 +54,18 @@ bool SlamOptions::IsValid(std::string* why) const {
   };
   return sub(orb.IsValid(&inner), "orb") && sub(stereo.IsValid(&inner), "stereo") &&
          sub(tracker.IsValid(&inner), "tracker") && sub(mapping.IsValid(&inner), "mapping") &&
-         sub(keyframe.IsValid(&inner), "keyframe");
+         sub(keyframe.IsValid(&inner), "keyframe") && sub(loop.IsValid(&inner), "loop");
 }
 
-SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMode mode)
+SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMode mode,
+                       std::shared_ptr<const Vocabulary> vocabulary)
     : mode_(mode),
       rig_(CheckedRig(rig, mode)),
       options_(options),
       extractor_(CheckedOptions(options)),
       tracker_(options.tracker),
-      mapper_(options.mapping) {
+      mapper_(options.mapping),
+      loop_closer_(options.loop, std::move(vocabulary), mode == SlamMode::kStereo) {
   scale_.scale_factors = extractor_.scale_factors();
   scale_.level_sigma2 = extractor_.level_sigma2();
   scale_.inv_level_sigma2 = extractor_.inv_level_sigma2();
@@ -109,7 +113,12 @@ FramePtr SlamSystem::BuildFrame(int64_t t_ns, const OrbFeatures& left, const Ste
 }
 
 TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
-  TrackingResult result = tracker_.Track(frame, map_);
+  PlaceQuery place;
+  if (loop_closer_.IsActive())
+    place = [this](const Frame& f) {
+      return loop_closer_.PlaceCandidates(f, map_, options_.tracker.relocalisation_keyframes);
+    };
+  TrackingResult result = tracker_.Track(frame, map_, place);
   const bool initialised = result.method == TrackingMethod::kInitialisation;
   if (result.first_keyframe_delta) {
     // Monocular: the reference frame becomes the first keyframe and a tracked frame.
@@ -130,6 +139,10 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
     const KeyframeId id(frame->id());
     mapper_.ProcessKeyframe(id, &map_);
     tracker_.OnKeyframeInserted(id, map_);
+    if (result.first_keyframe_delta)  // monocular: the initialisation's reference keyframe
+      loop_closer_.OnKeyframe(KeyframeId(result.first_keyframe_delta->new_keyframe->frame->id()),
+                              map_);
+    loop_closer_.OnKeyframe(id, map_);
   } else if (map_.empty()) {
     if (pending_.size() >= kMaxPendingFrames) pending_.erase(pending_.begin());
     pending_.push_back({frame->id(), frame_index, frame->t_ns()});
@@ -175,12 +188,55 @@ MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingRe
   const KeyframeId id(frame->id());
   MappingResult result = mapper_.ProcessKeyframe(id, &map_, ba_max_iterations);
   tracker_.OnKeyframeInserted(id, map_);
+  loop_closer_.OnKeyframe(id, map_);
   // The frame is now its own reference.
   if (!records_.empty() && records_.back().t_ns == frame->t_ns()) {
     records_.back().reference = id;
     records_.back().cam_from_reference = SE3::Identity();
   }
   return result;
+}
+
+std::shared_ptr<const LoopJob> SlamSystem::DetectLoop(KeyframeId id, bool busy) {
+  return loop_closer_.Detect(id, map_, busy);
+}
+
+bool SlamSystem::ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_index) {
+  bool changed = false;
+  if (outcome.kind != LoopOutcomeKind::kRejected && !outcome.ba_aborted &&
+      !outcome.correction.after.empty()) {
+    map_.Apply(LoopCloser::CorrectionDelta(map_, outcome.correction));
+    changed = true;
+  }
+  loop_closer_.OnOutcome(outcome, map_);
+  if (outcome.kind == LoopOutcomeKind::kCorrected && outcome.match) {
+    spdlog::info(
+        "loop closed at frame {}: keyframe {} -> {} ({} matches, scale {:.4f}), moved {:.3f} m / "
+        "{:.2f} deg, {} points fused",
+        frame_index, outcome.query.value, outcome.match->matched.value,
+        outcome.match->matches.size(), outcome.match->query_from_matched.scale,
+        outcome.correction_m, outcome.correction_deg, outcome.fused_points);
+  } else if (outcome.kind == LoopOutcomeKind::kGlobalBundleAdjustment) {
+    spdlog::info("global BA at frame {}: {} keyframes, {} points, {:.0f} ms{}", frame_index,
+                 outcome.ba_keyframes, outcome.ba_points, outcome.ba_ms,
+                 outcome.ba_aborted ? " (aborted by a newer loop)" : "");
+  } else {
+    spdlog::debug("loop candidate of keyframe {} rejected: {}", outcome.query.value,
+                  outcome.rejection);
+  }
+  LoopEvent event;
+  event.frame_index = frame_index;
+  event.outcome = outcome;
+  event.outcome.correction = MapCorrection{};
+  loop_events_.push_back(std::move(event));
+  return changed;
+}
+
+void SlamSystem::RunLoopJob(const LoopJob& job, int64_t frame_index) {
+  const LoopOutcome corrected = LoopCloser::CloseLoop(job);
+  ApplyLoopOutcome(corrected, frame_index);
+  if (corrected.kind == LoopOutcomeKind::kCorrected && job.options.global_bundle_adjustment)
+    ApplyLoopOutcome(LoopCloser::GlobalBundleAdjustment(job, corrected, nullptr), frame_index);
 }
 
 void FillTrackingOutput(const TrackingResult& tracking, FrameOutput* out) {
@@ -235,6 +291,7 @@ FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv
   if (decision.insert) {
     out.mapping = InsertKeyframe(frame, tracking);
     out.keyframe_inserted = true;
+    if (const auto job = DetectLoop(KeyframeId(frame->id()), false)) RunLoopJob(*job, frame_index);
   }
   out.keyframe_inserted =
       out.keyframe_inserted || tracking.method == TrackingMethod::kInitialisation;

@@ -23,6 +23,7 @@
 #include "slam/common/pose.h"
 #include "slam/features/orb_extractor.h"
 #include "slam/features/stereo_matcher.h"
+#include "slam/loop/loop_closer.h"
 #include "slam/map/frame.h"
 #include "slam/map/map.h"
 #include "slam/mapping/local_mapper.h"
@@ -40,6 +41,7 @@ struct SlamOptions {
   TrackerOptions tracker;
   LocalMapperOptions mapping;
   KeyframeDecisionOptions keyframe;
+  LoopClosingOptions loop;  // active only with a vocabulary (SlamSystem's constructor)
   bool IsValid(std::string* why) const;
 };
 
@@ -71,8 +73,17 @@ struct FrameOutput {
   std::string keyframe_reason;
   size_t num_keyframes = 0;
   size_t num_map_points = 0;
-  MappingResult mapping;  // valid when keyframe_inserted
+  MappingResult mapping;          // valid when keyframe_inserted
+  int loop_outcomes_applied = 0;  // loop-closing outcomes the map owner applied at this frame
+  bool loop_job = false;          // this keyframe's place recognition made a loop job
   StageTimesMs times_ms;
+};
+
+// A loop-closing outcome the map's owner dealt with: applied (a correction, a global BA), dropped
+// (an aborted global BA) or rejected; its correction is not kept.
+struct LoopEvent {
+  int64_t frame_index = -1;  // the frame at whose mapping it was applied; -1: after the last frame
+  LoopOutcome outcome;
 };
 
 // Copies the tracking result (status, method, counts, pose) into out.
@@ -82,12 +93,15 @@ class SlamSystem {
  public:
   // Throws ConfigError when the rig or options are invalid; the rig must carry the image size
   // and, in stereo mode, be stereo (baseline_m > 0). Monocular mode ignores the baseline.
-  SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMode mode = SlamMode::kStereo);
+  // vocabulary (may be null) enables loop closing and place recognition for relocalisation
+  // (options.loop.enabled).
+  SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMode mode = SlamMode::kStereo,
+             std::shared_ptr<const Vocabulary> vocabulary = nullptr);
 
   // All stages for one rectified grey pair (CV_8UC1), one after another: the reference that the
   // flow graph's nodes (src/nodes, which call the stages below) are tested equal to. Programs
   // run frames through the graph (driver/driver.h), not through this loop. In monocular mode
-  // right is ignored (may be empty). filter may be null.
+  // right is ignored (may be empty). filter may be null. Loop closing runs inline (RunLoopJob).
   FrameOutput ProcessFrame(int64_t frame_index, int64_t t_ns, const cv::Mat& left,
                            const cv::Mat& right, const FrameFilterInput* filter = nullptr);
 
@@ -115,6 +129,19 @@ class SlamSystem {
   // caps this keyframe's local BA, e.g. a scheduler's low-quality level).
   MappingResult InsertKeyframe(const FramePtr& frame, const TrackingResult& tracking,
                                int ba_max_iterations = 0);
+
+  // --- Loop closing (the map's owner: serially with Track and InsertKeyframe) ---
+  // Looks for a loop at keyframe id (just inserted); a job for the loop lane, or null. busy: a
+  // job or its correction is in flight (the query then only updates the consistency groups).
+  std::shared_ptr<const LoopJob> DetectLoop(KeyframeId id, bool busy);
+  // Applies an outcome of the loop lane (a correction or a global BA as a delta, carried over to
+  // what the map gained since the job's snapshot) and records it. frame_index: the frame being
+  // mapped (-1 after the last). Returns true when the map changed.
+  bool ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_index);
+  // The loop lane's work on a job, inline: CloseLoop, applied, then the global BA, applied.
+  void RunLoopJob(const LoopJob& job, int64_t frame_index);
+  const LoopCloser& loop_closer() const { return loop_closer_; }
+  const std::vector<LoopEvent>& loop_events() const { return loop_events_; }
 
   const Map& map() const { return map_; }
   const StereoRig& rig() const { return rig_; }  // baseline_m = 0 in monocular mode
@@ -146,6 +173,8 @@ class SlamSystem {
   Map map_;
   Tracker tracker_;
   LocalMapper mapper_;
+  LoopCloser loop_closer_;
+  std::vector<LoopEvent> loop_events_;
   int64_t next_frame_id_ = 0;
   std::vector<FrameRecord> records_;
   std::vector<PendingFrame> pending_;  // bounded; cleared at initialisation

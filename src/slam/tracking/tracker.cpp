@@ -329,14 +329,19 @@ bool Tracker::TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* po
   return *n1 >= options_.min_pose_inliers;
 }
 
-bool Tracker::Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0) {
-  // Candidates: the most recent keyframes, then the reference keyframe's covisible ones.
+bool Tracker::Relocalise(const Frame& frame, const Map& map, const PlaceQuery& place, SE3* pose,
+                         Matches* m, int* n0) {
+  // Candidates: keyframes anywhere in the map that look like the frame (place recognition), then
+  // the most recent keyframes, then the reference keyframe's covisible ones.
+  std::vector<KeyframeId> candidates;
+  std::set<KeyframeId> seen;
+  if (place)
+    for (KeyframeId id : place(frame))
+      if (map.keyframe(id) && seen.insert(id).second) candidates.push_back(id);
   std::vector<const Keyframe*> by_index;
   for (const auto& [id, kf] : map.keyframes()) by_index.push_back(&kf);
   std::sort(by_index.begin(), by_index.end(),
             [](const Keyframe* x, const Keyframe* y) { return x->index > y->index; });
-  std::vector<KeyframeId> candidates;
-  std::set<KeyframeId> seen;
   for (size_t k = 0; k < by_index.size() && static_cast<int>(k) < options_.relocalisation_keyframes;
        ++k)
     if (seen.insert(by_index[k]->id).second) candidates.push_back(by_index[k]->id);
@@ -504,7 +509,7 @@ bool Tracker::TrackLocalMap(const Frame& frame, const Map& map, bool relocalised
   return inliers >= needed;
 }
 
-TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
+TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const PlaceQuery& place) {
   if (!frame_ptr) throw std::invalid_argument("Tracker::Track: null frame");
   const Frame& frame = *frame_ptr;
   TrackingResult result;
@@ -590,7 +595,7 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map) {
   }
   ++frames_since_relocalisation_;
   if (!ok) {
-    ok = Relocalise(frame, map, &pose, &m, &result.num_matches_initial);
+    ok = Relocalise(frame, map, place, &pose, &m, &result.num_matches_initial);
     if (ok) {
       result.method = TrackingMethod::kRelocalisation;
       frames_since_relocalisation_ = 0;

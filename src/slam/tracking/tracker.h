@@ -12,6 +12,7 @@
 //
 // Thread-compatible: Track() is called serially; it reads the map and returns its edits.
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -105,6 +106,10 @@ struct TrackingResult {
   KeyframeDecisionInput keyframe_input;  // for ShouldInsertKeyframe
 };
 
+// Place recognition for relocalisation: keyframes of the whole map that look like the frame, best
+// first (slam/loop: the keyframe database). Called only when a frame must be relocalised.
+using PlaceQuery = std::function<std::vector<KeyframeId>(const Frame&)>;
+
 class Tracker {
  public:
   // Throws ConfigError when options are invalid.
@@ -115,7 +120,9 @@ class Tracker {
   // TrackingResult::first_keyframe_delta); the caller applies the deltas and then reports the
   // frame's keyframe with OnKeyframeInserted. num_matches_initial then counts the monocular
   // initialiser's matches.
-  TrackingResult Track(const FramePtr& frame, const Map& map);
+  // place (may be empty): relocalisation tries its keyframes first, then the most recent ones and
+  // the reference keyframe's covisible ones.
+  TrackingResult Track(const FramePtr& frame, const Map& map, const PlaceQuery& place = {});
   // Tells the tracker that the frame of the last Track() call became keyframe id (after the
   // map applied the keyframe and its local mapping): its associations and pose then seed the
   // next frame's search.
@@ -160,7 +167,8 @@ class Tracker {
                  std::vector<int>* inliers) const;
   bool TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
                               int* n1);
-  bool Relocalise(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0);
+  bool Relocalise(const Frame& frame, const Map& map, const PlaceQuery& place, SE3* pose,
+                  Matches* m, int* n0);
   // relocalised: the frame counts as recently relocalised (wider window, more inliers needed).
   // *local_reference: the local keyframe sharing most points (invalid when none).
   bool TrackLocalMap(const Frame& frame, const Map& map, bool relocalised, SE3* pose, Matches* m,

@@ -14,6 +14,7 @@
 #include "slam/common/timing.h"
 #include "slam/system/slam_system.h"
 #include "support/data_paths.h"
+#include "support/shipped_vocabulary.h"
 #include "support/test_helpers.h"
 
 namespace pcr {
@@ -25,12 +26,13 @@ struct RunSummary {
   int lost = 0, not_initialised = 0, keyframes_inserted = 0;
   size_t final_keyframes = 0, final_points = 0;
   StageTimings timings;
+  LoopStats loop;  // loop closing with the shipped vocabulary (none of these clips revisits)
 };
 
 using test::Verbose;
 
 RunSummary RunDataset(const Dataset& data, size_t max_frames = 0) {
-  SlamSystem slam(data.rig, SlamOptions{});
+  SlamSystem slam(data.rig, SlamOptions{}, SlamMode::kStereo, test::ShippedVocabulary());
   RunSummary s;
   const size_t n = max_frames ? std::min(max_frames, data.size()) : data.size();
   for (size_t i = 0; i < n; ++i) {
@@ -64,6 +66,7 @@ RunSummary RunDataset(const Dataset& data, size_t max_frames = 0) {
           out.times_ms.stereo, out.times_ms.tracking, out.times_ms.local_mapping);
   }
   s.refined = slam.RefinedTrajectory();
+  s.loop = slam.loop_closer().stats();
   s.final_keyframes = slam.map().num_keyframes();
   s.final_points = slam.map().num_points();
   return s;
@@ -122,6 +125,13 @@ TEST(KittiEndToEnd, Sequence06StereoTracksAccuratelyAndDeterministically) {
   EXPECT_LE(ate_refined, 0.08);
   EXPECT_LE(ate_online, 0.10);
   EXPECT_LE(ate_refined_sim3, 0.04);
+  // Loop closing is on (the shipped vocabulary) and the clip never comes back: no loop may be
+  // accepted; the candidates place recognition raised were all turned down.
+  std::printf("[seq06] loop closing: %d queries, %d candidates, %d rejected, %d loops\n",
+              first.loop.detections, first.loop.candidates, first.loop.candidates_rejected,
+              first.loop.corrections);
+  EXPECT_GT(first.loop.keyframes_seen, 0);
+  EXPECT_EQ(first.loop.corrections, 0);
 
   // Determinism: processing is causal, so a second run over the first 20 frames must reproduce
   // the first run's online poses bit for bit (and its own refined trajectory again).
@@ -153,6 +163,11 @@ TEST(KittiEndToEnd, RawDrive0005StereoNeverLosesTrack) {
     EXPECT_LE(ate_refined, 1.0);
   }
   PrintTimings("0005", run);
+  std::printf("[0005] loop closing: %d queries, %d candidates, %d rejected, %d loops\n",
+              run.loop.detections, run.loop.candidates, run.loop.candidates_rejected,
+              run.loop.corrections);
+  EXPECT_GT(run.loop.keyframes_seen, 0);
+  EXPECT_EQ(run.loop.corrections, 0);  // no false loop: the drive never comes back
 }
 
 TEST(KittiEndToEnd, BoundedMapKeepsItsSizeAndTheWholeTrajectory) {
@@ -193,7 +208,7 @@ TEST(KittiEndToEnd, Sequence06WithDroppedFramesStaysOnTrack) {
   const std::string dir = test::SharedPath("data/kitti/sequences/06");
   if (!std::filesystem::exists(dir)) GTEST_SKIP() << "no KITTI data at " << dir;
   const Dataset data = OpenDataset(dir);
-  SlamSystem slam(data.rig, SlamOptions{});
+  SlamSystem slam(data.rig, SlamOptions{}, SlamMode::kStereo, test::ShippedVocabulary());
   int lost = 0, by_motion_model = 0, processed = 0;
   for (size_t i = 0; i < data.size(); i += (i < 9 ? 1 : 3)) {
     const FrameOutput out = slam.ProcessFrame(static_cast<int64_t>(i), data.t_ns[i],

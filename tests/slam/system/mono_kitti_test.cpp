@@ -14,6 +14,7 @@
 #include "slam/common/timing.h"
 #include "slam/system/slam_system.h"
 #include "support/data_paths.h"
+#include "support/shipped_vocabulary.h"
 #include "support/test_helpers.h"
 
 namespace pcr {
@@ -26,12 +27,13 @@ struct MonoRun {
   int lost_after_init = 0, keyframes_inserted = 0;
   size_t final_keyframes = 0, final_points = 0;
   StageTimings timings;
+  LoopStats loop;  // loop closing with the shipped vocabulary (Sim(3) in mono)
 };
 
 using test::Verbose;
 
 MonoRun RunMono(const Dataset& data, size_t num_frames) {
-  SlamSystem slam(data.rig, SlamOptions{}, SlamMode::kMonocular);
+  SlamSystem slam(data.rig, SlamOptions{}, SlamMode::kMonocular, test::ShippedVocabulary());
   MonoRun run;
   const size_t n = std::min(num_frames, data.size());
   for (size_t i = 0; i < n; ++i) {
@@ -69,6 +71,7 @@ MonoRun RunMono(const Dataset& data, size_t num_frames) {
   }
   run.refined = slam.RefinedTrajectory();
   run.final_keyframes = slam.map().num_keyframes();
+  run.loop = slam.loop_closer().stats();
   run.final_points = slam.map().num_points();
   return run;
 }
@@ -129,6 +132,9 @@ TEST(MonoKitti, Sequence07InitialisesEarlyAndTracksWithinOnePercent) {
   const Trajectory gt_cut(data.ground_truth->begin(),
                           data.ground_truth->begin() + static_cast<std::ptrdiff_t>(frames));
   EXPECT_LE(AteRmseSim3(run.refined, *data.ground_truth), 0.01 * PathLength(gt_cut));
+  // No false loop (the clip never comes back), with place recognition on.
+  EXPECT_GT(run.loop.keyframes_seen, 0);
+  EXPECT_EQ(run.loop.corrections, 0);
 
   // Determinism: processing is causal, so a second run over the first 20 frames reproduces the
   // first run's online poses bit for bit.
@@ -154,6 +160,8 @@ TEST(MonoKitti, Sequence00InitialisesEarlyAndTracksWithinOnePercent) {
   const Trajectory gt_cut(data.ground_truth->begin(),
                           data.ground_truth->begin() + static_cast<std::ptrdiff_t>(frames));
   EXPECT_LE(AteRmseSim3(run.refined, *data.ground_truth), 0.01 * PathLength(gt_cut));
+  EXPECT_GT(run.loop.keyframes_seen, 0);
+  EXPECT_EQ(run.loop.corrections, 0);  // no false loop
 }
 
 }  // namespace

@@ -1,0 +1,645 @@
+// Loop closing: what it buys and what it costs. Prints figures, asserts nothing; the exit status
+// is 1 when a run fails (stops early, throws) or, with --sequence, when a loop is accepted on a
+// clip without one ("FALSE LOOP"). Four modes:
+//
+//  default     synthetic loop routes (`pcr_orb synth --route loop`), each run twice in this
+//              process, loop closing ON and OFF (OFF: no vocabulary). Per seed: path length,
+//              ATE (SE(3); Sim(3) with --mode mono) off/on, as % of the path, ratio on/off, the
+//              end-of-route error off/on (last tracked frame against ground truth, no alignment:
+//              both start at the identity; mono: relative to the first tracked frame with the
+//              scale of the first 100 tracked frames, plus the scale drift of the last 100), loops
+//              closed, the first correction (frame, metres, mono scale), candidates rejected
+//              (and of those, by the owner's word-match precheck), detection p50/p99 and the loop
+//              lane's times (verify + correct + pose graph of the corrections; global BA).
+//  --latency   one seed, pipelined policy: ON/OFF/ON/OFF... for --repeat rounds; tracking latency
+//              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages.
+//  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
+//              (must be 0: "FALSE LOOP" and exit 1 otherwise), detection p50/p99.
+//  --place     place recognition alone (no SLAM): ORB + bag of words on every --place-stride'th
+//              left frame of each clip; each frame's best Vocabulary::Score among all frames of
+//              all clips outside its own window (same clip, |i - j| <= --window). Correct: same
+//              clip and within 10 m (ground truth). Precision, and recall against the frames that
+//              have a frame within 10 m outside the window, at --thresholds.
+//
+//   bench_loop [--seeds 1,2,3] [--frames 600] [--speed 8] [--movers 6] [--work DIR]
+//              [--policy sequential|pipelined] [--mode stereo|mono] [--vocabulary FILE]
+//   bench_loop --latency [--seeds 1] [--repeat 2]
+//   bench_loop --sequence DIR... [--mode mono]
+//   bench_loop --place DIR... [--place-stride 2] [--window 10] [--thresholds 0,0.02,...]
+//
+// Work directory: seed S is looked up as WORK/loopS/ (the layout of `pcr_orb synth --out
+// WORK/loopS`: WORK/loopS/sequences/00, WORK/loopS/poses/00.txt) and as
+// WORK/loop_sS_vSPEED_mMOVERS_fFRAMES/; a directory is reused when its synth_options.txt has the
+// same frames, seed, movers, speed and route and its times.txt all the frames; otherwise the
+// sequence is rendered into the second name (~9 minutes for 600 full-size frames on one core).
+// `--work /tmp/lc` reuses /tmp/lc/loop1..3.
+//
+// Runtime (2 cores shared with other work, load average 2-3, 600 frames, seed 1): stereo
+// sequential ~160 s ON / ~130 s OFF, so the default 3 seeds take ~15 minutes (plus rendering of
+// missing loops); mono ~100 s / ~55 s; --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7
+// minutes); --sequence 10-40 s a KITTI clip; --place ~6 s on the four shipped clips.
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Core>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "driver/driver.h"
+#include "driver/loop_vocabulary.h"
+#include "eval/association.h"
+#include "eval/evaluation.h"
+#include "graph/pipeline.h"
+#include "graph/pipeline_options.h"
+#include "io/dataset.h"
+#include "sim/sequence_writer.h"
+#include "slam/common/timing.h"
+#include "slam/features/orb_extractor.h"
+#include "slam/loop/vocabulary.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kPlaceRadiusM = 10.0;  // --place: a correct match lies within this of the query
+constexpr size_t kScaleWindow = 100;    // mono end-of-route figures: tracked frames at each end
+
+struct Args {
+  std::string seeds = "1,2,3";
+  int frames = 600;
+  double speed_mps = 8;
+  int movers = 6;
+  std::string work = "/tmp/pcr_bench_loop";
+  std::string policy = "sequential";
+  std::string mode = "stereo";
+  int threads = 2;
+  std::string vocabulary;  // "" = the shipped one
+  bool latency = false;
+  int repeat = 2;
+  std::vector<std::string> sequences;
+  std::vector<std::string> place;
+  int place_stride = 2;
+  int window = 10;
+  std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
+};
+
+std::vector<double> ParseList(const std::string& text) {
+  std::vector<double> v;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t comma = text.find(',', start);
+    const std::string item = text.substr(start, comma == std::string::npos ? comma : comma - start);
+    if (!item.empty()) v.push_back(std::stod(item));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return v;
+}
+
+// One line of a command's output ("" when it cannot run).
+std::string CommandLine(const std::string& command) {
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return "";
+  char buffer[256] = {};
+  std::string line = std::fgets(buffer, sizeof(buffer), pipe) ? buffer : "";
+  pclose(pipe);
+  while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
+  return line;
+}
+
+std::string LoadAverage() {
+  std::ifstream in("/proc/loadavg");
+  double one = 0, five = 0, fifteen = 0;
+  in >> one >> five >> fifteen;
+  return in ? fmt::format("{:.2f} {:.2f} {:.2f}", one, five, fifteen) : "?";
+}
+
+// The file LoadLoopVocabulary(path) reads.
+std::string VocabularyPath(const std::string& path) {
+  if (!path.empty()) return path;
+  for (const std::string& candidate : pcr::driver::DefaultVocabularyPaths())
+    if (fs::is_regular_file(candidate)) return candidate;
+  return "(none)";
+}
+
+pcr::TimingSummary Summarize(const std::vector<double>& ms) {
+  pcr::TimingSeries series;
+  for (double v : ms) series.Add(v);
+  return series.Summarize();
+}
+
+// --- Synthetic loops -------------------------------------------------------------------------
+
+// "key: value" lines of a synth_options.txt.
+std::map<std::string, std::string> ReadKeyValues(const fs::path& path) {
+  std::map<std::string, std::string> out;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t colon = line.find(':');
+    if (colon == std::string::npos) continue;
+    const size_t value = line.find_first_not_of(' ', colon + 1);
+    out[line.substr(0, colon)] = value == std::string::npos ? "" : line.substr(value);
+  }
+  return out;
+}
+
+size_t CountLines(const fs::path& path) {
+  std::ifstream in(path);
+  size_t n = 0;
+  for (std::string line; std::getline(in, line);) n += !line.empty();
+  return n;
+}
+
+// Whether out_dir holds the complete sequence 00 that WriteSequence(o, out_dir) would write.
+bool HoldsSequence(const fs::path& out_dir, const pcr::sim::SynthOptions& o) {
+  const fs::path seq = out_dir / "sequences" / o.sequence;
+  if (!fs::exists(seq / "times.txt") || !fs::exists(out_dir / "poses" / (o.sequence + ".txt")))
+    return false;
+  auto kv = ReadKeyValues(seq / "synth_options.txt");
+  auto number = [&](const std::string& key) {
+    return kv.count(key) ? std::strtod(kv[key].c_str(), nullptr) : kNaN;
+  };
+  return number("frames") == o.frames && number("seed") == static_cast<double>(o.seed) &&
+         number("num_movers") == o.num_movers && number("speed_mps") == o.speed_mps &&
+         kv["route"] == "loop" && CountLines(seq / "times.txt") == static_cast<size_t>(o.frames);
+}
+
+// The sequence directory of a loop route: reused (see the file comment) or written.
+std::string LoopSequence(const Args& args, uint64_t seed) {
+  pcr::sim::SynthOptions o;
+  o.frames = args.frames;
+  o.seed = seed;
+  o.speed_mps = args.speed_mps;
+  o.num_movers = args.movers;
+  o.route = pcr::sim::RouteKind::kLoop;
+  const fs::path written = fmt::format("{}/loop_s{}_v{}_m{}_f{}", args.work, seed, args.speed_mps,
+                                       args.movers, args.frames);
+  for (const fs::path& dir : {fs::path(fmt::format("{}/loop{}", args.work, seed)), written})
+    if (HoldsSequence(dir, o)) return (dir / "sequences" / o.sequence).string();
+  std::printf("writing %s (%d frames, ~1 s a frame) ...\n", written.c_str(), o.frames);
+  std::fflush(stdout);
+  return pcr::sim::WriteSequence(o, written.string()).sequence_dir;
+}
+
+pcr::driver::DriverResult Run(const pcr::Dataset& d, const Args& args, pcr::graph::Policy policy,
+                              std::shared_ptr<const pcr::Vocabulary> vocabulary) {
+  pcr::driver::DriverOptions options;
+  options.mode = args.mode == "mono" ? pcr::SlamMode::kMonocular : pcr::SlamMode::kStereo;
+  options.pipeline.policy = policy;
+  options.pipeline.threads = args.threads;
+  options.pipeline.vocabulary = std::move(vocabulary);
+  return pcr::driver::RunDataset(d, pcr::driver::RunConfig{}, {0, d.size()}, options);
+}
+
+// Summed step lengths of tracked[first, last) (metres; estimate units for the estimate) and of
+// the ground truth at the same frames.
+std::pair<double, double> StepLengths(const pcr::Dataset& d, const pcr::Trajectory& tracked,
+                                      size_t first, size_t last) {
+  double est = 0, gt = 0;
+  const pcr::Trajectory& truth = *d.ground_truth;
+  for (size_t i = first + 1; i < last; ++i) {
+    est += (tracked[i].world_from_cam.translation() - tracked[i - 1].world_from_cam.translation())
+               .norm();
+    gt += (truth[static_cast<size_t>(tracked[i].frame_index)].world_from_cam.translation() -
+           truth[static_cast<size_t>(tracked[i - 1].frame_index)].world_from_cam.translation())
+              .norm();
+  }
+  return {est, gt};
+}
+
+struct Figures {
+  size_t tracked = 0;
+  double ate_m = kNaN;
+  double end_m = kNaN;          // last tracked frame's position error, see EndOfRoute
+  double end_scale_pct = kNaN;  // mono: scale of the last kScaleWindow frames against the first
+  double wall_s = 0;
+  std::string error;  // the run stopped early
+};
+
+Figures Measure(const pcr::Dataset& d, const pcr::driver::DriverResult& run, bool mono) {
+  Figures f;
+  const pcr::Trajectory& tracked = run.summary.tracked;
+  f.tracked = tracked.size();
+  f.wall_s = run.summary.wall_s;
+  f.error = run.summary.error;
+  if (!d.ground_truth || tracked.size() < 3) return f;
+  pcr::eval::EvalOptions options;
+  options.alignment.mode = mono ? pcr::eval::AlignMode::kSim3 : pcr::eval::AlignMode::kSe3;
+  try {
+    f.ate_m =
+        pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(*d.ground_truth, tracked), options)
+            .ape.trans_m.rmse;
+  } catch (const std::exception& e) {
+    spdlog::warn("ATE: {}", e.what());
+  }
+  // End of route, no alignment: the last tracked position relative to the first tracked frame
+  // (the identity in stereo, where tracking starts at frame 0) against the ground truth's; mono
+  // scales the estimate by the ground truth's path over its first kScaleWindow tracked frames.
+  const pcr::Trajectory& truth = *d.ground_truth;
+  const pcr::SE3& est0 = tracked.front().world_from_cam;
+  const pcr::SE3& gt0 = truth[static_cast<size_t>(tracked.front().frame_index)].world_from_cam;
+  const pcr::SE3 est_rel = est0.inverse() * tracked.back().world_from_cam;
+  const pcr::SE3 gt_rel =
+      gt0.inverse() * truth[static_cast<size_t>(tracked.back().frame_index)].world_from_cam;
+  double scale = 1;
+  if (mono) {
+    const size_t n = std::min(kScaleWindow, tracked.size());
+    const auto [est_start, gt_start] = StepLengths(d, tracked, 0, n);
+    const auto [est_end, gt_end] = StepLengths(d, tracked, tracked.size() - n, tracked.size());
+    if (est_start <= 0 || est_end <= 0 || gt_end <= 0) return f;
+    scale = gt_start / est_start;
+    f.end_scale_pct = 100 * (scale * est_end / gt_end - 1);
+  }
+  f.end_m = (scale * est_rel.translation() - gt_rel.translation()).norm();
+  return f;
+}
+
+struct LoopFigures {
+  int loops = 0, global_bas = 0, jobs = 0, jobs_rejected = 0;
+  int candidates_rejected = 0, candidates_prechecked = 0;
+  int64_t first_frame = -1;
+  double first_m = kNaN, first_deg = kNaN, first_scale = kNaN;
+  double correct_ms = 0;  // verify + correct + pose graph, summed over the corrections
+  double ba_ms = 0;       // global BAs, summed
+  pcr::TimingSummary detect;
+};
+
+LoopFigures LoopFiguresOf(const pcr::graph::PipelineResult& p) {
+  LoopFigures f;
+  const pcr::LoopStats& st = p.loop_stats;
+  f.loops = st.corrections;
+  f.global_bas = st.global_bas;
+  f.jobs = st.jobs;
+  f.jobs_rejected = st.rejected;
+  f.candidates_rejected = st.candidates_rejected;
+  f.candidates_prechecked = st.candidates_prechecked;
+  f.detect = Summarize(st.detect_ms);
+  for (const pcr::LoopEvent& e : p.loop_events) {
+    const pcr::LoopOutcome& o = e.outcome;
+    if (o.kind == pcr::LoopOutcomeKind::kCorrected) {
+      f.correct_ms += o.verify_ms + o.correct_ms + o.pose_graph_ms;
+      if (f.first_frame < 0) {
+        f.first_frame = e.frame_index;
+        f.first_m = o.correction_m;
+        f.first_deg = o.correction_deg;
+        if (o.match) f.first_scale = o.match->query_from_matched.scale;
+      }
+    } else if (o.kind == pcr::LoopOutcomeKind::kGlobalBundleAdjustment) {
+      f.ba_ms += o.ba_ms;
+    }
+  }
+  return f;
+}
+
+int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary) {
+  pcr::graph::Policy policy;
+  if (!pcr::graph::ParsePolicy(args.policy, &policy) || policy == pcr::graph::Policy::kRealtime) {
+    std::fprintf(stderr, "--policy: sequential or pipelined\n");
+    return 1;
+  }
+  const bool mono = args.mode == "mono";
+  struct Row {
+    uint64_t seed = 0;
+    size_t frames = 0;
+    double path_m = 0;
+    Figures off, on;
+    LoopFigures loop;
+  };
+  std::vector<Row> rows;
+  int failed = 0;
+  for (double seed : ParseList(args.seeds)) {
+    Row r;
+    r.seed = static_cast<uint64_t>(seed);
+    const pcr::Dataset d = pcr::OpenDataset(LoopSequence(args, r.seed));
+    r.frames = d.size();
+    r.path_m = d.ground_truth ? pcr::PathLength(*d.ground_truth) : kNaN;
+    for (bool on : {true, false}) {
+      const pcr::driver::DriverResult run = Run(d, args, policy, on ? vocabulary : nullptr);
+      Figures f = Measure(d, run, mono);
+      std::printf("  seed %d loop %-3s %s: %zu/%zu frames tracked, %.1f s%s%s\n",
+                  static_cast<int>(r.seed), on ? "on" : "off", d.root.c_str(), f.tracked, d.size(),
+                  f.wall_s, f.error.empty() ? "" : ", FAILED: ", f.error.c_str());
+      std::fflush(stdout);
+      failed += !f.error.empty();
+      if (on) {
+        r.on = f;
+        r.loop = LoopFiguresOf(run.pipeline);
+      } else {
+        r.off = f;
+      }
+    }
+    rows.push_back(r);
+  }
+
+  std::printf("\nAccuracy (%s, %s ATE; end: last frame's error without alignment%s)\n",
+              args.mode.c_str(), mono ? "Sim(3)" : "SE(3)",
+              mono ? ", estimate scaled by its first 100 tracked frames" : "");
+  std::printf("%4s %6s %8s | %7s %7s | %8s %8s | %7s %7s | %6s | %8s %8s", "seed", "frames",
+              "path m", "trk off", "trk on", "ATE off", "ATE on", "% off", "% on", "on/off",
+              "end off", "end on");
+  if (mono) std::printf(" | %8s %8s", "scl% off", "scl% on");
+  std::printf("\n");
+  std::vector<double> ratios;
+  for (const Row& r : rows) {
+    const double ratio = r.on.ate_m / r.off.ate_m;
+    if (std::isfinite(ratio)) ratios.push_back(ratio);
+    std::printf("%4d %6zu %8.1f | %7zu %7zu | %8.3f %8.3f | %6.2f%% %6.2f%% | %6.3f | %8.3f %8.3f",
+                static_cast<int>(r.seed), r.frames, r.path_m, r.off.tracked, r.on.tracked,
+                r.off.ate_m, r.on.ate_m, 100 * r.off.ate_m / r.path_m, 100 * r.on.ate_m / r.path_m,
+                ratio, r.off.end_m, r.on.end_m);
+    if (mono) std::printf(" | %+8.2f %+8.2f", r.off.end_scale_pct, r.on.end_scale_pct);
+    std::printf("\n");
+  }
+  if (!ratios.empty()) {
+    std::sort(ratios.begin(), ratios.end());
+    std::printf("ATE ratio on/off: median %.3f, min %.3f, max %.3f over %zu seeds\n",
+                ratios[ratios.size() / 2], ratios.front(), ratios.back(), ratios.size());
+  }
+
+  std::printf(
+      "\nLoop closing (the ON run; times in ms; corr: verify + correct + pose graph, summed)\n");
+  std::printf("%4s %5s %4s %5s %6s | %6s %8s %8s%s | %9s %9s | %7s %7s | %8s %8s | %6s %6s\n",
+              "seed", "loops", "gBA", "jobs", "j rej", "frame", "corr m", "corr deg",
+              mono ? "    scale" : "", "cand rej", "precheck", "det p50", "det p99", "corr",
+              "glob BA", "on s", "off s");
+  for (const Row& r : rows) {
+    const LoopFigures& l = r.loop;
+    std::printf("%4d %5d %4d %5d %6d | %6lld %8.3f %8.2f", static_cast<int>(r.seed), l.loops,
+                l.global_bas, l.jobs, l.jobs_rejected, static_cast<long long>(l.first_frame),
+                l.first_m, l.first_deg);
+    if (mono) std::printf(" %8.4f", l.first_scale);
+    std::printf(" | %9d %9d | %7.2f %7.2f | %8.0f %8.0f | %6.1f %6.1f\n", l.candidates_rejected,
+                l.candidates_prechecked, l.detect.p50_ms, l.detect.p99_ms, l.correct_ms, l.ba_ms,
+                r.on.wall_s, r.off.wall_s);
+  }
+  if (failed > 0) std::printf("\n%d run(s) FAILED (see above)\n", failed);
+  return failed > 0 ? 1 : 0;
+}
+
+// --- Latency -----------------------------------------------------------------------------------
+
+int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary) {
+  const std::vector<double> seeds = ParseList(args.seeds);
+  if (seeds.empty()) {
+    std::fprintf(stderr, "--latency needs a seed\n");
+    return 1;
+  }
+  const pcr::Dataset d = pcr::OpenDataset(LoopSequence(args, static_cast<uint64_t>(seeds[0])));
+  std::printf("\nTracking latency, pipelined, %d threads, %s, seed %d, %zu frames (ms)\n",
+              args.threads, args.mode.c_str(), static_cast<int>(seeds[0]), d.size());
+  std::printf("%5s %4s | %7s %7s %7s | %5s | %5s %7s %7s | %4s %8s | %6s\n", "round", "loop",
+              "lat p50", "lat p99", "lat max", "loops", "loop n", "p50", "max", "gBA", "max",
+              "wall s");
+  int failed = 0;
+  std::vector<double> p99_ratios;
+  for (int round = 0; round < args.repeat; ++round) {
+    double p99_on = kNaN;
+    for (bool on : {true, false}) {
+      const pcr::driver::DriverResult run =
+          Run(d, args, pcr::graph::Policy::kPipelined, on ? vocabulary : nullptr);
+      const pcr::graph::PipelineStats& st = run.pipeline.stats;
+      auto stage = [&](const char* name) {
+        const auto it = st.stages.find(name);
+        return it == st.stages.end() ? pcr::TimingSummary{} : it->second.time;
+      };
+      const pcr::TimingSummary loop = stage(pcr::graph::kStageLoop);
+      const pcr::TimingSummary ba = stage(pcr::graph::kStageGlobalBa);
+      std::printf("%5d %4s | %7.1f %7.1f %7.1f | %5d | %5zu %7.1f %7.1f | %4zu %8.1f | %6.1f%s%s\n",
+                  round + 1, on ? "on" : "off", st.latency.p50_ms, st.latency.p99_ms,
+                  st.latency.max_ms, run.pipeline.loop_stats.corrections, loop.count, loop.p50_ms,
+                  loop.max_ms, ba.count, ba.max_ms, run.summary.wall_s,
+                  run.summary.error.empty() ? "" : "  FAILED: ", run.summary.error.c_str());
+      std::fflush(stdout);
+      failed += !run.summary.error.empty();
+      if (on)
+        p99_on = st.latency.p99_ms;
+      else
+        p99_ratios.push_back(p99_on / st.latency.p99_ms);
+    }
+  }
+  std::sort(p99_ratios.begin(), p99_ratios.end());
+  if (!p99_ratios.empty())
+    std::printf("latency p99 on/off: median %.3f over %zu rounds (min %.3f, max %.3f)\n",
+                p99_ratios[p99_ratios.size() / 2], p99_ratios.size(), p99_ratios.front(),
+                p99_ratios.back());
+  return failed > 0 ? 1 : 0;
+}
+
+// --- Real clips without a loop -----------------------------------------------------------------
+
+int RunSequences(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary) {
+  pcr::graph::Policy policy;
+  if (!pcr::graph::ParsePolicy(args.policy, &policy) || policy == pcr::graph::Policy::kRealtime) {
+    std::fprintf(stderr, "--policy: sequential or pipelined\n");
+    return 1;
+  }
+  std::printf("\nClips without a loop (%s, %s, loop closing on)\n", args.mode.c_str(),
+              args.policy.c_str());
+  std::printf("%-28s %6s %7s | %5s %7s %6s | %5s %6s %9s %9s | %6s | %7s %7s | %6s\n", "clip",
+              "frames", "tracked", "KFs", "queries", "cands", "jobs", "j rej", "cand rej",
+              "precheck", "loops", "det p50", "det p99", "wall s");
+  int bad = 0;
+  for (const std::string& path : args.sequences) {
+    const pcr::Dataset d = pcr::OpenDataset(path);
+    const pcr::driver::DriverResult run = Run(d, args, policy, vocabulary);
+    const pcr::LoopStats& st = run.pipeline.loop_stats;
+    const pcr::TimingSummary detect = Summarize(st.detect_ms);
+    std::printf(
+        "%-28s %6zu %7zu | %5d %7d %6d | %5d %6d %9d %9d | %6d | %7.2f %7.2f | %6.1f%s%s%s\n",
+        d.name.c_str(), d.size(), run.summary.tracked.size(), st.keyframes_seen, st.detections,
+        st.candidates, st.jobs, st.rejected, st.candidates_rejected, st.candidates_prechecked,
+        st.corrections, detect.p50_ms, detect.p99_ms, run.summary.wall_s,
+        st.corrections > 0 ? "  FALSE LOOP" : "",
+        run.summary.error.empty() ? "" : "  FAILED: ", run.summary.error.c_str());
+    std::fflush(stdout);
+    bad += st.corrections > 0 || !run.summary.error.empty();
+  }
+  return bad > 0 ? 1 : 0;
+}
+
+// --- Place recognition alone ------------------------------------------------------------------
+
+int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
+  struct Image {
+    int clip = 0;
+    int64_t frame = 0;
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();
+    pcr::BowVector bow;
+  };
+  std::vector<std::string> names;
+  std::vector<Image> images;
+  const pcr::OrbExtractor orb{pcr::OrbOptions{}};
+  pcr::TimingSeries extract_ms, transform_ms;
+  for (const std::string& path : args.place) {
+    const pcr::Dataset d = pcr::OpenDataset(path);
+    if (!d.ground_truth) throw std::runtime_error(path + ": --place needs ground truth");
+    names.push_back(d.name);
+    for (size_t i = 0; i < d.size(); i += static_cast<size_t>(args.place_stride)) {
+      Image image;
+      image.clip = static_cast<int>(names.size()) - 1;
+      image.frame = static_cast<int64_t>(i);
+      image.position = (*d.ground_truth)[i].world_from_cam.translation();
+      const auto t0 = std::chrono::steady_clock::now();
+      const pcr::OrbFeatures features = orb.Extract(d.LoadLeft(i));
+      const auto t1 = std::chrono::steady_clock::now();
+      vocabulary.Transform(features.descriptors, nullptr, 2, &image.bow, nullptr);
+      const auto t2 = std::chrono::steady_clock::now();
+      extract_ms.Add(std::chrono::duration<double, std::milli>(t1 - t0).count());
+      transform_ms.Add(std::chrono::duration<double, std::milli>(t2 - t1).count());
+      images.push_back(std::move(image));
+    }
+  }
+
+  enum class Verdict { kCorrect, kSameClipFar, kOtherClip };
+  struct Query {
+    int clip = 0;
+    double score = 0;
+    Verdict verdict = Verdict::kOtherClip;
+    bool has_near = false;  // a frame within kPlaceRadiusM outside the window exists
+  };
+  std::vector<Query> queries;
+  for (size_t q = 0; q < images.size(); ++q) {
+    const Image& a = images[q];
+    Query result;
+    result.clip = a.clip;
+    int best = -1;
+    for (size_t j = 0; j < images.size(); ++j) {
+      const Image& b = images[j];
+      const bool same_clip = a.clip == b.clip;
+      if (same_clip && std::abs(a.frame - b.frame) <= args.window) continue;
+      if (same_clip && (a.position - b.position).norm() <= kPlaceRadiusM) result.has_near = true;
+      const double score = pcr::Vocabulary::Score(a.bow, b.bow);
+      if (best < 0 || score > result.score) {
+        best = static_cast<int>(j);
+        result.score = score;
+      }
+    }
+    if (best < 0) continue;  // nothing outside the window
+    const Image& b = images[static_cast<size_t>(best)];
+    result.verdict = b.clip != a.clip                                    ? Verdict::kOtherClip
+                     : (a.position - b.position).norm() <= kPlaceRadiusM ? Verdict::kCorrect
+                                                                         : Verdict::kSameClipFar;
+    queries.push_back(result);
+  }
+
+  std::printf(
+      "\nPlace recognition: left frames at stride %d, window +-%d frames, correct within %.0f m "
+      "(ORB %.1f ms, bag of words %.2f ms per image, p50)\n",
+      args.place_stride, args.window, kPlaceRadiusM, extract_ms.Summarize().p50_ms,
+      transform_ms.Summarize().p50_ms);
+  std::printf("%-28s %7s %8s %7s %8s %8s %9s | %9s %9s\n", "clip", "queries", "revisits", "correct",
+              "same far", "other", "precision", "score ok", "score bad");
+  auto print_clip = [&](const std::string& name, int clip) {
+    int n = 0, near = 0, correct = 0, far = 0, other = 0;
+    std::vector<double> good, bad;
+    for (const Query& q : queries) {
+      if (clip >= 0 && q.clip != clip) continue;
+      ++n;
+      near += q.has_near;
+      correct += q.verdict == Verdict::kCorrect;
+      far += q.verdict == Verdict::kSameClipFar;
+      other += q.verdict == Verdict::kOtherClip;
+      (q.verdict == Verdict::kCorrect ? good : bad).push_back(q.score);
+    }
+    auto median = [](std::vector<double> v) {
+      if (v.empty()) return kNaN;
+      std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+      return v[v.size() / 2];
+    };
+    std::printf("%-28s %7d %8d %7d %8d %8d %9.3f | %9.4f %9.4f\n", name.c_str(), n, near, correct,
+                far, other, n > 0 ? static_cast<double>(correct) / n : kNaN, median(good),
+                median(bad));
+  };
+  for (size_t c = 0; c < names.size(); ++c) print_clip(names[c], static_cast<int>(c));
+  print_clip("all", -1);
+  std::printf(
+      "(revisits: queries with a frame of their clip within %.0f m outside the window; "
+      "score ok/bad: median best score of correct/wrong queries)\n",
+      kPlaceRadiusM);
+
+  int revisits = 0;
+  for (const Query& q : queries) revisits += q.has_near;
+  std::printf("\n%9s %8s %7s %9s %7s\n", "min score", "accepted", "correct", "precision", "recall");
+  for (double t : ParseList(args.thresholds)) {
+    int accepted = 0, correct = 0;
+    for (const Query& q : queries) {
+      if (q.score < t) continue;
+      ++accepted;
+      correct += q.verdict == Verdict::kCorrect;
+    }
+    std::printf("%9.3f %8d %7d %9.3f %7.3f\n", t, accepted, correct,
+                accepted > 0 ? static_cast<double>(correct) / accepted : kNaN,
+                revisits > 0 ? static_cast<double>(correct) / revisits : kNaN);
+  }
+  std::printf("(recall: correct / revisits = %d)\n", revisits);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Loop closing: accuracy, costs, false loops and place recognition"};
+  Args a;
+  app.add_option("--seeds", a.seeds, "synthetic loops' seeds (--latency: the first)")
+      ->capture_default_str();
+  app.add_option("--frames", a.frames, "frames of each synthetic loop")->capture_default_str();
+  app.add_option("--speed", a.speed_mps, "ego speed, m/s")->capture_default_str();
+  app.add_option("--movers", a.movers, "moving objects per loop")->capture_default_str();
+  app.add_option("--work", a.work, "where loops are found or written (WORK/loopS reused)")
+      ->capture_default_str();
+  app.add_option("--policy", a.policy, "sequential or pipelined")->capture_default_str();
+  app.add_option("--mode", a.mode, "stereo or mono")
+      ->check(CLI::IsMember({"stereo", "mono"}))
+      ->capture_default_str();
+  app.add_option("--threads", a.threads, "pipeline threads")->capture_default_str();
+  app.add_option("--vocabulary", a.vocabulary, "vocabulary file (default: the shipped one)");
+  app.add_flag("--latency", a.latency, "tracking latency with loop closing on and off");
+  app.add_option("--repeat", a.repeat, "--latency: on/off rounds")->capture_default_str();
+  app.add_option("--sequence", a.sequences, "real clips without a loop: false loops");
+  app.add_option("--place", a.place, "place recognition alone on these clips");
+  app.add_option("--place-stride", a.place_stride, "--place: every N-th frame")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--window", a.window, "--place: excluded frames of the query's clip (+-)")
+      ->capture_default_str();
+  app.add_option("--thresholds", a.thresholds, "--place: minimum scores")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  spdlog::set_level(spdlog::level::warn);
+
+  const fs::path source_dir = fs::path(__FILE__).parent_path().parent_path();
+  const std::string commit =
+      CommandLine("git -C '" + source_dir.string() + "' describe --always --dirty 2>/dev/null");
+  try {
+    const std::shared_ptr<const pcr::Vocabulary> vocabulary =
+        pcr::driver::LoadLoopVocabulary(a.vocabulary);
+    std::printf("bench_loop: commit %s, vocabulary %s (%zu words), load average %s\n",
+                commit.empty() ? "?" : commit.c_str(), VocabularyPath(a.vocabulary).c_str(),
+                vocabulary ? vocabulary->num_words() : 0, LoadAverage().c_str());
+    std::fflush(stdout);
+    if (!vocabulary) {
+      std::fprintf(stderr, "no vocabulary: give --vocabulary FILE\n");
+      return 1;
+    }
+    if (!a.place.empty()) return RunPlace(a, *vocabulary);
+    if (!a.sequences.empty()) return RunSequences(a, vocabulary);
+    if (a.latency) return RunLatency(a, vocabulary);
+    return RunLoops(a, vocabulary);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_loop: %s\n", e.what());
+    return 1;
+  }
+}

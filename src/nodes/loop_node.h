@@ -1,0 +1,31 @@
+#pragma once
+// The loop-closing lane: one job (a keyframe whose place-recognition candidates stayed
+// consistent, with a snapshot of the map) in, its outcomes out: the verification and correction
+// (kCorrected, or kRejected when no candidate passes the geometry), then, after a correction, the
+// global bundle adjustment (kGlobalBundleAdjustment; aborted when `abort` becomes true, i.e. a
+// newer job is waiting). It only reads the job, so it runs beside tracking and local mapping; the
+// map's owner (MappingNode::Run) applies the outcomes. TBB-free; thread-compatible.
+#include <atomic>
+#include <functional>
+#include <memory>
+
+#include "slam/loop/loop_closer.h"
+
+namespace pcr::nodes {
+
+using LoopJobPtr = std::shared_ptr<const LoopJob>;
+using LoopOutcomePtr = std::shared_ptr<const LoopOutcome>;
+
+class LoopNode {
+ public:
+  // post receives each outcome as soon as it exists (the correction before the global BA starts);
+  // abort may be null.
+  void operator()(const LoopJob& job, const std::atomic<bool>* abort,
+                  const std::function<void(LoopOutcomePtr)>& post) const;
+  // Only the verification and correction step (the "loop" stage), and only the global BA step.
+  static LoopOutcomePtr Close(const LoopJob& job);
+  static LoopOutcomePtr GlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& corrected,
+                                               const std::atomic<bool>* abort);
+};
+
+}  // namespace pcr::nodes

@@ -1,0 +1,213 @@
+#pragma once
+// Loop closing as pure steps (ORB-SLAM's design, our code): place recognition on every new
+// keyframe (bag of binary words, slam/loop/vocabulary.h, and the keyframe database), candidates
+// that stay consistent over several keyframes, geometric verification (descriptor matches through
+// the vocabulary's direct index, Sim(3) RANSAC — SE(3) for stereo —, refinement, projection
+// matching), then the correction: the query's covisible group moved by the loop transform, the
+// loop's map points fused into it, the essential graph optimised (spanning tree, covisibility
+// above a weight, loop edges; slam/optim/pose_graph.h) and a global bundle adjustment.
+//
+// Threading and ownership: LoopCloser's state (database, consistency groups, loop edges) belongs
+// to the map's serial owner, which calls OnKeyframe, Detect, CorrectionDelta and
+// OnCorrectionApplied. CloseLoop() is a pure function of a LoopJob (a snapshot of the map taken
+// by Detect), so a flow graph can run it on a lane of its own while tracking and local mapping go
+// on; its results are applied later by the owner through CorrectionDelta, which carries the
+// correction over to keyframes and points created since the snapshot (through the spanning tree
+// and the points' reference keyframes). A newer job aborts a running global BA through `abort`.
+//
+// Dynamic points: keypoints excluded by the dynamic filter never enter the bag of words, the
+// database or any loop match.
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "slam/geometry/sim3.h"
+#include "slam/loop/keyframe_database.h"
+#include "slam/loop/vocabulary.h"
+#include "slam/map/map.h"
+
+namespace pcr {
+
+struct LoopClosingOptions {
+  bool enabled = true;
+  int direct_index_levels_up = 2;  // vocabulary levels above the words for guided matching
+  int min_keyframes = 12;          // no detection while the map holds fewer keyframes
+  // Keyframes inserted within this many of the query (by insertion index) are never candidates
+  // (with its covisible keyframes): a loop means coming back, not standing still.
+  int exclude_recent_keyframes = 30;
+  int consistency = 3;                   // consecutive keyframes whose candidate groups must agree
+  int min_bow_matches = 20;              // descriptor matches query <-> candidate to try Sim(3)
+  int bow_max_distance = 50;             // Hamming distance of those matches
+  double bow_ratio = 0.75;               // best / second best
+  int ransac_iterations = 300;           // Sim(3) RANSAC hypotheses
+  int min_ransac_inliers = 20;           // Sim(3) RANSAC inliers
+  int min_sim3_inliers = 20;             // after refinement
+  int min_loop_matches = 40;             // after projecting the loop's map points into the query
+  double projection_radius_factor = 10;  // window of that projection (times the level scale)
+  double fuse_radius_factor = 4;         // window of the fusion into the query's group
+  // Largest correction accepted (a wrong loop on a look-alike place asks for a huge jump):
+  double max_correction_m = 1e9;
+  int covisibility_edge_weight = 100;  // essential-graph covisibility edges
+  int pose_graph_iterations = 20;
+  bool global_bundle_adjustment = true;
+  int global_ba_iterations = 20;
+  double global_ba_function_tolerance = 1e-8;  // Ceres' relative cost-change stop
+  int skip_keyframes_after_loop = 10;          // no detection right after a correction
+  bool IsValid(std::string* why) const;
+};
+
+// One geometrically verified loop.
+struct LoopMatch {
+  KeyframeId query;
+  KeyframeId matched;
+  Sim3 query_from_matched;          // camera of the query <- camera of the matched keyframe
+  Sim3 corrected_query_from_world;  // the query's corrected pose (Sim(3): mono scale)
+  // Query keypoint -> loop map point: the verified matches and those found by projection.
+  std::vector<std::pair<int, MapPointId>> matches;
+  int bow_matches = 0, ransac_inliers = 0, sim3_inliers = 0, projection_matches = 0;
+};
+
+// What the loop lane was given: the query, its consistent candidates and a snapshot of the map.
+struct LoopJob {
+  int64_t id = 0;  // 0, 1, 2, ... per LoopCloser
+  KeyframeId query;
+  std::vector<KeyframeId> candidates;            // best first
+  std::shared_ptr<const Map> map;                // the map when the job was made (owned copy)
+  std::map<KeyframeId, FeatureVector> features;  // direct index of the query and candidates
+  std::vector<std::pair<KeyframeId, KeyframeId>> loop_edges;  // of earlier loops
+  bool fix_scale = true;                                      // stereo: SE(3); mono: Sim(3)
+  LoopClosingOptions options;
+};
+
+// A correction of the map computed on a snapshot: every snapshot keyframe's pose before and
+// after (Sim(3) cam_from_world; scale 1 in stereo), the snapshot points' new positions, and the
+// fusion of duplicated points.
+struct MapCorrection {
+  std::map<KeyframeId, Sim3> before, after;
+  std::vector<std::pair<MapPointId, Eigen::Vector3d>> point_positions;
+  std::vector<PointMerge> merges;
+  std::vector<ObservationEdit> added_observations;
+};
+
+enum class LoopOutcomeKind { kRejected, kCorrected, kGlobalBundleAdjustment };
+const char* ToString(LoopOutcomeKind kind);
+
+struct LoopOutcome {
+  int64_t job = 0;
+  LoopOutcomeKind kind = LoopOutcomeKind::kRejected;
+  KeyframeId query;
+  std::optional<LoopMatch> match;  // set unless rejected
+  MapCorrection correction;        // kCorrected: loop correction + essential graph; kGlobal...:
+                                   // the global BA after it
+  std::vector<std::pair<KeyframeId, KeyframeId>> new_loop_edges;  // kCorrected
+  int candidates_tried = 0;
+  std::string rejection;  // why the last candidate failed (kRejected)
+  // Figures: correction size at the query (metres, degrees), optimisation costs and times.
+  double correction_m = 0, correction_deg = 0;
+  int fused_points = 0;
+  int pose_graph_edges = 0, pose_graph_iterations = 0;
+  double pose_graph_initial_cost = 0, pose_graph_final_cost = 0;
+  int ba_keyframes = 0, ba_points = 0, ba_iterations = 0;
+  bool ba_aborted = false;
+  double verify_ms = 0, correct_ms = 0, pose_graph_ms = 0, ba_ms = 0;
+};
+
+// Counters of a LoopCloser (the owner's side).
+struct LoopStats {
+  int keyframes_seen = 0;         // keyframes added to the database
+  int detections = 0;             // Detect calls that queried the database
+  int candidates = 0;             // place-recognition candidates returned by those queries
+  int consistent = 0;             // queries with a consistent candidate (a job was made)
+  int jobs = 0;                   // jobs made
+  int rejected = 0;               // jobs whose candidates all failed geometric verification
+  int candidates_rejected = 0;    // candidates that failed it (on the lane or by the precheck)
+  int candidates_prechecked = 0;  // of those, rejected by the owner's word-match count
+  int corrections = 0;            // loop corrections applied
+  int global_bas = 0;             // global BAs applied
+  int global_bas_aborted = 0;
+  int stale_outcomes = 0;         // outcomes dropped because a later correction made them obsolete
+  std::vector<double> detect_ms;  // per Detect call (bag of words, query, consistency, snapshot)
+};
+
+// Loop-closure helpers that are useful on their own (and tested alone).
+
+// Descriptor matches between keypoints of keyframes a and b that fall under the same node of the
+// vocabulary's direct index (features_a/b): both keypoints must hold a live map point and not be
+// excluded; best distance <= max_distance, best < ratio * second best, rotation consistency, each
+// b keypoint used once. Returns (a keypoint, b keypoint) pairs.
+std::vector<std::pair<int, int>> MatchByWords(const Map& map, const Keyframe& a,
+                                              const FeatureVector& features_a, const Keyframe& b,
+                                              const FeatureVector& features_b, int max_distance,
+                                              double ratio);
+
+// SE(3) of a Sim(3) pose cam_from_world = [sR, t]: [R, t / s] (the same pixels for every point).
+SE3 PoseOfSim3(const Sim3& cam_from_world);
+
+class LoopCloser {
+ public:
+  // vocabulary may be null: then the closer is disabled (IsActive() false). Throws ConfigError
+  // for invalid options.
+  LoopCloser(const LoopClosingOptions& options, std::shared_ptr<const Vocabulary> vocabulary,
+             bool fix_scale);
+
+  bool IsActive() const { return options_.enabled && vocabulary_ != nullptr; }
+
+  // The owner, after a keyframe's local mapping: its bag of words enters the database (its
+  // excluded keypoints left out), and the database forgets keyframes the map no longer holds.
+  void OnKeyframe(KeyframeId id, const Map& map);
+  // The owner, after OnKeyframe: looks for a loop at keyframe id. Returns a job (with a snapshot
+  // of the map) when a candidate group has been consistent for `consistency` keyframes, unless
+  // `busy` (a job or its correction is still in flight: the query only updates the groups).
+  std::shared_ptr<const LoopJob> Detect(KeyframeId id, const Map& map, bool busy);
+  // Pure: verifies the job's candidates and, for the first that passes, computes the loop
+  // correction (pose graph). Thread-compatible with everything above (reads only the job).
+  static LoopOutcome CloseLoop(const LoopJob& job);
+  // Pure: the global bundle adjustment after a correction (outcome of CloseLoop, kCorrected):
+  // every keyframe and point of the job's snapshot, moved by that correction, the first keyframe
+  // fixed. Stops early when *abort becomes true (outcome.ba_aborted; the correction then holds
+  // nothing to apply).
+  static LoopOutcome GlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& corrected,
+                                            const std::atomic<bool>* abort);
+  // The owner: the edits that carry a correction over to the map as it stands now. Keyframes of
+  // the snapshot move to their corrected pose relative to where they stand now; later keyframes
+  // move with their nearest spanning-tree ancestor of the snapshot; points with their position
+  // from the snapshot where it has one, else with their reference keyframe.
+  static MapDelta CorrectionDelta(const Map& map, const MapCorrection& correction);
+  // The owner, once the delta of outcome was applied (or the outcome rejected).
+  void OnOutcome(const LoopOutcome& outcome, const Map& map);
+
+  // Relocalisation: keyframes of the whole map that look like frame (its non-excluded keypoints),
+  // best first, at most max_candidates.
+  std::vector<KeyframeId> PlaceCandidates(const Frame& frame, const Map& map,
+                                          int max_candidates) const;
+
+  const LoopStats& stats() const { return stats_; }
+  const LoopClosingOptions& options() const { return options_; }
+  const KeyframeDatabase& database() const { return database_; }
+  const std::vector<std::pair<KeyframeId, KeyframeId>>& loop_edges() const { return loop_edges_; }
+
+ private:
+  struct ConsistentGroup {
+    std::vector<KeyframeId> keyframes;  // sorted
+    int consistency = 0;
+  };
+
+  LoopClosingOptions options_;
+  std::shared_ptr<const Vocabulary> vocabulary_;
+  bool fix_scale_;
+  KeyframeDatabase database_;
+  std::map<KeyframeId, BowVector> bow_;
+  std::map<KeyframeId, FeatureVector> features_;
+  std::vector<ConsistentGroup> groups_;
+  std::vector<std::pair<KeyframeId, KeyframeId>> loop_edges_;
+  int64_t next_job_ = 0;
+  int64_t last_loop_index_ = -1;  // Keyframe::index of the newest keyframe at the last loop
+  LoopStats stats_;
+};
+
+}  // namespace pcr

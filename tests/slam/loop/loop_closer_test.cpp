@@ -1,0 +1,131 @@
+#include "slam/loop/loop_closer.h"
+
+#include <gtest/gtest.h>
+
+#include "slam/common/error.h"
+#include "slam/common/lie.h"
+#include "slam/map/scale_pyramid.h"
+#include "slam/map/synthetic_scene.h"
+
+namespace pcr {
+namespace {
+
+FramePtr TinyFrame(int64_t id, int n) {
+  OrbFeatures f;
+  f.descriptors = cv::Mat::zeros(n, 32, CV_8U);
+  StereoMatches s;
+  const StereoRig rig = test::KittiLikeRig();
+  for (int i = 0; i < n; ++i) {
+    f.keypoints.emplace_back(50.f + 10.f * i, 40.f + 3.f * i, 31.f, 0.f, 0.f, 0);
+    f.descriptors.at<uint8_t>(i, 0) = static_cast<uint8_t>(i);
+    s.depth_m.push_back(10.f);
+    s.u_right_px.push_back(f.keypoints[i].pt.x - static_cast<float>(rig.Bf() / 10.0));
+  }
+  return Frame::Create(id, id * 1000, rig, ScalePyramid::Make(1.2, 8), f, s);
+}
+
+SE3 Pose(double x, double yaw_rad) {
+  Vector6d xi = Vector6d::Zero();
+  xi(0) = x;
+  xi(4) = yaw_rad;
+  return ExpSE3(xi);
+}
+
+// A chain of keyframes 0 -> 1 -> 2 (each observing the previous one's points), 20 points each.
+Map ChainMap(int num_keyframes) {
+  Map map;
+  for (int k = 0; k < num_keyframes; ++k) {
+    MapDelta d;
+    NewKeyframe kf;
+    kf.frame = TinyFrame(k, 40);
+    kf.cam_from_world = Pose(-1.0 * k, 0.01 * k);
+    if (k > 0)
+      for (int i = 0; i < 20; ++i) kf.associations.emplace_back(i, MapPointId(20 * (k - 1) + i));
+    d.new_keyframe = kf;
+    for (int i = 20; i < 40; ++i) {
+      NewMapPoint p;
+      p.p_in_world = {0.1 * i, 0.2 * k, 10.0 + k};
+      p.observations = {{KeyframeId(k), i}};
+      d.new_points.push_back(p);
+    }
+    map.Apply(d);
+  }
+  return map;
+}
+
+TEST(LoopCloser, CorrectionDeltaCarriesTheCorrectionOverToLaterKeyframesAndPoints) {
+  // The snapshot held keyframes 0..2; the live map has gained keyframe 3 (child of 2) since.
+  const Map snapshot = ChainMap(3);
+  Map live = ChainMap(4);
+  ASSERT_EQ(live.keyframe(KeyframeId(3))->parent, KeyframeId(2));
+
+  // Correction: keyframe 0 stays, 1 and 2 move by the world transform W (old -> new world).
+  Sim3 w;
+  w.rotation = ExpSO3(Eigen::Vector3d(0, 0.05, 0));
+  w.translation = Eigen::Vector3d(0.3, 0, -0.2);
+  MapCorrection c;
+  for (const auto& [id, kf] : snapshot.keyframes()) {
+    c.before[id] = Sim3::FromSE3(kf.cam_from_world);
+    c.after[id] = id.value == 0 ? c.before[id] : c.before[id] * w.Inverse();
+  }
+  // One snapshot point gets an explicit new position.
+  c.point_positions.emplace_back(MapPointId(5), Eigen::Vector3d(1, 2, 3));
+
+  const SE3 kf3_before = live.keyframe(KeyframeId(3))->cam_from_world;
+  const Eigen::Vector3d p_new_before = live.point(MapPointId(70))->p_in_world;  // keyframe 3's
+  const Eigen::Vector3d p_kf0_before = live.point(MapPointId(0))->p_in_world;
+  live.Apply(LoopCloser::CorrectionDelta(live, c));
+
+  // Snapshot keyframes reach their corrected pose; the later keyframe moves with its parent.
+  for (int k = 0; k < 3; ++k)
+    EXPECT_TRUE(live.keyframe(KeyframeId(k))
+                    ->cam_from_world.isApprox(c.after.at(KeyframeId(k)).ToSE3(), 1e-12));
+  const SE3 expected3 = (Sim3::FromSE3(kf3_before) * w.Inverse()).ToSE3();
+  EXPECT_TRUE(live.keyframe(KeyframeId(3))->cam_from_world.isApprox(expected3, 1e-12));
+  // A point made after the snapshot moves with its reference keyframe (3 -> W of keyframe 2).
+  EXPECT_TRUE(live.point(MapPointId(70))->p_in_world.isApprox(w.Map(p_new_before), 1e-12));
+  // Keyframe 0's points keep their place; the explicit position wins.
+  EXPECT_TRUE(live.point(MapPointId(0))->p_in_world.isApprox(p_kf0_before, 1e-12));
+  EXPECT_TRUE(live.point(MapPointId(5))->p_in_world.isApprox(Eigen::Vector3d(1, 2, 3), 1e-12));
+  // Relative geometry of the moved part is unchanged: keyframe 3 still sees its point at the
+  // same camera coordinates.
+  EXPECT_TRUE(
+      (live.keyframe(KeyframeId(3))->cam_from_world * live.point(MapPointId(70))->p_in_world)
+          .isApprox(kf3_before * p_new_before, 1e-9));
+}
+
+TEST(LoopCloser, CorrectionDeltaWithScaleMovesPointsByTheSimilarity) {
+  const Map snapshot = ChainMap(2);
+  Map live = snapshot;
+  Sim3 w;
+  w.scale = 1.25;
+  w.translation = Eigen::Vector3d(0, 0, 1);
+  MapCorrection c;
+  for (const auto& [id, kf] : snapshot.keyframes()) {
+    c.before[id] = Sim3::FromSE3(kf.cam_from_world);
+    c.after[id] = c.before[id] * w.Inverse();
+  }
+  const Eigen::Vector3d p = live.point(MapPointId(25))->p_in_world;
+  const Eigen::Vector3d p_cam = live.keyframe(KeyframeId(1))->cam_from_world * p;
+  live.Apply(LoopCloser::CorrectionDelta(live, c));
+  EXPECT_TRUE(live.point(MapPointId(25))->p_in_world.isApprox(w.Map(p), 1e-12));
+  // The camera sees the point in the same direction, 1.25 times as far.
+  const Eigen::Vector3d q_cam =
+      live.keyframe(KeyframeId(1))->cam_from_world * live.point(MapPointId(25))->p_in_world;
+  EXPECT_TRUE(q_cam.isApprox(1.25 * p_cam, 1e-9));
+}
+
+TEST(LoopCloser, WithoutAVocabularyItIsInactiveAndBadOptionsAreRejected) {
+  LoopCloser closer(LoopClosingOptions{}, nullptr, true);
+  EXPECT_FALSE(closer.IsActive());
+  const Map map = ChainMap(3);
+  closer.OnKeyframe(KeyframeId(2), map);
+  EXPECT_EQ(closer.Detect(KeyframeId(2), map, false), nullptr);
+  EXPECT_TRUE(closer.PlaceCandidates(*map.keyframe(KeyframeId(0))->frame, map, 5).empty());
+  LoopClosingOptions bad;
+  bad.min_loop_matches = 5;  // below min_sim3_inliers
+  EXPECT_THROW(LoopCloser(bad, nullptr, true), ConfigError);
+}
+
+}  // namespace
+}  // namespace pcr
