@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "graph/heap.h"
+#include "graph/loop_lane.h"
 #include "graph/mask_board.h"
 #include "nodes/feature_nodes.h"
 #include "nodes/filter_node.h"
@@ -450,6 +451,7 @@ class GraphRun {
   std::mutex loop_mutex_;
   std::vector<nodes::LoopOutcomePtr> loop_arrived_;
   std::atomic<bool> loop_abort_{false};
+  std::unique_ptr<LoopLane> loop_lane_;  // pipelined and realtime runs
   std::unique_ptr<FrameClock[]> clocks_;  // by seq (< source size)
   const nodes::QualitySettings fixed_settings_;
   Profiler profiler_;
@@ -593,6 +595,7 @@ PipelineResult GraphRun::Run() {
   // serial lane, off the frames' path) or, in the sequential policy, runs inline before the token
   // goes back (so that sequential runs stay the deterministic reference).
   const bool inline_loop = options_.policy == Policy::kSequential;
+  if (!inline_loop) loop_lane_ = std::make_unique<LoopLane>(options_.loop_lane_nice);
   StageNode<TrackedPtr, FrameResultPtr, Token, LoopWork> mapping(
       g, tf::serial, [this, inline_loop](const TrackedPtr& input, auto& ports) {
         TsanAfterSetup();  // before the next line reads a member
@@ -620,13 +623,19 @@ PipelineResult GraphRun::Run() {
           std::get<0>(ports).try_put(out->result);
         }
       });
-  tf::function_node<LoopWork, tf::continue_msg> loop(g, tf::serial, [this](const LoopWork& input) {
+  // The loop node hands each job to the loop lane (a low-priority thread outside the arena) and
+  // keeps the graph open until the lane is done with it.
+  using LoopNode = tf::async_node<LoopWork, tf::continue_msg>;
+  LoopNode loop(g, tf::unlimited, [this](const LoopWork& input, LoopNode::gateway_type& gateway) {
     TsanAfterSetup();  // before the next line reads a member
-    const TsanBody tsan_body(&loop_abort_);
     const auto& work = TsanReceive(input);
-    loop_abort_.store(false);
-    RunLoopJob(work, [this](nodes::LoopOutcomePtr o) { PostLoopOutcome(std::move(o)); });
-    return tf::continue_msg();
+    gateway.reserve_wait();
+    loop_lane_->Push(
+        [this, work] {
+          loop_abort_.store(false);
+          RunLoopJob(work, [this](nodes::LoopOutcomePtr o) { PostLoopOutcome(std::move(o)); });
+        },
+        [&gateway] { gateway.release_wait(); });
   });
   tf::function_node<FrameResultPtr, tf::continue_msg> sink(
       g, tf::serial, [this](const FrameResultPtr& input) {

@@ -14,9 +14,13 @@
 // Tracking and local mapping both mutate the map: tracking of frame k+1 starts only after mapping
 // of frame k returned the token, so the map sees exactly the calls of SlamSystem::ProcessFrame
 // in a loop and the trajectory is identical to the sequential one (with Ceres on one thread).
-// Loop closing is a serial node off the frames' path: mapping sends it a job (a keyframe whose
-// place-recognition candidates stayed consistent, with a snapshot of the map); its outcomes come
-// back to mapping, which applies them as map deltas at its next call. Sequential runs it inline.
+// Loop closing is a node off the frames' path: mapping sends it a job (a keyframe whose
+// place-recognition candidates stayed consistent, with a snapshot of the map); the node (an
+// async_node) hands it to the loop lane, one low-priority thread outside the arena that runs the
+// jobs in turn (graph/loop_lane.h), and the outcomes come back to mapping, which applies them as
+// map deltas at its next call (those that arrive after the last frame, before the trajectory is
+// read). A newer job aborts a running global BA. The sequential policy runs the jobs inline in
+// the mapping call, so that it stays the deterministic reference.
 // Monocular runs (PipelineOptions::mode) use the same graph: the right branch emits empty
 // features and stereo matches, so the joins and the ordering are unchanged.
 //

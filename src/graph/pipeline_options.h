@@ -96,6 +96,9 @@ struct PipelineOptions {
   bool keep_filter_reports = false;
   // Loop closing and place recognition (SlamOptions::loop): the vocabulary; null: off.
   std::shared_ptr<const Vocabulary> vocabulary;
+  // Pipelined and realtime: the nice value of the loop lane's thread (Linux), so that loop
+  // closing runs on the CPU the frame stages leave idle; 0 keeps the process's priority.
+  int loop_lane_nice = 19;
 
   bool IsValid(std::string* why) const;
 };

@@ -152,21 +152,37 @@ TEST(LoopClosing, PipelinedRunsTheLoopLaneBesideTrackingAndLosesNoPose) {
 }
 
 TEST(LoopClosing, ANewerLoopJobAbortsTheGlobalBundleAdjustment) {
-  // The global BA starts late (its lane sleeps first) and, with every candidate consistent and
-  // few word matches needed, the next loop job follows soon after the correction: sending it
-  // sets the abort flag, so the running global BA gives way (its outcome changes nothing).
+  // Every candidate is consistent and few word matches are needed, so loop jobs keep coming
+  // after the correction. The global BA waits, before it starts, until the mapping node has sent
+  // a newer job (a later frame reports one): sending it set the abort flag, so the global BA
+  // gives way and its outcome changes nothing.
+  const size_t num_frames = OpenDataset(LoopStreet()).size();
+  auto frames_done = std::make_shared<std::atomic<int64_t>>(0);
+  auto ba_waiting_since = std::make_shared<std::atomic<int64_t>>(-1);
+  auto newer_job = std::make_shared<std::atomic<bool>>(false);
   graph::PipelineOptions slow_ba;
-  slow_ba.stage_hook = [](std::string_view stage, int64_t) {
-    if (stage == graph::kStageGlobalBa)
-      std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  slow_ba.stage_hook = [=](std::string_view stage, int64_t) {
+    if (stage != graph::kStageGlobalBa) return;
+    ba_waiting_since->store(frames_done->load());
+    for (int i = 0;
+         i < 600 && !newer_job->load() && frames_done->load() < static_cast<int64_t>(num_frames);
+         ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    ba_waiting_since->store(-1);
   };
   const LoopRun on =
       RunLoop(graph::Policy::kPipelined, true, slow_ba,
-              {"loop.skip_keyframes_after_loop=0", "loop.consistency=0", "loop.min_bow_matches=5"});
-  const Dataset dataset = OpenDataset(LoopStreet());
-  EXPECT_EQ(on.result.summary.tracked.size(), dataset.size());
+              {"loop.skip_keyframes_after_loop=0", "loop.consistency=0", "loop.min_bow_matches=5"},
+              [=](size_t done, size_t, const graph::FrameRecord& r) {
+                const int64_t since = ba_waiting_since->load();
+                if (r.output.loop_job && since >= 0 && static_cast<int64_t>(done) > since)
+                  newer_job->store(true);
+                frames_done->store(static_cast<int64_t>(done));
+              });
+  EXPECT_EQ(on.result.summary.tracked.size(), num_frames);
   const LoopStats& st = on.result.pipeline.loop_stats;
   ASSERT_GE(st.corrections, 1);
+  ASSERT_TRUE(newer_job->load()) << "no loop job came after the correction";
   EXPECT_GE(st.global_bas_aborted, 1);
   EXPECT_LT(on.ate_m, 0.15);
 }
