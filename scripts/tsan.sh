@@ -10,7 +10,10 @@
 # stack switches of TBB's task suspension),
 # PCR_TSAN_FLOW (--flow, default opencv; `twin` runs the filter's LK passes through the
 # graph's device wait the same way),
-# PCR_JOBS (build jobs, default nproc).
+# PCR_JOBS (build jobs, default nproc),
+# PCR_TSAN_SEQUENCE (a sequence that comes back to its start, e.g. `pcr_orb synth --route loop`
+# output: run it instead of drive 0005, all its frames unless PCR_TSAN_FRAMES is set, without
+# YOLO and the filter, so that loop closing's lane, its corrections and global BA run under TSAN).
 # oneTBB and OpenCV come from Debian and are not instrumented: scripts/tsan.supp suppresses
 # reports whose frames lie in those libraries only (see the file); reports in our code are not
 # suppressed. Exit status 0 means no report.
@@ -18,12 +21,19 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 shared=${PCR_SHARED_DIR:-$(cd .. && pwd)/shared}
 frames=${PCR_TSAN_FRAMES:-0:20}
+[ -n "${PCR_TSAN_SEQUENCE:-}" ] && frames=${PCR_TSAN_FRAMES:-}
 inference=${PCR_TSAN_INFERENCE:-opencv}
 flow=${PCR_TSAN_FLOW:-opencv}
 policies=("$@")
 [ ${#policies[@]} -eq 0 ] && policies=(pipelined)
 drive="$shared/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"
 model="$shared/models/yolov8n-seg_coco_224x640.onnx"
+run_args=(--config config/kitti03.yaml --segmenter yolo --model "$model" --filter on)
+if [ -n "${PCR_TSAN_SEQUENCE:-}" ]; then
+  drive=$PCR_TSAN_SEQUENCE
+  run_args=(--segmenter none --filter off --loop on)
+fi
+[ -n "$frames" ] && run_args+=(--frames "$frames")
 if [ ! -d "$drive" ] || [ ! -f "$model" ]; then
   echo "tsan: needs $drive and $model" >&2
   exit 2
@@ -37,11 +47,9 @@ export TSAN_OPTIONS="$opts suppressions=$PWD/scripts/tsan.supp ${TSAN_OPTIONS:-}
 status=0
 for policy in "${policies[@]}"; do
   log=build-tsan/tsan_${policy}.log
-  echo "tsan: pcr_orb pipeline --policy $policy --frames $frames (YOLO 224x640 on $inference, LK on $flow," \
-    "--filter on), log in $log"
+  echo "tsan: pcr_orb pipeline --sequence $drive ${run_args[*]} --policy $policy, log in $log"
   set +e
-  build-tsan/src/pcr_orb pipeline --sequence "$drive" --config config/kitti03.yaml \
-    --frames "$frames" --segmenter yolo --model "$model" --filter on --policy "$policy" \
+  build-tsan/src/pcr_orb pipeline --sequence "$drive" "${run_args[@]}" --policy "$policy" \
     --inference "$inference" --flow "$flow" --threads 2 --out "build-tsan/out_$policy" >"$log" 2>&1
   rc=$?
   set -e
@@ -50,8 +58,7 @@ for policy in "${policies[@]}"; do
     echo "tsan: retrying without address-space randomisation (setarch -R)"
     set +e
     setarch "$(uname -m)" -R build-tsan/src/pcr_orb pipeline --sequence "$drive" \
-      --config config/kitti03.yaml --frames "$frames" --segmenter yolo --model "$model" \
-      --filter on --policy "$policy" --inference "$inference" --flow "$flow" --threads 2 \
+      "${run_args[@]}" --policy "$policy" --inference "$inference" --flow "$flow" --threads 2 \
       --out "build-tsan/out_$policy" >"$log" 2>&1
     rc=$?
     set -e

@@ -95,6 +95,8 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("loop", "pose_graph_iterations", &l.pose_graph_iterations);
   s.Add("loop", "global_bundle_adjustment", &l.global_bundle_adjustment);
   s.Add("loop", "global_ba_iterations", &l.global_ba_iterations);
+  s.Add("loop", "global_ba_optimise_twice", &l.global_ba_optimise_twice,
+        "second global BA solve without the first one's outlier observations");
   s.Add("loop", "skip_keyframes_after_loop", &l.skip_keyframes_after_loop);
 
   DynamicFilterOptions& f = c.dynamic.options;

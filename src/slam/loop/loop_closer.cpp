@@ -639,7 +639,7 @@ LoopOutcome LoopCloser::GlobalBundleAdjustment(const LoopJob& job, const LoopOut
   }
   BundleAdjustmentOptions options;
   options.max_iterations = job.options.global_ba_iterations;
-  options.optimise_twice = false;
+  options.optimise_twice = job.options.global_ba_optimise_twice;
   options.function_tolerance = job.options.global_ba_function_tolerance;
   options.abort = abort;
   const StereoRig& rig = work.keyframe(work.first_keyframe())->frame->rig();

@@ -57,6 +57,7 @@ struct LoopClosingOptions {
   bool global_bundle_adjustment = true;
   int global_ba_iterations = 20;
   double global_ba_function_tolerance = 1e-8;  // Ceres' relative cost-change stop
+  bool global_ba_optimise_twice = false;       // second solve without the first one's outliers
   int skip_keyframes_after_loop = 10;          // no detection right after a correction
   bool IsValid(std::string* why) const;
 };
