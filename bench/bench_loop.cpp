@@ -58,6 +58,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.h"
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
 #include "eval/association.h"
@@ -96,18 +97,7 @@ struct Args {
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
 };
 
-std::vector<double> ParseList(const std::string& text) {
-  std::vector<double> v;
-  size_t start = 0;
-  while (start <= text.size()) {
-    const size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? comma : comma - start);
-    if (!item.empty()) v.push_back(std::stod(item));
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  return v;
-}
+using pcr::bench::ParseList;
 
 // One line of a command's output ("" when it cannot run).
 std::string CommandLine(const std::string& command) {

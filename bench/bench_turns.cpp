@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.h"
 #include "driver/driver.h"
 #include "eval/association.h"
 #include "eval/evaluation.h"
@@ -127,18 +128,7 @@ Score Evaluate(const pcr::Dataset& d, const pcr::Trajectory& tracked) {
   return s;
 }
 
-std::vector<double> ParseList(const std::string& text) {
-  std::vector<double> v;
-  size_t start = 0;
-  while (start <= text.size()) {
-    const size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? comma : comma - start);
-    if (!item.empty()) v.push_back(std::stod(item));
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  return v;
-}
+using pcr::bench::ParseList;
 
 }  // namespace
 
