@@ -3,7 +3,10 @@
 // sequential policy (inline) and in the pipelined one (the loop node on its own lane); a
 // correction that arrives while later frames are mapped, a global BA aborted by a newer loop and
 // a run that ends while the loop lane still works lose no pose and do not crash.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -27,13 +30,16 @@ namespace {
 
 // 200 half-size frames at 12 m/s around the smallest loop the world builds (~210 m): the ego
 // car is back at its start from about frame 175 on. Rendered once into the build tree's test
-// cache and shared by the tests of this file (each runs in its own process): written to a
-// directory of its own, then renamed into place, so two processes never see half a sequence.
+// cache and shared by the tests of this file (each runs in its own process, ctest runs two at
+// once): the first process renders under an exclusive lock on the cache's lock file while the
+// others wait for it.
 const std::string& LoopStreet() {
   static const std::string dir = [] {
     namespace fs = std::filesystem;
     const fs::path cache = fs::path(PCR_TEST_CACHE_DIR) / "loop_street_s7_200f_v1";
-    const fs::path sequence = cache / "sequences" / "00";
+    fs::create_directories(cache);
+    const int lock = ::open((cache / "lock").c_str(), O_CREAT | O_RDWR, 0644);
+    if (lock >= 0) ::flock(lock, LOCK_EX);
     if (!fs::exists(cache / "complete")) {
       sim::SynthOptions o;
       o.route = sim::RouteKind::kLoop;
@@ -43,16 +49,11 @@ const std::string& LoopStreet() {
       o.num_parked = 6;
       o.seed = 7;
       o = o.Scaled(0.5);
-      fs::create_directories(cache.parent_path());
-      const fs::path staging = test::MakeTempDir("pcr_loop_street");
-      sim::WriteSequence(o, staging.string());
-      std::ofstream(staging / "complete") << "ok\n";
-      std::error_code ec;
-      fs::rename(staging, cache, ec);  // fails harmlessly when another process was first
-      if (ec)
-        fs::copy(staging, cache, fs::copy_options::recursive | fs::copy_options::skip_existing, ec);
+      sim::WriteSequence(o, cache.string());
+      std::ofstream(cache / "complete") << "ok\n";
     }
-    return sequence.string();
+    if (lock >= 0) ::close(lock);  // releases the lock
+    return (cache / "sequences" / "00").string();
   }();
   return dir;
 }
