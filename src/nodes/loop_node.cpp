@@ -12,12 +12,4 @@ LoopOutcomePtr LoopNode::GlobalBundleAdjustment(const LoopJob& job, const LoopOu
       LoopCloser::GlobalBundleAdjustment(job, corrected, abort));
 }
 
-void LoopNode::operator()(const LoopJob& job, const std::atomic<bool>* abort,
-                          const std::function<void(LoopOutcomePtr)>& post) const {
-  const LoopOutcomePtr corrected = Close(job);
-  post(corrected);
-  if (corrected->kind == LoopOutcomeKind::kCorrected && job.options.global_bundle_adjustment)
-    post(GlobalBundleAdjustment(job, *corrected, abort));
-}
-
 }  // namespace pcr::nodes

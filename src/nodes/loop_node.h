@@ -6,7 +6,6 @@
 // newer job is waiting). It only reads the job, so it runs beside tracking and local mapping; the
 // map's owner (MappingNode::Run) applies the outcomes. TBB-free; thread-compatible.
 #include <atomic>
-#include <functional>
 #include <memory>
 
 #include "slam/loop/loop_closer.h"
@@ -18,11 +17,8 @@ using LoopOutcomePtr = std::shared_ptr<const LoopOutcome>;
 
 class LoopNode {
  public:
-  // post receives each outcome as soon as it exists (the correction before the global BA starts);
-  // abort may be null.
-  void operator()(const LoopJob& job, const std::atomic<bool>* abort,
-                  const std::function<void(LoopOutcomePtr)>& post) const;
-  // Only the verification and correction step (the "loop" stage), and only the global BA step.
+  // The verification and correction step (the "loop" stage), and the global BA step after a
+  // correction (the "global_ba" stage); the graph runs them in turn and profiles each.
   static LoopOutcomePtr Close(const LoopJob& job);
   static LoopOutcomePtr GlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& corrected,
                                                const std::atomic<bool>* abort);
