@@ -61,6 +61,15 @@ struct Config {
   bool loop_closing = true;
   std::string vocabulary;
 
+  // The map as a file (a versioned binary format with a checksum): keyframes with their
+  // keypoints and descriptors, map points, covisibility and the place-recognition database.
+  // load_map: start from a saved map (the first frame is relocalised in it); save_map: write the
+  // map at the end (also when a frame failed: the map as it stood). localize_only (needs
+  // load_map): track in the loaded map without changing it (no keyframes, no points), relocalising
+  // where it is seen again.
+  std::string load_map, save_map;
+  bool localize_only = false;
+
   // Memory and scheduling details (see `pcr_orb pipeline --help`).
   int trim_every = 25;
   bool trim_after_keyframe = false;

@@ -70,6 +70,14 @@ void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
   cmd->add_option("--vocabulary", c.vocabulary,
                   "place-recognition vocabulary (pcr_orb vocab); default: the shipped "
                   "vocabulary/pcr_orb_voc.bin");
+  cmd->add_option("--load-map", c.load_map,
+                  "start from a map saved with --save-map (the first frame is relocalised in it)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--save-map", c.save_map,
+                  "save the map at the end (keyframes, points, covisibility, place recognition)");
+  cmd->add_flag("--localize-only", c.localize_only,
+                "with --load-map: track in the loaded map without changing it (no keyframes, "
+                "no points), relocalising where it is seen again");
   if (!scheduling) return;
   cmd->add_option("--policy", a->policy, "sequential, pipelined or realtime")
       ->check(CLI::IsMember({"sequential", "pipelined", "realtime"}))

@@ -3,10 +3,15 @@
 
 #include <spdlog/spdlog.h>
 
+#include <chrono>
+#include <memory>
+
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
+#include "driver/map_file.h"
 #include "pcr/version.h"
 #include "slam/common/error.h"
+#include "slam/common/timing.h"
 
 namespace pcr::api {
 namespace {
@@ -92,6 +97,19 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   driver::DriverOptions options = ToDriverOptions(config);
   if (config.loop_closing && run_config.slam.loop.enabled)
     options.pipeline.vocabulary = driver::LoadLoopVocabulary(config.vocabulary);
+  if (config.localize_only && config.load_map.empty())
+    throw ConfigError("localize_only (--localize-only) needs a map to localise in (--load-map)");
+  run_config.slam.localize_only = config.localize_only;
+  if (!config.load_map.empty()) {
+    const auto start = std::chrono::steady_clock::now();
+    auto archive = std::make_shared<const MapArchive>(driver::LoadMap(config.load_map));
+    spdlog::info("loaded map {}: {} keyframes, {} map points{} ({:.0f} ms){}", config.load_map,
+                 archive->map.num_keyframes(), archive->map.num_points(),
+                 archive->place ? ", place-recognition database" : "", MsSince(start),
+                 config.localize_only ? "; localisation only" : "");
+    options.pipeline.initial_map = std::move(archive);
+  }
+  options.pipeline.keep_final_map = !config.save_map.empty();
   if (source.first < 0 || source.end < 0) throw ConfigError("Source: negative frame number");
   const driver::FrameRange range =
       driver::FrameRange{static_cast<size_t>(source.first), static_cast<size_t>(source.end)}.Within(
@@ -110,6 +128,14 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
     };
 
   const driver::DriverResult run = driver::RunDataset(dataset, run_config, range, options);
+  if (!config.save_map.empty() && run.pipeline.final_map) {
+    // Also after a failed frame: the map as it stood (the error is reported below).
+    const MapArchive& map = *run.pipeline.final_map;
+    const size_t bytes = driver::SaveMap(config.save_map, map);
+    spdlog::info("saved map {}: {} keyframes, {} map points{}, {:.1f} MB", config.save_map,
+                 map.map.num_keyframes(), map.map.num_points(),
+                 map.place ? ", place-recognition database" : "", bytes / 1e6);
+  }
   if (!config.out_dir.empty())
     driver::WriteDriverOutputs(config.out_dir, run, config_yaml,
                                driver::DriverOptionsJson(run_config, options));

@@ -30,6 +30,7 @@
 #include "nodes/slam_nodes.h"
 #include "nodes/source_node.h"
 #include "slam/common/error.h"
+#include "slam/system/map_archive.h"
 
 namespace pcr::graph {
 namespace {
@@ -451,7 +452,7 @@ class GraphRun {
   std::mutex loop_mutex_;
   std::vector<nodes::LoopOutcomePtr> loop_arrived_;
   std::atomic<bool> loop_abort_{false};
-  std::unique_ptr<LoopLane> loop_lane_;  // pipelined and realtime runs
+  std::unique_ptr<LoopLane> loop_lane_;   // pipelined and realtime runs
   std::unique_ptr<FrameClock[]> clocks_;  // by seq (< source size)
   const nodes::QualitySettings fixed_settings_;
   Profiler profiler_;
@@ -836,6 +837,8 @@ PipelineResult GraphRun::Collect() {
   out.tracked = slam_->RefinedTrajectory();
   out.keyframes = slam_->map().num_keyframes();
   out.map_points = slam_->map().num_points();
+  if (options_.keep_final_map)
+    out.final_map = std::make_shared<const MapArchive>(slam_->ArchiveMap());
   const Map& map = slam_->map();
   for (const auto& [id, mp] : map.points()) {
     MapCloudPoint c;
@@ -971,6 +974,9 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
   capped.mapping.bundle_adjustment.num_threads =
       std::min(capped.mapping.bundle_adjustment.num_threads, options.threads);
   SlamSystem slam(source.rig, capped, options.mode, options.vocabulary);
+  if (options.initial_map) slam.RestoreMap(*options.initial_map);
+  if (capped.localize_only && slam.map().empty())
+    throw ConfigError("localisation only needs a map to localise in (a loaded one)");
 
   // Extractors for the adaptive levels' keypoint counts (same pyramid as the SLAM system's).
   std::vector<std::unique_ptr<OrbExtractor>> extractors;

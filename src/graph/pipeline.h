@@ -123,6 +123,7 @@ struct PipelineResult {
   Trajectory tracked;  // SlamSystem::RefinedTrajectory() at the end
   size_t keyframes = 0, map_points = 0;
   MapSnapshot map;
+  std::shared_ptr<const MapArchive> final_map;  // PipelineOptions::keep_final_map
   PipelineStats stats;
   std::vector<StageEvent> events;
   // Loop closing: every outcome the map's owner dealt with, and the closer's counters.

@@ -96,6 +96,11 @@ struct PipelineOptions {
   bool keep_filter_reports = false;
   // Loop closing and place recognition (SlamOptions::loop): the vocabulary; null: off.
   std::shared_ptr<const Vocabulary> vocabulary;
+  // A saved map to start from (SlamSystem::RestoreMap; with SlamOptions::localize_only, to
+  // localise in); null: an empty map.
+  std::shared_ptr<const MapArchive> initial_map;
+  // Keep the map as it stands at the end (PipelineResult::final_map), e.g. to save it.
+  bool keep_final_map = false;
   // Pipelined and realtime: the nice value of the loop lane's thread (Linux), so that loop
   // closing runs on the CPU the frame stages leave idle; 0 keeps the process's priority.
   int loop_lane_nice = 19;

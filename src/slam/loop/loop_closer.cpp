@@ -12,6 +12,7 @@
 #include "slam/features/orb_extractor.h"
 #include "slam/geometry/se3.h"
 #include "slam/loop/sim3_ransac.h"
+#include "slam/loop/vocabulary_io.h"
 #include "slam/map/matcher.h"
 #include "slam/optim/bundle_adjustment.h"
 #include "slam/optim/pose_graph.h"
@@ -182,6 +183,65 @@ void LoopCloser::OnKeyframe(KeyframeId id, const Map& map) {
   bow_[id] = std::move(bow);
   features_[id] = std::move(features);
   ++stats_.keyframes_seen;
+}
+
+uint64_t LoopCloser::VocabularyFingerprint() const {
+  if (!vocabulary_) return 0;
+  if (vocabulary_fingerprint_ == 0) {
+    const std::vector<uint8_t> bytes = SerializeVocabulary(*vocabulary_);
+    vocabulary_fingerprint_ = Fnv1a64(bytes.data(), bytes.size());
+  }
+  return vocabulary_fingerprint_;
+}
+
+std::optional<PlaceArchive> LoopCloser::Archive(const Map& map) const {
+  if (!IsActive()) return std::nullopt;
+  PlaceArchive archive;
+  archive.vocabulary_fingerprint = VocabularyFingerprint();
+  archive.direct_index_levels_up = options_.direct_index_levels_up;
+  for (const auto& [id, bow] : bow_) {
+    if (!map.keyframe(id)) continue;
+    archive.bows.emplace(id, bow);
+    const auto it = features_.find(id);
+    if (it != features_.end()) archive.features.emplace(id, it->second);
+  }
+  archive.loop_edges = loop_edges_;
+  return archive;
+}
+
+int LoopCloser::Restore(const std::optional<PlaceArchive>& archive, const Map& map) {
+  if (archive) loop_edges_ = archive->loop_edges;
+  if (!IsActive()) return 0;
+  const bool same = archive && archive->vocabulary_fingerprint == VocabularyFingerprint() &&
+                    archive->direct_index_levels_up == options_.direct_index_levels_up;
+  // A stored vector is used only when it fits this vocabulary and the keyframe's keypoints.
+  auto fits = [this](const BowVector& bow, const FeatureVector& features, const Frame& frame) {
+    for (const auto& [word, weight] : bow.words)
+      if (word >= vocabulary_->num_words() || !std::isfinite(weight)) return false;
+    for (const auto& [node, rows] : features.nodes) {
+      if (node >= vocabulary_->num_nodes()) return false;
+      for (int row : rows)
+        if (row < 0 || row >= frame.size()) return false;
+    }
+    return true;
+  };
+  int computed = 0;
+  for (const auto& [id, kf] : map.keyframes()) {
+    if (same) {
+      const auto bit = archive->bows.find(id);
+      const auto fit = archive->features.find(id);
+      if (bit != archive->bows.end() && fit != archive->features.end() &&
+          fits(bit->second, fit->second, *kf.frame)) {
+        database_.Add(id, bit->second);
+        bow_[id] = bit->second;
+        features_[id] = fit->second;
+        continue;
+      }
+    }
+    OnKeyframe(id, map);
+    ++computed;
+  }
+  return computed;
 }
 
 std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map, bool busy) {

@@ -118,6 +118,16 @@ struct LoopOutcome {
   double verify_ms = 0, correct_ms = 0, pose_graph_ms = 0, ba_ms = 0;
 };
 
+// The place-recognition part of a saved map: each keyframe's bag of words and direct index, as
+// the vocabulary they were computed with made them, and the loop edges closed so far.
+struct PlaceArchive {
+  uint64_t vocabulary_fingerprint = 0;  // LoopCloser::VocabularyFingerprint()
+  int direct_index_levels_up = 0;       // LoopClosingOptions::direct_index_levels_up
+  std::map<KeyframeId, BowVector> bows;
+  std::map<KeyframeId, FeatureVector> features;
+  std::vector<std::pair<KeyframeId, KeyframeId>> loop_edges;
+};
+
 // Counters of a LoopCloser (the owner's side).
 struct LoopStats {
   int keyframes_seen = 0;         // keyframes added to the database
@@ -187,6 +197,17 @@ class LoopCloser {
   std::vector<KeyframeId> PlaceCandidates(const Frame& frame, const Map& map,
                                           int max_candidates) const;
 
+  // Saving and loading a map: the database of the map's keyframes (nullopt when inactive).
+  std::optional<PlaceArchive> Archive(const Map& map) const;
+  // Fills the database for a loaded map (the closer must be new): from the archive where it was
+  // made with this vocabulary and direct-index level, else each keyframe's bag of words is
+  // computed again. Keyframes of the archive the map does not hold are ignored. Returns the
+  // number of keyframes whose bag of words was computed; nothing when inactive (the loop edges
+  // are kept either way).
+  int Restore(const std::optional<PlaceArchive>& archive, const Map& map);
+  // FNV-1a 64 of the vocabulary's bytes (slam/loop/vocabulary_io.h); 0 without a vocabulary.
+  uint64_t VocabularyFingerprint() const;
+
   const LoopStats& stats() const { return stats_; }
   const LoopClosingOptions& options() const { return options_; }
   const KeyframeDatabase& database() const { return database_; }
@@ -200,6 +221,7 @@ class LoopCloser {
 
   LoopClosingOptions options_;
   std::shared_ptr<const Vocabulary> vocabulary_;
+  mutable uint64_t vocabulary_fingerprint_ = 0;  // computed on first use
   bool fix_scale_;
   KeyframeDatabase database_;
   std::map<KeyframeId, BowVector> bow_;

@@ -3,6 +3,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "slam/common/byte_codec.h"
 #include "slam/common/error.h"
 
 namespace pcr {
@@ -13,38 +14,7 @@ constexpr size_t kHeaderBytes = 36;
 constexpr size_t kNodeBytes = 48;
 constexpr size_t kChecksumBytes = 8;
 
-void PutU64(uint64_t v, int bytes, std::vector<uint8_t>* out) {
-  for (int i = 0; i < bytes; ++i) out->push_back(static_cast<uint8_t>(v >> (8 * i)));
-}
-
-uint64_t GetU64(const uint8_t* p, int bytes) {
-  uint64_t v = 0;
-  for (int i = 0; i < bytes; ++i) v |= static_cast<uint64_t>(p[i]) << (8 * i);
-  return v;
-}
-
-uint64_t DoubleBits(double d) {
-  uint64_t bits;
-  std::memcpy(&bits, &d, sizeof bits);
-  return bits;
-}
-
-double BitsDouble(uint64_t bits) {
-  double d;
-  std::memcpy(&d, &bits, sizeof d);
-  return d;
-}
-
 }  // namespace
-
-uint64_t Fnv1a64(const uint8_t* data, size_t size) {
-  uint64_t hash = 14695981039346656037ull;
-  for (size_t i = 0; i < size; ++i) {
-    hash ^= data[i];
-    hash *= 1099511628211ull;
-  }
-  return hash;
-}
 
 std::vector<uint8_t> SerializeVocabulary(const Vocabulary& vocabulary) {
   const VocabularyOptions& o = vocabulary.options();
@@ -52,20 +22,20 @@ std::vector<uint8_t> SerializeVocabulary(const Vocabulary& vocabulary) {
   std::vector<uint8_t> out;
   out.reserve(kHeaderBytes + nodes.size() * kNodeBytes + kChecksumBytes);
   out.insert(out.end(), kMagic, kMagic + sizeof kMagic);
-  PutU64(kVocabularyFormatVersion, 2, &out);
-  PutU64(static_cast<uint32_t>(o.branching), 4, &out);
-  PutU64(static_cast<uint32_t>(o.depth), 4, &out);
-  PutU64(static_cast<uint32_t>(o.max_iterations), 4, &out);
-  PutU64(o.seed, 8, &out);
-  PutU64(nodes.size(), 4, &out);
-  PutU64(vocabulary.num_words(), 4, &out);
+  PutLittleEndian(kVocabularyFormatVersion, 2, &out);
+  PutLittleEndian(static_cast<uint32_t>(o.branching), 4, &out);
+  PutLittleEndian(static_cast<uint32_t>(o.depth), 4, &out);
+  PutLittleEndian(static_cast<uint32_t>(o.max_iterations), 4, &out);
+  PutLittleEndian(o.seed, 8, &out);
+  PutLittleEndian(nodes.size(), 4, &out);
+  PutLittleEndian(vocabulary.num_words(), 4, &out);
   for (const Vocabulary::Node& node : nodes) {
-    PutU64(node.parent, 4, &out);
-    for (uint64_t word : node.descriptor) PutU64(word, 8, &out);
-    PutU64(node.word, 4, &out);
-    PutU64(DoubleBits(node.idf_weight), 8, &out);
+    PutLittleEndian(node.parent, 4, &out);
+    for (uint64_t word : node.descriptor) PutLittleEndian(word, 8, &out);
+    PutLittleEndian(node.word, 4, &out);
+    PutLittleEndian(DoubleBits(node.idf_weight), 8, &out);
   }
-  PutU64(Fnv1a64(out.data(), out.size()), 8, &out);
+  PutLittleEndian(Fnv1a64(out.data(), out.size()), 8, &out);
   return out;
 }
 
@@ -77,35 +47,35 @@ Vocabulary DeserializeVocabulary(const uint8_t* data, size_t size, const std::st
     fail("truncated vocabulary: " + std::to_string(size) + " bytes, a header needs " +
          std::to_string(kHeaderBytes + kChecksumBytes));
   }
-  const uint64_t version = GetU64(data + 6, 2);
+  const uint64_t version = GetLittleEndian(data + 6, 2);
   if (version != kVocabularyFormatVersion) {
     fail("unsupported vocabulary format version " + std::to_string(version) +
          " (this build reads " + std::to_string(kVocabularyFormatVersion) + ")");
   }
   VocabularyOptions options;
-  options.branching = static_cast<int32_t>(GetU64(data + 8, 4));
-  options.depth = static_cast<int32_t>(GetU64(data + 12, 4));
-  options.max_iterations = static_cast<int32_t>(GetU64(data + 16, 4));
-  options.seed = GetU64(data + 20, 8);
-  const uint64_t num_nodes = GetU64(data + 28, 4);
-  const uint64_t num_words = GetU64(data + 32, 4);
+  options.branching = static_cast<int32_t>(GetLittleEndian(data + 8, 4));
+  options.depth = static_cast<int32_t>(GetLittleEndian(data + 12, 4));
+  options.max_iterations = static_cast<int32_t>(GetLittleEndian(data + 16, 4));
+  options.seed = GetLittleEndian(data + 20, 8);
+  const uint64_t num_nodes = GetLittleEndian(data + 28, 4);
+  const uint64_t num_words = GetLittleEndian(data + 32, 4);
   const uint64_t expected = kHeaderBytes + num_nodes * kNodeBytes + kChecksumBytes;
   if (size != expected) {
     fail((size < expected ? "truncated vocabulary: " : "trailing bytes after the vocabulary: ") +
          std::to_string(size) + " bytes, " + std::to_string(num_nodes) + " nodes need " +
          std::to_string(expected));
   }
-  const uint64_t stored = GetU64(data + size - kChecksumBytes, 8);
+  const uint64_t stored = GetLittleEndian(data + size - kChecksumBytes, 8);
   const uint64_t computed = Fnv1a64(data, size - kChecksumBytes);
   if (stored != computed) fail("checksum mismatch: the vocabulary file is corrupted");
 
   std::vector<Vocabulary::Node> nodes(num_nodes);
   const uint8_t* p = data + kHeaderBytes;
   for (Vocabulary::Node& node : nodes) {
-    node.parent = static_cast<NodeId>(GetU64(p, 4));
-    for (int w = 0; w < 4; ++w) node.descriptor[w] = GetU64(p + 4 + 8 * w, 8);
-    node.word = static_cast<WordId>(GetU64(p + 36, 4));
-    node.idf_weight = BitsDouble(GetU64(p + 40, 8));
+    node.parent = static_cast<NodeId>(GetLittleEndian(p, 4));
+    for (int w = 0; w < 4; ++w) node.descriptor[w] = GetLittleEndian(p + 4 + 8 * w, 8);
+    node.word = static_cast<WordId>(GetLittleEndian(p + 36, 4));
+    node.idf_weight = BitsDouble(GetLittleEndian(p + 40, 8));
     p += kNodeBytes;
   }
   Vocabulary vocabulary;

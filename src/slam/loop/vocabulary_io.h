@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "slam/common/byte_codec.h"  // Fnv1a64
 #include "slam/loop/vocabulary.h"
 
 namespace pcr {
@@ -29,8 +30,5 @@ std::vector<uint8_t> SerializeVocabulary(const Vocabulary& vocabulary);
 // size not matching the node count, checksum mismatch, or a tree Vocabulary::FromNodes refuses.
 // `name` is what the error names (the file path).
 Vocabulary DeserializeVocabulary(const uint8_t* data, size_t size, const std::string& name);
-
-// FNV-1a 64 of size bytes.
-uint64_t Fnv1a64(const uint8_t* data, size_t size);
 
 }  // namespace pcr

@@ -12,6 +12,44 @@ std::shared_ptr<const Frame> Frame::Create(int64_t id, int64_t t_ns, const Stere
                                            const ScalePyramid& scale, const OrbFeatures& features,
                                            const StereoMatches& stereo,
                                            const KeypointFilter& filter) {
+  return Build(id, t_ns, rig, scale, features, stereo, filter);
+}
+
+std::shared_ptr<const Frame> Frame::Restore(int64_t id, int64_t t_ns, const StereoRig& rig,
+                                            const ScalePyramid& scale,
+                                            const std::vector<cv::KeyPoint>& keypoints,
+                                            const cv::Mat& descriptors, const StereoMatches& stereo,
+                                            const KeypointFilter& filter,
+                                            const std::vector<uint8_t>& grey) {
+  const size_t n = keypoints.size();
+  if (grey.size() != n || stereo.u_right_px.size() != n || stereo.depth_m.size() != n ||
+      filter.weight.size() != n || filter.excluded.size() != n)
+    throw std::invalid_argument("Frame::Restore: per-keypoint vectors differ in size");
+  if (scale.num_levels() < 1) throw std::invalid_argument("Frame::Restore: empty scale pyramid");
+  for (size_t i = 0; i < n; ++i) {
+    const cv::KeyPoint& kp = keypoints[i];
+    if (!std::isfinite(kp.pt.x) || !std::isfinite(kp.pt.y) || !std::isfinite(kp.size) ||
+        !std::isfinite(kp.angle) || !std::isfinite(kp.response))
+      throw std::invalid_argument("Frame::Restore: keypoint " + std::to_string(i) +
+                                  " is not finite");
+    if (!std::isfinite(stereo.u_right_px[i]) || !std::isfinite(stereo.depth_m[i]))
+      throw std::invalid_argument("Frame::Restore: stereo of keypoint " + std::to_string(i) +
+                                  " is not finite");
+    if (!(filter.weight[i] > 0.f && filter.weight[i] <= 1.f))
+      throw std::invalid_argument("Frame::Restore: weight of keypoint " + std::to_string(i) +
+                                  " outside (0, 1]");
+  }
+  OrbFeatures features;
+  features.keypoints = keypoints;
+  features.descriptors = descriptors;
+  std::shared_ptr<Frame> frame = Build(id, t_ns, rig, scale, features, stereo, filter);
+  frame->grey_ = grey;
+  return frame;
+}
+
+std::shared_ptr<Frame> Frame::Build(int64_t id, int64_t t_ns, const StereoRig& rig,
+                                    const ScalePyramid& scale, const OrbFeatures& features,
+                                    const StereoMatches& stereo, const KeypointFilter& filter) {
   const size_t n = features.keypoints.size();
   if (features.descriptors.rows != static_cast<int>(n) ||
       (n > 0 && (features.descriptors.cols != 32 || features.descriptors.type() != CV_8U)))

@@ -33,6 +33,14 @@ class Frame {
                                              const ScalePyramid& scale, const OrbFeatures& features,
                                              const StereoMatches& stereo,
                                              const KeypointFilter& filter = {});
+  // A frame from stored parts (a saved map): per keypoint its right-image x, depth, grey level
+  // and the filter's weight and flag, all of the keypoints' size. Throws std::invalid_argument
+  // when the parts are inconsistent (sizes, octaves outside the pyramid, coordinates or depths
+  // that are not finite, weights outside (0, 1]).
+  static std::shared_ptr<const Frame> Restore(
+      int64_t id, int64_t t_ns, const StereoRig& rig, const ScalePyramid& scale,
+      const std::vector<cv::KeyPoint>& keypoints, const cv::Mat& descriptors,
+      const StereoMatches& stereo, const KeypointFilter& filter, const std::vector<uint8_t>& grey);
 
   int64_t id() const { return id_; }
   int64_t t_ns() const { return t_ns_; }
@@ -65,6 +73,9 @@ class Frame {
 
  private:
   Frame() = default;
+  static std::shared_ptr<Frame> Build(int64_t id, int64_t t_ns, const StereoRig& rig,
+                                      const ScalePyramid& scale, const OrbFeatures& features,
+                                      const StereoMatches& stereo, const KeypointFilter& filter);
   int CellX(double u_px) const;
   int CellY(double v_px) const;
 

@@ -1,8 +1,10 @@
 #include "slam/map/map.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace pcr {
 
@@ -101,6 +103,124 @@ int Map::TrackedPoints(KeyframeId id, int min_observations) const {
     if (mp && static_cast<int>(mp->observations.size()) >= min_observations) ++count;
   }
   return count;
+}
+
+Map::Bookkeeping Map::bookkeeping() const {
+  Bookkeeping b;
+  b.replaced_by.assign(replaced_by_.begin(), replaced_by_.end());
+  std::sort(b.replaced_by.begin(), b.replaced_by.end());
+  b.erased_keyframes = erased_keyframes_;
+  b.next_point_id = next_point_id_;
+  b.next_keyframe_index = next_keyframe_index_;
+  b.first_keyframe = first_keyframe_;
+  b.last_keyframe = last_keyframe_;
+  return b;
+}
+
+namespace {
+
+[[noreturn]] void Inconsistent(const std::string& what) {
+  throw std::invalid_argument("inconsistent map: " + what);
+}
+
+std::string Kf(KeyframeId id) { return "keyframe " + std::to_string(id.value); }
+std::string Pt(MapPointId id) { return "map point " + std::to_string(id.value); }
+
+bool Finite(const SE3& pose) { return pose.matrix().allFinite(); }
+
+}  // namespace
+
+Map Map::Restore(std::map<KeyframeId, Keyframe> keyframes, std::map<MapPointId, MapPoint> points,
+                 Bookkeeping bookkeeping) {
+  const Bookkeeping& b = bookkeeping;
+  if (keyframes.empty()) {
+    if (!points.empty()) Inconsistent("map points without keyframes");
+    if (b.first_keyframe.valid() || b.last_keyframe.valid())
+      Inconsistent("first or last keyframe set in an empty map");
+  } else if (!keyframes.count(b.first_keyframe) || !keyframes.count(b.last_keyframe)) {
+    Inconsistent("the first or last keyframe is not in the map");
+  }
+  std::set<int64_t> indices;
+  for (const auto& [id, kf] : keyframes) {
+    if (!id.valid() || kf.id != id) Inconsistent(Kf(id) + " stored under another id");
+    if (!kf.frame || kf.frame->id() != id.value) Inconsistent(Kf(id) + " has no frame of its id");
+    if (kf.index < 0 || kf.index >= b.next_keyframe_index || !indices.insert(kf.index).second)
+      Inconsistent(Kf(id) + " has an index beyond the counter or used twice");
+    if (!Finite(kf.cam_from_world)) Inconsistent(Kf(id) + " has a pose that is not finite");
+    if (kf.points.size() != static_cast<size_t>(kf.frame->size()))
+      Inconsistent(Kf(id) + " has associations of another size than its keypoints");
+    for (size_t i = 0; i < kf.points.size(); ++i) {
+      const MapPointId p = kf.points[i];
+      if (!p.valid()) continue;
+      const auto pit = points.find(p);
+      if (pit == points.end()) Inconsistent(Kf(id) + " associates a missing " + Pt(p));
+      const auto oit = pit->second.observations.find(id);
+      if (oit == pit->second.observations.end() || oit->second != static_cast<int>(i))
+        Inconsistent(Kf(id) + " and " + Pt(p) + " disagree on the observation");
+    }
+    for (const auto& [other, weight] : kf.connections) {
+      const auto oit = keyframes.find(other);
+      if (other == id || oit == keyframes.end() || weight <= 0 || oit->second.Weight(id) != weight)
+        Inconsistent(Kf(id) + " has a connection that is not symmetric");
+    }
+    for (const auto& [other, weight] : kf.covisible)
+      if (kf.Weight(other) != weight || weight <= 0)
+        Inconsistent(Kf(id) + " has a covisible keyframe that is not a connection");
+    if (id == b.first_keyframe ? kf.parent.valid() : !keyframes.count(kf.parent))
+      Inconsistent(Kf(id) + " has a missing spanning-tree parent");
+    if (kf.parent.valid() && !keyframes.at(kf.parent).children.count(id))
+      Inconsistent(Kf(id) + " is not a child of its parent");
+    for (KeyframeId c : kf.children) {
+      const auto cit = keyframes.find(c);
+      if (cit == keyframes.end() || cit->second.parent != id)
+        Inconsistent(Kf(id) + " has a child whose parent it is not");
+    }
+  }
+  // The spanning tree reaches the first keyframe from everywhere (no cycle).
+  for (const auto& [id, kf] : keyframes) {
+    KeyframeId at = id;
+    for (size_t hops = 0; at != b.first_keyframe; ++hops) {
+      if (hops > keyframes.size()) Inconsistent(Kf(id) + " is on a spanning-tree cycle");
+      at = keyframes.at(at).parent;
+    }
+  }
+  for (const auto& [id, mp] : points) {
+    if (!id.valid() || mp.id != id || id.value >= b.next_point_id)
+      Inconsistent(Pt(id) + " stored under another id or beyond the counter");
+    if (mp.observations.empty()) Inconsistent(Pt(id) + " has no observation");
+    for (const auto& [kf_id, kp] : mp.observations) {
+      const auto kit = keyframes.find(kf_id);
+      if (kit == keyframes.end() || kp < 0 || kp >= static_cast<int>(kit->second.points.size()) ||
+          kit->second.points[kp] != id)
+        Inconsistent(Pt(id) + " and " + Kf(kf_id) + " disagree on the observation");
+    }
+    if (!keyframes.count(mp.reference_keyframe))
+      Inconsistent(Pt(id) + " has a missing reference keyframe");
+    if (mp.descriptor.rows != 1 || mp.descriptor.cols != 32 || mp.descriptor.type() != CV_8U)
+      Inconsistent(Pt(id) + " has no 1 x 32 descriptor");
+    if (!mp.p_in_world.allFinite() || !mp.normal.allFinite() || !std::isfinite(mp.min_distance_m) ||
+        !std::isfinite(mp.max_distance_m))
+      Inconsistent(Pt(id) + " is not finite");
+    if (mp.visible_count < 1 || mp.found_count < 0)
+      Inconsistent(Pt(id) + " has invalid visible/found counters");
+  }
+  for (const auto& [from, into] : b.replaced_by)
+    if (!from.valid() || points.count(from)) Inconsistent(Pt(from) + " is merged and live");
+  for (const auto& [id, erased] : b.erased_keyframes)
+    if (!id.valid() || keyframes.count(id) || !Finite(erased.cam_from_parent))
+      Inconsistent(Kf(id) + " is erased and live, or has a pose that is not finite");
+
+  Map map;
+  map.keyframes_ = std::move(keyframes);
+  map.points_ = std::move(points);
+  map.replaced_by_.insert(b.replaced_by.begin(), b.replaced_by.end());
+  map.replacements_after_compaction_ = map.replaced_by_.size();
+  map.erased_keyframes_ = std::move(bookkeeping.erased_keyframes);
+  map.next_point_id_ = b.next_point_id;
+  map.next_keyframe_index_ = b.next_keyframe_index;
+  map.first_keyframe_ = b.first_keyframe;
+  map.last_keyframe_ = b.last_keyframe;
+  return map;
 }
 
 void Map::AddObservation(MapPointId point_id, KeyframeId keyframe_id, int keypoint) {

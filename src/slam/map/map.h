@@ -121,6 +121,26 @@ class Map {
  public:
   static constexpr int kCovisibilityMinWeight = 15;
 
+  // What the map keeps besides its keyframes and points (a saved map stores it too).
+  struct ErasedKeyframe {
+    KeyframeId parent;
+    SE3 cam_from_parent = SE3::Identity();
+  };
+  struct Bookkeeping {
+    std::vector<std::pair<MapPointId, MapPointId>> replaced_by;  // merged id -> into, by id
+    std::map<KeyframeId, ErasedKeyframe> erased_keyframes;
+    int64_t next_point_id = 0;
+    int64_t next_keyframe_index = 0;
+    KeyframeId first_keyframe, last_keyframe;
+  };
+  Bookkeeping bookkeeping() const;
+  // A map from stored parts (a saved map), as it was: Restore(keyframes(), points(),
+  // bookkeeping()) is equal to the original. Throws std::invalid_argument naming the first
+  // inconsistency (a keypoint association and a point's observation that disagree, a keyframe
+  // or point id that does not exist, a spanning tree that is not one, ids beyond the counters).
+  static Map Restore(std::map<KeyframeId, Keyframe> keyframes,
+                     std::map<MapPointId, MapPoint> points, Bookkeeping bookkeeping);
+
   // Applies the edits in this order: new keyframe (with its associations), new points, merges,
   // added observations, removed observations (a point whose stereo-weighted observation count
   // drops to <= 2 by a removal is erased), keyframe poses, point positions, removed points,
@@ -154,11 +174,6 @@ class Map {
   int TrackedPoints(KeyframeId id, int min_observations) const;
 
  private:
-  struct ErasedKeyframe {
-    KeyframeId parent;
-    SE3 cam_from_parent = SE3::Identity();
-  };
-
   void AddObservation(MapPointId point, KeyframeId keyframe, int keypoint);
   // Returns true when the observation existed and was removed.
   bool RemoveObservation(MapPointId point, KeyframeId keyframe);

@@ -1,5 +1,6 @@
 #include "slam/system/slam_system.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include "slam/common/error.h"
 #include "slam/common/image.h"
 #include "slam/common/timing.h"
+#include "slam/system/map_archive.h"
 
 namespace pcr {
 namespace {
@@ -113,12 +115,31 @@ FramePtr SlamSystem::BuildFrame(int64_t t_ns, const OrbFeatures& left, const Ste
 }
 
 TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
+  if (options_.localize_only && map_.empty()) {
+    TrackingResult none;  // nothing to localise in, and no map may be made
+    none.frame_id = frame->id();
+    none.points.assign(frame->size(), MapPointId());
+    return none;
+  }
   PlaceQuery place;
   if (loop_closer_.IsActive())
     place = [this](const Frame& f) {
       return loop_closer_.PlaceCandidates(f, map_, options_.tracker.relocalisation_keyframes);
     };
   TrackingResult result = tracker_.Track(frame, map_, place);
+  if (options_.localize_only) {
+    if (result.status == TrackingStatus::kOk) {
+      FrameRecord record;
+      record.frame_index = frame_index;
+      record.t_ns = frame->t_ns();
+      record.reference = result.reference_keyframe;
+      if (const auto ref_pose = map_.CamFromWorld(record.reference))
+        record.cam_from_reference = result.cam_from_world * ref_pose->inverse();
+      records_.push_back(record);
+    }
+    result.map_delta = MapDelta{};  // the counters: the map stays as loaded
+    return result;
+  }
   const bool initialised = result.method == TrackingMethod::kInitialisation;
   if (result.first_keyframe_delta) {
     // Monocular: the reference frame becomes the first keyframe and a tracked frame.
@@ -168,6 +189,11 @@ KeyframeDecision SlamSystem::DecideKeyframe(const TrackingResult& tracking,
         tracking.method == TrackingMethod::kInitialisation ? "initial keyframe" : "not tracking";
     return d;
   }
+  if (options_.localize_only) {
+    KeyframeDecision d;
+    d.reason = "localize only";
+    return d;
+  }
   KeyframeDecisionOptions options = options_.keyframe;
   options.min_interval_s =
       std::max(options.min_interval_s, std::min(min_interval_s, options.max_interval_s));
@@ -195,6 +221,59 @@ MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingRe
     records_.back().cam_from_reference = SE3::Identity();
   }
   return result;
+}
+
+MapArchive SlamSystem::ArchiveMap() const {
+  MapArchive archive;
+  archive.mode = mode_;
+  archive.rig = rig_;
+  archive.scale = scale_;
+  archive.map = map_;
+  archive.place = loop_closer_.Archive(map_);
+  return archive;
+}
+
+void SlamSystem::RestoreMap(const MapArchive& archive) {
+  if (!map_.empty() || next_frame_id_ != 0)
+    throw ConfigError("SlamSystem::RestoreMap: a map is loaded before the first frame");
+  if (archive.mode != mode_) {
+    throw ConfigError(std::string("the map was made in ") + ToString(archive.mode) +
+                      " mode, this run is " + ToString(mode_));
+  }
+  const PinholeCamera& a = archive.rig.left;
+  const PinholeCamera& b = rig_.left;
+  auto near = [](double x, double y) {
+    return std::abs(x - y) <= 1e-6 * std::max(1.0, std::abs(y));
+  };
+  if (!near(a.fx, b.fx) || !near(a.fy, b.fy) || !near(a.cx, b.cx) || !near(a.cy, b.cy) ||
+      a.width_px != b.width_px || a.height_px != b.height_px ||
+      !near(archive.rig.baseline_m, rig_.baseline_m)) {
+    throw ConfigError(fmt::format(
+        "the map was made with another camera (fx {} fy {} cx {} cy {} {}x{} baseline {} m; this "
+        "run: fx {} fy {} cx {} cy {} {}x{} baseline {} m)",
+        a.fx, a.fy, a.cx, a.cy, a.width_px, a.height_px, archive.rig.baseline_m, b.fx, b.fy, b.cx,
+        b.cy, b.width_px, b.height_px, rig_.baseline_m));
+  }
+  if (archive.scale.num_levels() != scale_.num_levels() ||
+      !near(archive.scale.scale_factor(), scale_.scale_factor())) {
+    throw ConfigError(fmt::format(
+        "the map was made with another ORB pyramid ({} levels, factor {}; this run: {} levels, "
+        "factor {})",
+        archive.scale.num_levels(), archive.scale.scale_factor(), scale_.num_levels(),
+        scale_.scale_factor()));
+  }
+  map_ = archive.map;
+  const int computed = loop_closer_.Restore(archive.place, map_);
+  if (computed > 0)
+    spdlog::info("loaded map: {} keyframes' bags of words computed with this run's vocabulary",
+                 computed);
+  // Frame ids continue after every keyframe id the map has used.
+  int64_t next = 0;
+  for (const auto& [id, kf] : map_.keyframes()) next = std::max(next, id.value + 1);
+  for (const auto& [id, erased] : map_.bookkeeping().erased_keyframes)
+    next = std::max(next, id.value + 1);
+  next_frame_id_ = next;
+  tracker_.Reset();
 }
 
 std::shared_ptr<const LoopJob> SlamSystem::DetectLoop(KeyframeId id, bool busy) {

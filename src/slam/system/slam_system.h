@@ -33,6 +33,7 @@
 namespace pcr {
 
 enum class SlamMode { kStereo, kMonocular };
+struct MapArchive;                    // slam/system/map_archive.h
 const char* ToString(SlamMode mode);  // "stereo", "mono"
 
 struct SlamOptions {
@@ -42,6 +43,10 @@ struct SlamOptions {
   LocalMapperOptions mapping;
   KeyframeDecisionOptions keyframe;
   LoopClosingOptions loop;  // active only with a vocabulary (SlamSystem's constructor)
+  // Localisation mode (ORB-SLAM3's): frames are tracked against the map (a loaded one,
+  // RestoreMap) and relocalised where it is seen again, and the map is never changed: no
+  // initialisation, no keyframes, no new points, no counters, no loop closing.
+  bool localize_only = false;
   bool IsValid(std::string* why) const;
 };
 
@@ -142,6 +147,15 @@ class SlamSystem {
   void RunLoopJob(const LoopJob& job, int64_t frame_index);
   const LoopCloser& loop_closer() const { return loop_closer_; }
   const std::vector<LoopEvent>& loop_events() const { return loop_events_; }
+
+  // --- Saving and loading the map (slam/system/map_archive.h) ---
+  // The map as it stands, with the place-recognition database when loop closing is active.
+  MapArchive ArchiveMap() const;
+  // Starts from a saved map, before any frame: the map, the database (kept when made with this
+  // system's vocabulary, else computed again) and the loop edges; the next frame is relocalised
+  // in it. Throws ConfigError when frames were processed already, or when the archive was made
+  // in another mode, with another camera or another ORB pyramid.
+  void RestoreMap(const MapArchive& archive);
 
   const Map& map() const { return map_; }
   const StereoRig& rig() const { return rig_; }  // baseline_m = 0 in monocular mode

@@ -1,0 +1,44 @@
+#include "driver/binary_file.h"
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <system_error>
+
+#include "slam/common/error.h"
+
+namespace pcr::driver {
+
+void WriteFileAtomically(const std::string& path, const std::vector<uint8_t>& bytes,
+                         const std::string& what) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw InputError(path, 0, "cannot open " + tmp + " to write the " + what);
+    out.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size()));
+    out.close();
+    if (!out) {
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      throw InputError(path, 0, "cannot write the " + what + " to " + tmp);
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw InputError(path, 0, "cannot rename " + tmp + " to it: " + ec.message());
+}
+
+std::vector<uint8_t> ReadFileBytes(const std::string& path, const std::string& what) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw InputError(path, 0, "is a directory, not a " + what + " file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, "cannot open the " + what + " file");
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                             std::istreambuf_iterator<char>());
+  if (in.bad()) throw InputError(path, 0, "cannot read the " + what + " file");
+  return bytes;
+}
+
+}  // namespace pcr::driver
