@@ -3,10 +3,7 @@
 // sequential policy (inline) and in the pipelined one (the loop node on its own lane); a
 // correction that arrives while later frames are mapped, a global BA aborted by a newer loop and
 // a run that ends while the loop lane still works lose no pose and do not crash.
-#include <fcntl.h>
 #include <gtest/gtest.h>
-#include <sys/file.h>
-#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -22,41 +19,13 @@
 #include "eval/evaluation.h"
 #include "graph/pipeline_options.h"
 #include "io/dataset.h"
-#include "sim/sequence_writer.h"
+#include "loop_street.h"
 #include "support/data_paths.h"
 
 namespace pcr::driver {
 namespace {
 
-// 200 half-size frames at 12 m/s around the smallest loop the world builds (~210 m): the ego
-// car is back at its start from about frame 175 on. Rendered once into the build tree's test
-// cache and shared by the tests of this file (each runs in its own process, ctest runs two at
-// once): the first process renders under an exclusive lock on the cache's lock file while the
-// others wait for it.
-const std::string& LoopStreet() {
-  static const std::string dir = [] {
-    namespace fs = std::filesystem;
-    const fs::path cache = fs::path(PCR_TEST_CACHE_DIR) / "loop_street_s7_200f_v1";
-    fs::create_directories(cache);
-    const int lock = ::open((cache / "lock").c_str(), O_CREAT | O_RDWR, 0644);
-    if (lock >= 0) ::flock(lock, LOCK_EX);
-    if (!fs::exists(cache / "complete")) {
-      sim::SynthOptions o;
-      o.route = sim::RouteKind::kLoop;
-      o.frames = 200;
-      o.speed_mps = 12.0;
-      o.num_movers = 4;
-      o.num_parked = 6;
-      o.seed = 7;
-      o = o.Scaled(0.5);
-      sim::WriteSequence(o, cache.string());
-      std::ofstream(cache / "complete") << "ok\n";
-    }
-    if (lock >= 0) ::close(lock);  // releases the lock
-    return (cache / "sequences" / "00").string();
-  }();
-  return dir;
-}
+using test_street::LoopStreet;
 
 struct LoopRun {
   DriverResult result;

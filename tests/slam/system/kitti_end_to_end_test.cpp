@@ -8,6 +8,7 @@
 #include <map>
 #include <string>
 
+#include "ate.h"
 #include "eval/alignment.h"
 #include "eval/ape.h"
 #include "io/dataset.h"
@@ -72,21 +73,6 @@ RunSummary RunDataset(const Dataset& data, size_t max_frames = 0) {
   return s;
 }
 
-// ATE RMSE (m) after SE(3) (or Sim(3)) Umeyama alignment, on the frames present in estimate.
-double AteRmse(const Trajectory& estimate, const Trajectory& ground_truth,
-               eval::AlignMode mode = eval::AlignMode::kSe3) {
-  Trajectory reference, est;
-  for (const StampedPose& p : estimate) {
-    if (p.frame_index < 0 || p.frame_index >= static_cast<int64_t>(ground_truth.size())) continue;
-    reference.push_back(ground_truth[p.frame_index]);
-    est.push_back(p);
-  }
-  eval::AlignmentOptions align;
-  align.mode = mode;
-  const eval::Similarity3 s = eval::AlignTrajectory(est, reference, align);
-  return eval::ComputeApe(reference, eval::TransformTrajectory(est, s)).trans_m.rmse;
-}
-
 void PrintTimings(const char* name, const RunSummary& s) {
   for (const auto& [stage, series] : s.timings) {
     const TimingSummary t = series.Summarize();
@@ -95,6 +81,7 @@ void PrintTimings(const char* name, const RunSummary& s) {
   }
 }
 
+using test::AteRmse;
 using test::SameTrajectory;
 
 TEST(KittiEndToEnd, Sequence06StereoTracksAccuratelyAndDeterministically) {

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <string>
 
+#include "ate.h"
 #include "eval/alignment.h"
 #include "eval/ape.h"
 #include "io/dataset.h"
@@ -76,21 +77,11 @@ MonoRun RunMono(const Dataset& data, size_t num_frames) {
   return run;
 }
 
-// ATE RMSE after Sim(3) Umeyama alignment on the frames present in estimate.
-double AteRmseSim3(const Trajectory& estimate, const Trajectory& ground_truth) {
-  Trajectory reference, est;
-  for (const StampedPose& p : estimate) {
-    if (p.frame_index < 0 || p.frame_index >= static_cast<int64_t>(ground_truth.size())) continue;
-    reference.push_back(ground_truth[p.frame_index]);
-    est.push_back(p);
-  }
-  eval::AlignmentOptions align;
-  align.mode = eval::AlignMode::kSim3;
-  const eval::Similarity3 s = eval::AlignTrajectory(est, reference, align);
-  return eval::ComputeApe(reference, eval::TransformTrajectory(est, s)).trans_m.rmse;
-}
-
 using test::SameTrajectory;
+
+double AteRmseSim3(const Trajectory& estimate, const Trajectory& ground_truth) {
+  return test::AteRmse(estimate, ground_truth, eval::AlignMode::kSim3);
+}
 
 void Report(const char* name, const MonoRun& run, const Trajectory& gt, size_t frames) {
   const Trajectory gt_cut(gt.begin(), gt.begin() + static_cast<std::ptrdiff_t>(frames));
