@@ -3,7 +3,8 @@
 // Real clips (--sequence DIR...): every frame is mapped and the map saved; the map is loaded and
 // saved again (the bytes must be equal); then every frame is localised in the loaded map.
 // Synthetic loop routes (--seeds, `pcr_orb synth --route loop`, written under --work): the first
-// lap is mapped and saved, and the frames that drive past the start again are localised in it.
+// lap is mapped and saved (up to --lap-extra frames past the revisit of its start, where loop
+// closing can close it), and the frames that drive on past the start are localised in it.
 //
 // Printed per run: the map's size on disk, save and load times, whether a loaded map saves to the
 // same bytes, frames localised, map points before/after localisation and whether the map's bytes
@@ -17,6 +18,7 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -43,6 +45,7 @@ struct Args {
   double speed_mps = 12;
   double scale = 0.5;
   int movers = 4;
+  int lap_extra = 10;
   std::string work = "/tmp/pcr_bench_map";
   std::vector<std::string> overrides;
 };
@@ -137,6 +140,10 @@ int main(int argc, char** argv) {
   app.add_option("--speed", a.speed_mps, "ego speed, m/s")->capture_default_str();
   app.add_option("--scale", a.scale, "image scale of the loop routes")->capture_default_str();
   app.add_option("--movers", a.movers, "moving objects per route")->capture_default_str();
+  app.add_option("--lap-extra", a.lap_extra,
+                 "loops: frames past the revisit that the first lap's mapping still holds (its "
+                 "loop can close there)")
+      ->capture_default_str();
   app.add_option("--work", a.work, "where routes and maps are written")->capture_default_str();
   app.add_option("--set", a.overrides, "configuration override section.key=value (repeatable)");
   CLI11_PARSE(app, argc, argv);
@@ -176,7 +183,8 @@ int main(int argc, char** argv) {
         ok = false;
         continue;
       }
-      ok = MapAndLocalise(a, fmt::format("loop_s{}", o.seed), sequence, revisit, revisit,
+      const size_t lap_end = std::min(d.size() - 1, revisit + static_cast<size_t>(a.lap_extra));
+      ok = MapAndLocalise(a, fmt::format("loop_s{}", o.seed), sequence, lap_end, lap_end,
                           d.size()) &&
            ok;
     }

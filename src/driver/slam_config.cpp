@@ -51,6 +51,10 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("tracking", "min_local_map_inliers", &t.min_local_map_inliers);
   s.Add("tracking", "max_local_keyframes", &t.max_local_keyframes);
   s.Add("tracking", "relocalisation_keyframes", &t.relocalisation_keyframes);
+  s.Add("tracking", "localisation_relocalise_below", &t.localisation_relocalise_below,
+        "--localize-only: a frame with fewer map-point inliers also tries relocalisation");
+  s.Add("tracking", "localisation_recheck_frames", &t.localisation_recheck_frames,
+        "--localize-only: and every this many frames");
   s.Add("tracking", "pose_rounds", &t.pose.rounds, "outlier rounds of the pose optimisation");
   s.Add("tracking", "pose_iterations_per_round", &t.pose.iterations_per_round);
   s.Add("tracking", "chi2_mono", &t.pose.chi2_mono);

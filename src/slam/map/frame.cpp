@@ -101,12 +101,14 @@ std::shared_ptr<Frame> Frame::Build(int64_t id, int64_t t_ns, const StereoRig& r
   return frame;
 }
 
+// Clamped before the conversion to int: a coordinate far outside the image (a corrupted saved
+// map's keypoint, a search square around a point projected at a tiny depth) would overflow it.
 int Frame::CellX(double u_px) const {
-  return std::clamp(static_cast<int>(std::floor(u_px / cell_width_px_)), 0, kGridCols - 1);
+  return static_cast<int>(std::clamp(std::floor(u_px / cell_width_px_), 0.0, kGridCols - 1.0));
 }
 
 int Frame::CellY(double v_px) const {
-  return std::clamp(static_cast<int>(std::floor(v_px / cell_height_px_)), 0, kGridRows - 1);
+  return static_cast<int>(std::clamp(std::floor(v_px / cell_height_px_), 0.0, kGridRows - 1.0));
 }
 
 Eigen::Vector3d Frame::UnprojectStereo(int i) const {

@@ -1,6 +1,8 @@
 #include "slam/system/map_archive.h"
 
 #include <cstring>
+#include <map>
+#include <set>
 #include <stdexcept>
 #include <utility>
 
@@ -17,6 +19,25 @@ constexpr size_t kPoseBytes = 12 * 8;
 constexpr size_t kKeypointBytes = 7 * 4 + 32 + 3 * 4 + 2 + 8;
 constexpr size_t kKeyframeMinBytes = 8 + 8 + kPoseBytes + 8 + 8 + 8 + 8 + 8 + 8;
 constexpr size_t kPointMinBytes = 8 + 24 + 32 + 24 + 16 + 8 + 8 + 8 + 4 + 4;
+
+// The keys of the format's ordered containers are stored increasing: a key out of order or
+// stored twice would be re-sorted or dropped, and the map would not save back to the bytes it
+// was read from. last: the key read before (null for the first).
+template <typename Id>
+void CheckAfter(const Id* last, Id id, const std::string& what, ByteReader* r) {
+  if (last && !(*last < id))
+    r->Fail(what + " " + std::to_string(id.value) + " out of order or stored twice");
+}
+
+template <typename K, typename V>
+const K* LastKey(const std::map<K, V>& m) {
+  return m.empty() ? nullptr : &m.rbegin()->first;
+}
+
+template <typename K>
+const K* LastKey(const std::set<K>& s) {
+  return s.empty() ? nullptr : &*s.rbegin();
+}
 
 void PutPose(const SE3& pose, ByteWriter* w) {
   for (int r = 0; r < 3; ++r)
@@ -134,6 +155,9 @@ Keyframe GetKeyframe(const StereoRig& rig, const ScalePyramid& scale, ByteReader
     stereo.depth_m[i] = r->F32();
     filter.weight[i] = r->F32();
     filter.excluded[i] = r->U8();
+    if (filter.excluded[i] > 1)
+      r->Fail("keyframe " + std::to_string(kf.id.value) + ": excluded flag of keypoint " +
+              std::to_string(i) + " is not 0 or 1");
     grey[i] = r->U8();
     kf.points[i] = MapPointId(r->I64());
   }
@@ -146,6 +170,8 @@ Keyframe GetKeyframe(const StereoRig& rig, const ScalePyramid& scale, ByteReader
   const size_t num_connections = r->Count(12, "connection");
   for (size_t i = 0; i < num_connections; ++i) {
     const KeyframeId other(r->I64());
+    CheckAfter(LastKey(kf.connections), other,
+               "keyframe " + std::to_string(kf.id.value) + ": connection to keyframe", r);
     kf.connections[other] = r->I32();
   }
   const size_t num_covisible = r->Count(12, "covisible keyframe");
@@ -155,7 +181,12 @@ Keyframe GetKeyframe(const StereoRig& rig, const ScalePyramid& scale, ByteReader
   }
   kf.parent = KeyframeId(r->I64());
   const size_t num_children = r->Count(8, "child");
-  for (size_t i = 0; i < num_children; ++i) kf.children.insert(KeyframeId(r->I64()));
+  for (size_t i = 0; i < num_children; ++i) {
+    const KeyframeId child(r->I64());
+    CheckAfter(LastKey(kf.children), child,
+               "keyframe " + std::to_string(kf.id.value) + ": child keyframe", r);
+    kf.children.insert(child);
+  }
   return kf;
 }
 
@@ -188,6 +219,8 @@ MapPoint GetPoint(ByteReader* r) {
   const size_t n = r->Count(12, "observation");
   for (size_t i = 0; i < n; ++i) {
     const KeyframeId kf(r->I64());
+    CheckAfter(LastKey(mp.observations), kf,
+               "map point " + std::to_string(mp.id.value) + ": observation in keyframe", r);
     mp.observations[kf] = r->I32();
   }
   mp.reference_keyframe = KeyframeId(r->I64());
@@ -232,7 +265,9 @@ PlaceArchive GetPlace(ByteReader* r) {
   place.direct_index_levels_up = r->I32();
   const size_t num_bows = r->Count(16, "bag of words");
   for (size_t i = 0; i < num_bows; ++i) {
-    BowVector& bow = place.bows[KeyframeId(r->I64())];
+    const KeyframeId id(r->I64());
+    CheckAfter(LastKey(place.bows), id, "bag of words of keyframe", r);
+    BowVector& bow = place.bows[id];
     bow.words.resize(r->Count(12, "word"));
     for (auto& [word, weight] : bow.words) {
       word = r->U32();
@@ -241,7 +276,9 @@ PlaceArchive GetPlace(ByteReader* r) {
   }
   const size_t num_features = r->Count(16, "direct index");
   for (size_t i = 0; i < num_features; ++i) {
-    FeatureVector& features = place.features[KeyframeId(r->I64())];
+    const KeyframeId id(r->I64());
+    CheckAfter(LastKey(place.features), id, "direct index of keyframe", r);
+    FeatureVector& features = place.features[id];
     features.nodes.resize(r->Count(12, "direct-index node"));
     for (auto& [node, rows] : features.nodes) {
       node = r->U32();
@@ -354,11 +391,14 @@ MapArchive DeserializeMapArchive(const uint8_t* data, size_t size, const std::st
   const size_t num_replaced = r.Count(16, "merged point");
   for (size_t i = 0; i < num_replaced; ++i) {
     const MapPointId from(r.I64());
+    CheckAfter(b.replaced_by.empty() ? nullptr : &b.replaced_by.back().first, from, "merged point",
+               &r);
     b.replaced_by.emplace_back(from, MapPointId(r.I64()));
   }
   const size_t num_erased = r.Count(16 + kPoseBytes, "erased keyframe");
   for (size_t i = 0; i < num_erased; ++i) {
     const KeyframeId id(r.I64());
+    CheckAfter(LastKey(b.erased_keyframes), id, "erased keyframe", &r);
     Map::ErasedKeyframe erased;
     erased.parent = KeyframeId(r.I64());
     erased.cam_from_parent = GetPose(&r);
@@ -369,16 +409,16 @@ MapArchive DeserializeMapArchive(const uint8_t* data, size_t size, const std::st
   for (size_t i = 0; i < num_keyframes; ++i) {
     Keyframe kf = GetKeyframe(archive.rig, archive.scale, &r);
     const KeyframeId id = kf.id;
-    if (!keyframes.emplace(id, std::move(kf)).second)
-      r.Fail("keyframe " + std::to_string(id.value) + " stored twice");
+    CheckAfter(LastKey(keyframes), id, "keyframe", &r);
+    keyframes.emplace(id, std::move(kf));
   }
   std::map<MapPointId, MapPoint> points;
   const size_t num_points = r.Count(kPointMinBytes, "map point");
   for (size_t i = 0; i < num_points; ++i) {
     MapPoint mp = GetPoint(&r);
     const MapPointId id = mp.id;
-    if (!points.emplace(id, std::move(mp)).second)
-      r.Fail("map point " + std::to_string(id.value) + " stored twice");
+    CheckAfter(LastKey(points), id, "map point", &r);
+    points.emplace(id, std::move(mp));
   }
   const uint8_t has_place = r.U8();
   if (has_place > 1) r.Fail("corrupted place-recognition flag");

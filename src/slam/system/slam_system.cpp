@@ -68,6 +68,7 @@ SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMod
       tracker_(options.tracker),
       mapper_(options.mapping),
       loop_closer_(options.loop, std::move(vocabulary), mode == SlamMode::kStereo) {
+  tracker_.SetLocalisationMode(options.localize_only);
   scale_.scale_factors = extractor_.scale_factors();
   scale_.level_sigma2 = extractor_.level_sigma2();
   scale_.inv_level_sigma2 = extractor_.inv_level_sigma2();

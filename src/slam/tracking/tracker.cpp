@@ -91,7 +91,8 @@ bool TrackerOptions::IsValid(std::string* why) const {
   if (local_search_levels_below < 0 || local_search_levels_above < 0)
     return fail("local search level windows must be >= 0");
   if (max_local_keyframes < 1 || local_neighbours_per_keyframe < 0 ||
-      relocalisation_keyframes < 1 || relocalised_frames < 0 || min_temporary_points < 0)
+      relocalisation_keyframes < 1 || relocalised_frames < 0 || min_temporary_points < 0 ||
+      localisation_relocalise_below < 0 || localisation_recheck_frames < 0)
     return fail("local-map and relocalisation sizes must be positive");
   if (!(pnp_reprojection_px > 0) || pnp_iterations < 1)
     return fail("PnP RANSAC needs a positive threshold and iterations");
@@ -606,6 +607,37 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
     ok = TrackLocalMap(frame, map, frames_since_relocalisation_ < options_.relocalised_frames,
                        &pose, &m, &result, &local_reference);
     if (local_reference.valid()) reference_ = local_reference;
+  }
+  // Localisation mode, weak tracking: relocalisation in the whole map, kept when the local map
+  // confirms it better.
+  ++frames_since_place_check_;
+  const bool weak = m.CountMapPoints() < options_.localisation_relocalise_below;
+  const bool recheck = options_.localisation_recheck_frames > 0 &&
+                       frames_since_place_check_ >= options_.localisation_recheck_frames;
+  if (ok && localisation_mode_ && result.method != TrackingMethod::kRelocalisation && place &&
+      (weak || recheck)) {
+    frames_since_place_check_ = 0;
+    const double needed = weak ? m.CountMapPoints() : 1.25 * m.CountMapPoints();
+    Matches other;
+    other.Reset(frame.size());
+    SE3 other_pose = SE3::Identity();
+    int n0 = 0;
+    TrackingResult other_result;
+    KeyframeId other_reference;
+    if (Relocalise(frame, map, place, &other_pose, &other, &n0) &&
+        TrackLocalMap(frame, map, true, &other_pose, &other, &other_result, &other_reference) &&
+        other.CountMapPoints() > needed) {
+      pose = other_pose;
+      m = std::move(other);
+      if (other_reference.valid()) reference_ = other_reference;
+      result.method = TrackingMethod::kRelocalisation;
+      result.num_matches_initial = n0;
+      result.num_local_projected = other_result.num_local_projected;
+      result.num_local_matches = other_result.num_local_matches;
+      result.map_delta = std::move(other_result.map_delta);
+      result.keyframe_input.motion_quality = other_result.keyframe_input.motion_quality;
+      frames_since_relocalisation_ = 0;
+    }
   }
 
   if (!ok) {

@@ -74,6 +74,15 @@ struct TrackerOptions {
   // A relocalisation candidate is accepted only when, tracked against the local map, at least
   // this many map points it was not computed from are inliers of the pose (Tracker::Relocalise).
   int min_relocalisation_confirmations = 20;
+  // Localisation mode (Tracker::SetLocalisationMode): a frame tracked with fewer map-point
+  // inliers than this also tries relocalisation in the whole map and keeps that pose when the
+  // local map confirms it with more inliers, so that tracking moves onto the better of two copies
+  // of a place (a lap's drifted end and the start it comes back to); mapping would add keyframes
+  // there instead. 0: never.
+  int localisation_relocalise_below = 100;
+  // Localisation mode: also every this many frames (0: never), kept when the local map confirms
+  // it with a quarter more inliers than the tracked pose has.
+  int localisation_recheck_frames = 5;
   double pnp_reprojection_px = 4.0;
   int pnp_iterations = 300;
   int min_temporary_points = 100;  // stereo: temporary points made from the last frame's depth
@@ -130,6 +139,8 @@ class Tracker {
   // Forgets the motion model and the last frame (status back to kNotInitialized); the
   // monocular initialiser keeps its reference frame.
   void Reset();
+  // Localisation mode: the map is fixed (see TrackerOptions::localisation_relocalise_below).
+  void SetLocalisationMode(bool on) { localisation_mode_ = on; }
 
   TrackingStatus status() const { return status_; }
   const TrackerOptions& options() const { return options_; }
@@ -178,6 +189,8 @@ class Tracker {
   std::vector<int> FreeMask(const Frame& frame, const Matches& m) const;
 
   TrackerOptions options_;
+  bool localisation_mode_ = false;
+  int frames_since_place_check_ = 0;
   MonoInitializer mono_initializer_;
   TrackingStatus status_ = TrackingStatus::kNotInitialized;
   LastFrame last_;
