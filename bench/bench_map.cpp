@@ -24,11 +24,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <string>
 #include <vector>
 
 #include "bench_args.h"
+#include "driver/binary_file.h"
 #include "driver/map_file.h"
 #include "io/dataset.h"
 #include "pcr/api.h"
@@ -52,11 +52,6 @@ struct Args {
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
-
-std::vector<char> Bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 // RMSE of the localised positions against the truth without alignment.
@@ -100,7 +95,8 @@ bool MapAndLocalise(const Args& a, const std::string& name, const std::string& s
   t = std::chrono::steady_clock::now();
   const size_t bytes = pcr::driver::SaveMap(again, archive);
   const double save_ms = 1e3 * Seconds(t);
-  const bool same_bytes = Bytes(again) == Bytes(map_path);
+  const bool same_bytes =
+      pcr::driver::ReadFileBytes(again, "map") == pcr::driver::ReadFileBytes(map_path, "map");
 
   pcr::api::Config l = c;
   l.load_map = map_path;
@@ -111,7 +107,8 @@ bool MapAndLocalise(const Args& a, const std::string& name, const std::string& s
       pcr::api::Run(l, pcr::api::Source::Dataset(sequence, static_cast<int64_t>(loc_first),
                                                  static_cast<int64_t>(loc_end)));
   const double loc_s = Seconds(t);
-  const bool unchanged = Bytes(l.save_map) == Bytes(map_path);
+  const bool unchanged =
+      pcr::driver::ReadFileBytes(l.save_map, "map") == pcr::driver::ReadFileBytes(map_path, "map");
   const double unaligned = UnalignedRmse(loc.trajectory, *dataset.ground_truth);
   const double unaligned_map = UnalignedRmse(mapped.trajectory, *dataset.ground_truth);
   const double ate_map = mapped.stats.ate_rmse_m.value_or(NAN);

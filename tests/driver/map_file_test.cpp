@@ -10,10 +10,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <string>
 #include <vector>
 
+#include "driver/binary_file.h"
 #include "io/dataset.h"
 #include "loop_street.h"
 #include "pcr/api.h"
@@ -24,11 +24,6 @@ namespace pcr::driver {
 namespace {
 
 using test_street::LoopStreet;
-
-std::vector<char> Bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
 
 std::string RunError(const api::Config& config, const api::Source& source) {
   try {
@@ -74,7 +69,7 @@ TEST(MapFile, TheSecondLapIsLocalisedInTheSavedMapOfTheFirst) {
     EXPECT_FALSE(f.keyframe);
     EXPECT_EQ(f.map_points, lap.stats.map_points);
   }
-  EXPECT_EQ(Bytes(l.save_map), Bytes(c.save_map));
+  EXPECT_EQ(ReadFileBytes(l.save_map, "map"), ReadFileBytes(c.save_map, "map"));
   // Error of the localised poses in the map's frame (the world is frame 0's camera in both).
   double sum2 = 0;
   for (const api::Pose& p : loc.trajectory) {
@@ -97,9 +92,10 @@ TEST(MapFile, TheSecondLapIsLocalisedInTheSavedMapOfTheFirst) {
   bad.localize_only = true;
   EXPECT_NE(RunError(bad, api::Source::Dataset(LoopStreet(), 0, 2)).find("--load-map"),
             std::string::npos);
-  const std::vector<char> whole = Bytes(c.save_map);
+  const std::vector<uint8_t> whole = ReadFileBytes(c.save_map, "map");
   const std::string truncated = dir + "/truncated.map";
-  std::ofstream(truncated, std::ios::binary).write(whole.data(), 1000);
+  std::ofstream(truncated, std::ios::binary)
+      .write(reinterpret_cast<const char*>(whole.data()), 1000);
   bad.load_map = truncated;
   EXPECT_NE(RunError(bad, api::Source::Dataset(LoopStreet(), 0, 2)).find(truncated),
             std::string::npos);

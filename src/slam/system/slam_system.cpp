@@ -129,15 +129,7 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
     };
   TrackingResult result = tracker_.Track(frame, map_, place);
   if (options_.localize_only) {
-    if (result.status == TrackingStatus::kOk) {
-      FrameRecord record;
-      record.frame_index = frame_index;
-      record.t_ns = frame->t_ns();
-      record.reference = result.reference_keyframe;
-      if (const auto ref_pose = map_.CamFromWorld(record.reference))
-        record.cam_from_reference = result.cam_from_world * ref_pose->inverse();
-      records_.push_back(record);
-    }
+    RecordTracked(result, *frame, frame_index);
     result.map_delta = MapDelta{};  // the counters: the map stays as loaded
     return result;
   }
@@ -169,16 +161,20 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
     if (pending_.size() >= kMaxPendingFrames) pending_.erase(pending_.begin());
     pending_.push_back({frame->id(), frame_index, frame->t_ns()});
   }
-  if (result.status == TrackingStatus::kOk) {
-    FrameRecord record;
-    record.frame_index = frame_index;
-    record.t_ns = frame->t_ns();
-    record.reference = result.reference_keyframe;
-    if (const auto ref_pose = map_.CamFromWorld(record.reference))
-      record.cam_from_reference = result.cam_from_world * ref_pose->inverse();
-    records_.push_back(record);
-  }
+  RecordTracked(result, *frame, frame_index);
   return result;
+}
+
+void SlamSystem::RecordTracked(const TrackingResult& result, const Frame& frame,
+                               int64_t frame_index) {
+  if (result.status != TrackingStatus::kOk) return;
+  FrameRecord record;
+  record.frame_index = frame_index;
+  record.t_ns = frame.t_ns();
+  record.reference = result.reference_keyframe;
+  if (const auto ref_pose = map_.CamFromWorld(record.reference))
+    record.cam_from_reference = result.cam_from_world * ref_pose->inverse();
+  records_.push_back(record);
 }
 
 KeyframeDecision SlamSystem::DecideKeyframe(const TrackingResult& tracking,

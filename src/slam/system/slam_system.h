@@ -175,6 +175,10 @@ class SlamSystem {
     SE3 cam_from_reference = SE3::Identity();
   };
 
+  // Records a tracked frame (status OK) for RefinedTrajectory(), relative to its reference
+  // keyframe as the map holds it now.
+  void RecordTracked(const TrackingResult& result, const Frame& frame, int64_t frame_index);
+
   struct PendingFrame {  // seen before initialisation
     int64_t frame_id = -1, frame_index = -1, t_ns = 0;
   };
