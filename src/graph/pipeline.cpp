@@ -891,6 +891,9 @@ PipelineResult GraphRun::Collect() {
       case nodes::MaskStatus::kFresh:
         ++s.masks_fresh;
         break;
+      case nodes::MaskStatus::kPropagated:
+        ++s.masks_propagated;
+        break;
       case nodes::MaskStatus::kStale:
         ++s.masks_stale;
         break;

@@ -85,7 +85,7 @@ struct PipelineStats {
   bool adaptive = false;
   double period_ms = 0;  // nominal frame period used by the controller
   size_t frames_total = 0, frames_admitted = 0, frames_completed = 0, frames_dropped = 0;
-  size_t masks_fresh = 0, masks_stale = 0, masks_skipped = 0;
+  size_t masks_fresh = 0, masks_propagated = 0, masks_stale = 0, masks_skipped = 0;
   size_t masks_late = 0;       // realtime: mask deadline passed
   size_t inferences_busy = 0;  // realtime: frame not segmented, network busy
   size_t late_results = 0;     // inference finished after its frame went on

@@ -98,6 +98,7 @@ nlohmann::json StatsToJson(const PipelineStats& s) {
                  {"completed", s.frames_completed},
                  {"dropped", s.frames_dropped}};
   j["masks"] = {{"fresh", s.masks_fresh},
+                {"propagated", s.masks_propagated},
                 {"stale", s.masks_stale},
                 {"skipped", s.masks_skipped},
                 {"late", s.masks_late},
@@ -143,8 +144,9 @@ std::string FormatPipelineStats(const PipelineStats& s) {
       "p95 {:.1f} p99 {:.1f} ms (to retirement, mapping included: p99 {:.1f} ms)\n",
       s.frames_completed, s.frames_total, s.frames_dropped, s.wall_s, s.fps, s.latency.p50_ms,
       s.latency.p95_ms, s.latency.p99_ms, s.retire.p99_ms);
-  o << fmt::format("masks: {} fresh, {} stale, {} skipped ({} late, {} busy)\n", s.masks_fresh,
-                   s.masks_stale, s.masks_skipped, s.masks_late, s.inferences_busy);
+  o << fmt::format("masks: {} fresh, {} propagated, {} stale, {} skipped ({} late, {} busy)\n",
+                   s.masks_fresh, s.masks_propagated, s.masks_stale, s.masks_skipped, s.masks_late,
+                   s.inferences_busy);
   if (s.resident_bytes >= 0) {
     o << fmt::format("memory: {:.1f} MiB resident at the end, peak {:.1f} MiB ({})\n",
                      MiB(s.resident_bytes), MiB(s.peak_resident_bytes), s.allocator);

@@ -41,6 +41,11 @@ bool MaskCarryOptions::IsValid(std::string* why) const {
     if (why) *why = "max_age_frames must be >= 1";
     return false;
   }
+  std::string inner;
+  if (!propagation.IsValid(&inner)) {
+    if (why) *why = "propagation: " + inner;
+    return false;
+  }
   return true;
 }
 
@@ -49,7 +54,7 @@ MaskCarry::MaskCarry(const MaskCarryOptions& options) : options_(options) {
   if (!options_.IsValid(&why)) throw ConfigError("MaskCarryOptions: " + why);
 }
 
-MaskMsg MaskCarry::Resolve(const SegmentationMsg& msg) {
+MaskMsg MaskCarry::Resolve(const SegmentationMsg& msg, const cv::Mat& grey) {
   const int64_t seq = msg.ticket.seq;
   MaskMsg out;
   if (msg.outcome == SegmentationOutcome::kFresh && msg.segmentation) {
@@ -57,21 +62,42 @@ MaskMsg MaskCarry::Resolve(const SegmentationMsg& msg) {
     out.segmentation = msg.segmentation;
     out.source_seq = seq;
     last_ = msg.segmentation;
-    last_seq_ = seq;
+    last_source_seq_ = seq;
+    last_steps_ = 0;
     return out;
   }
   if (msg.outcome == SegmentationOutcome::kNoSegmenter || !options_.use_stale) return out;
+  // The newest computation wins: a late result newer than the one last_ came from replaces it.
   std::shared_ptr<const Segmentation> best = last_;
-  int64_t best_seq = last_seq_;
-  if (msg.fallback && msg.fallback_seq < seq && msg.fallback_seq > best_seq) {
+  int64_t best_source = last_source_seq_;
+  int steps = last_steps_;
+  if (msg.fallback && msg.fallback_seq < seq && msg.fallback_seq > best_source) {
     best = msg.fallback;
-    best_seq = msg.fallback_seq;
+    best_source = msg.fallback_seq;
+    steps = 0;
   }
-  if (best && best_seq >= 0 && seq - best_seq <= options_.max_age_frames) {
-    out.status = MaskStatus::kStale;
-    out.segmentation = best;
-    out.source_seq = best_seq;
+  if (!best || best_source < 0 || seq - best_source > options_.max_age_frames) return out;
+  out.source_seq = best_source;
+  const cv::Mat& from = best->source_grey;
+  if (options_.propagate && msg.ticket.settings.propagate_masks && !from.empty() && !grey.empty() &&
+      from.size() == grey.size() && from.type() == CV_8UC1 && grey.type() == CV_8UC1) {
+    const auto start = std::chrono::steady_clock::now();
+    auto moved = std::make_shared<const Segmentation>(
+        PropagateSegmentation(*best, from, grey, options_.propagation));
+    out.status = MaskStatus::kPropagated;
+    out.segmentation = moved;
+    out.propagation_steps = steps + 1;
+    out.propagate_ms = MsSince(start);
+    last_ = std::move(moved);
+    last_source_seq_ = best_source;
+    last_steps_ = steps + 1;
+    return out;
   }
+  // As it was: the filter scales a stale mask's confidence down (DynamicFilterOptions).
+  auto stale = std::make_shared<Segmentation>(*best);
+  stale->stale = true;
+  out.status = MaskStatus::kStale;
+  out.segmentation = std::move(stale);
   return out;
 }
 
@@ -86,7 +112,7 @@ FilteredPtr FilterNode::operator()(const StereoPtr& stereo, const SegmentationPt
   msg->ticket = stereo->ticket;
   msg->stereo = stereo;
   msg->segmentation = segmentation->outcome;
-  msg->mask = carry_.Resolve(*segmentation);
+  msg->mask = carry_.Resolve(*segmentation, stereo->images->left);
   if (scorer_) {
     const ScoringInput input{msg->ticket, *stereo->images, stereo->left->features, stereo->stereo,
                              msg->mask};

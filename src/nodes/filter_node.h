@@ -9,6 +9,7 @@
 
 #include "nodes/messages.h"
 #include "slam/dynamic/dynamic_filter.h"
+#include "slam/dynamic/mask_propagation.h"
 
 namespace pcr::nodes {
 
@@ -81,21 +82,29 @@ class MaskScorer final : public FrameScorer {
 struct MaskCarryOptions {
   bool use_stale = true;   // carry an older frame's mask forward when a frame has none
   int max_age_frames = 5;  // ... if it is at most this many frames (seq) older
+  // ... moved by its objects' motion (when the frame's quality settings allow it and the mask
+  // kept its image), else as it was (marked stale: the filter scales its confidence down).
+  bool propagate = true;
+  MaskPropagationOptions propagation;
   bool IsValid(std::string* why) const;
 };
 
 // Chooses the mask of each frame, in frame order: a fresh segmentation is used and remembered;
-// otherwise the newest earlier mask among the message's fallback and the last fresh one seen here
-// is used as kStale (within max_age_frames); else kSkipped.
+// otherwise the mask of the newest earlier computation among the message's fallback and the last
+// one seen here (within max_age_frames) is moved onto this frame (kPropagated; from the previous
+// frame's propagated copy when that is the newest, so each step is one frame of motion) or used as
+// it was (kStale); else kSkipped.
 class MaskCarry {
  public:
   explicit MaskCarry(const MaskCarryOptions& options = {});
-  MaskMsg Resolve(const SegmentationMsg& msg);
+  // grey: this frame's left image (CV_8UC1; empty: no propagation).
+  MaskMsg Resolve(const SegmentationMsg& msg, const cv::Mat& grey = {});
 
  private:
   MaskCarryOptions options_;
-  std::shared_ptr<const Segmentation> last_;
-  int64_t last_seq_ = -1;
+  std::shared_ptr<const Segmentation> last_;  // fresh, or propagated onto the previous frame
+  int64_t last_source_seq_ = -1;              // the frame last_ was computed on
+  int last_steps_ = 0;
 };
 
 class FilterNode {

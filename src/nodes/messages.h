@@ -82,13 +82,17 @@ struct SegmentationMsg {
 };
 
 // The mask the filter applied to a frame.
-enum class MaskStatus { kFresh, kStale, kSkipped };
+// kPropagated: an earlier mask moved onto this frame by its objects' motion
+// (slam/dynamic/mask_propagation.h); kStale: an earlier mask as it was.
+enum class MaskStatus { kFresh, kPropagated, kStale, kSkipped };
 const char* ToString(MaskStatus status);
 
 struct MaskMsg {
   MaskStatus status = MaskStatus::kSkipped;
   std::shared_ptr<const Segmentation> segmentation;  // null when kSkipped
   int64_t source_seq = -1;                           // frame the mask was computed on
+  int propagation_steps = 0;  // kPropagated: frames it was carried through since source_seq
+  double propagate_ms = 0;    // time spent moving it onto this frame
 };
 
 // What the dynamic filter decided for one frame, kept with the frame's record for audits

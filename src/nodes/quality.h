@@ -31,6 +31,9 @@ struct QualitySettings {
   // tracking is weak: local mapping holds the map token, so a burst of keyframes (one per frame,
   // 55-160 ms of mapping each on drive 0005) delays every frame behind it.
   double min_keyframe_interval_s = 0;
+  // Frames without a fresh mask carry the newest one along by its objects' motion (else they
+  // use it where it was, as a stale mask).
+  bool propagate_masks = true;
   bool IsValid(std::string* why) const;
   bool operator==(const QualitySettings&) const = default;
 };

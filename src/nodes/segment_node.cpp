@@ -27,6 +27,8 @@ const char* ToString(MaskStatus status) {
   switch (status) {
     case MaskStatus::kFresh:
       return "fresh";
+    case MaskStatus::kPropagated:
+      return "propagated";
     case MaskStatus::kStale:
       return "stale";
     case MaskStatus::kSkipped:
@@ -66,6 +68,7 @@ SegmentationPtr SegmentNode::operator()(const ImagesPtr& images) const {
   // along with every frame in flight (one image each) and make memory follow the object count.
   // instance_map keeps them: instance k covers the pixels where instance_map == k + 1.
   for (Instance& instance : segmentation.instances) instance.mask.release();
+  segmentation.source_grey = images->left;  // so that later frames can carry the mask along
   msg->segmentation = std::make_shared<const Segmentation>(std::move(segmentation));
   msg->model = segmenter->Name();
   msg->segment_ms = MsSince(start);

@@ -37,6 +37,19 @@ SegmentationMsg NotRun(int64_t seq, SegmentationOutcome outcome) {
   return *SegmentNode::NotRun(Ticket(seq), outcome);
 }
 
+// A stale mask is m as it was (the same maps), marked stale.
+bool IsStaleCopyOf(const MaskMsg& r, const std::shared_ptr<const Segmentation>& m) {
+  return r.status == MaskStatus::kStale && r.segmentation && r.segmentation->stale &&
+         r.segmentation->dynamic_confidence.data == m->dynamic_confidence.data;
+}
+
+MaskCarryOptions CarryOptions(bool use_stale, int max_age_frames) {
+  MaskCarryOptions o;
+  o.use_stale = use_stale;
+  o.max_age_frames = max_age_frames;
+  return o;
+}
+
 TEST(MaskCarryTest, FreshMasksAreUsedAndCarriedForwardAsStale) {
   MaskCarry carry;
   const auto m0 = MaskWithValue(0.1f);
@@ -45,8 +58,8 @@ TEST(MaskCarryTest, FreshMasksAreUsedAndCarriedForwardAsStale) {
   EXPECT_EQ(r.segmentation, m0);
   EXPECT_EQ(r.source_seq, 0);
   r = carry.Resolve(NotRun(1, SegmentationOutcome::kNotScheduled));
-  EXPECT_EQ(r.status, MaskStatus::kStale);
-  EXPECT_EQ(r.segmentation, m0);
+  EXPECT_TRUE(IsStaleCopyOf(r, m0));
+  EXPECT_FALSE(m0->stale);
   EXPECT_EQ(r.source_seq, 0);
   r = carry.Resolve(NotRun(2, SegmentationOutcome::kBusy));
   EXPECT_EQ(r.status, MaskStatus::kStale);
@@ -61,7 +74,7 @@ TEST(MaskCarryTest, PrefersTheNewerFallbackButNeverAFutureOne) {
   late.fallback = m3;  // a result that finished after its own frame went on
   late.fallback_seq = 3;
   MaskMsg r = carry.Resolve(late);
-  EXPECT_EQ(r.segmentation, m3);
+  EXPECT_TRUE(IsStaleCopyOf(r, m3));
   EXPECT_EQ(r.source_seq, 3);
   SegmentationMsg future = NotRun(5, SegmentationOutcome::kLate);
   future.fallback = m9;
@@ -72,20 +85,78 @@ TEST(MaskCarryTest, PrefersTheNewerFallbackButNeverAFutureOne) {
 }
 
 TEST(MaskCarryTest, SkipsWithoutSegmenterTooOldOrDisabled) {
-  MaskCarry carry(MaskCarryOptions{true, 2});
+  MaskCarry carry(CarryOptions(true, 2));
   carry.Resolve(Fresh(0, MaskWithValue(0.5f)));
   EXPECT_EQ(carry.Resolve(NotRun(1, SegmentationOutcome::kNoSegmenter)).status,
             MaskStatus::kSkipped);
   EXPECT_EQ(carry.Resolve(NotRun(2, SegmentationOutcome::kLate)).status, MaskStatus::kStale);
   EXPECT_EQ(carry.Resolve(NotRun(3, SegmentationOutcome::kLate)).status, MaskStatus::kSkipped);
-  MaskCarry no_stale(MaskCarryOptions{false, 5});
+  MaskCarry no_stale(CarryOptions(false, 5));
   no_stale.Resolve(Fresh(0, MaskWithValue(0.5f)));
   EXPECT_EQ(no_stale.Resolve(NotRun(1, SegmentationOutcome::kNotScheduled)).status,
             MaskStatus::kSkipped);
   MaskCarry empty;
   EXPECT_EQ(empty.Resolve(NotRun(0, SegmentationOutcome::kNotScheduled)).status,
             MaskStatus::kSkipped);
-  EXPECT_THROW(MaskCarry(MaskCarryOptions{true, 0}), ConfigError);
+  EXPECT_THROW(MaskCarry(CarryOptions(true, 0)), ConfigError);
+}
+
+// Masks that kept their image are carried by their objects' motion: a textured square moving
+// 3 px right per frame, segmented on frame 0 only (and a late result of frame 2 arriving at 4).
+TEST(MaskCarryTest, MasksWithTheirImageFollowTheirObject) {
+  cv::Mat texture(40, 40, CV_8U);
+  cv::randu(texture, 0, 255);
+  cv::GaussianBlur(texture, texture, cv::Size(0, 0), 1.0);
+  const auto frame = [&](int seq) {
+    cv::Mat image(120, 160, CV_8U, cv::Scalar(100));
+    texture.copyTo(image(cv::Rect(30 + 3 * seq, 40, 40, 40)));
+    return image;
+  };
+  const auto segmentation_of = [&](int seq) {
+    auto s = std::make_shared<Segmentation>();
+    Instance inst;
+    inst.class_name = "car";
+    inst.confidence = 0.9f;
+    inst.box_px = cv::Rect2f(30.0f + 3 * seq, 40, 40, 40);
+    inst.instance_id = 0;
+    s->instances.push_back(inst);
+    s->instance_map = cv::Mat(120, 160, CV_16U, cv::Scalar(0));
+    s->instance_map(cv::Rect(30 + 3 * seq, 40, 40, 40)).setTo(1);
+    s->dynamic_confidence = cv::Mat(120, 160, CV_32F, cv::Scalar(0));
+    s->dynamic_confidence.setTo(0.9f, s->instance_map > 0);
+    s->source_grey = frame(seq);
+    return std::shared_ptr<const Segmentation>(s);
+  };
+  MaskCarry carry;
+  carry.Resolve(Fresh(0, segmentation_of(0)), frame(0));
+  for (int seq = 1; seq <= 3; ++seq) {
+    const MaskMsg r = carry.Resolve(NotRun(seq, SegmentationOutcome::kNotScheduled), frame(seq));
+    ASSERT_EQ(r.status, MaskStatus::kPropagated);
+    EXPECT_EQ(r.source_seq, 0);
+    EXPECT_EQ(r.propagation_steps, seq);
+    EXPECT_NEAR(r.segmentation->instances[0].box_px.x, 30 + 3 * seq, 0.6);
+    EXPECT_EQ(cv::countNonZero(r.segmentation->instance_map(cv::Rect(30 + 3 * seq, 40, 40, 40))),
+              1600);
+  }
+  // A late result of frame 2 is newer than frame 0's: it is carried from frame 2 (two steps).
+  SegmentationMsg late = NotRun(4, SegmentationOutcome::kLate);
+  late.fallback = segmentation_of(2);
+  late.fallback_seq = 2;
+  MaskMsg r = carry.Resolve(late, frame(4));
+  EXPECT_EQ(r.status, MaskStatus::kPropagated);
+  EXPECT_EQ(r.source_seq, 2);
+  EXPECT_EQ(r.propagation_steps, 1);
+  EXPECT_NEAR(r.segmentation->instances[0].box_px.x, 42, 0.6);
+  // A level without propagation, or no image of the frame: the mask as it was, stale.
+  SegmentationMsg off = NotRun(5, SegmentationOutcome::kNotScheduled);
+  off.ticket.settings.propagate_masks = false;
+  r = carry.Resolve(off, frame(5));
+  EXPECT_EQ(r.status, MaskStatus::kStale);
+  EXPECT_TRUE(r.segmentation->stale);
+  EXPECT_EQ(carry.Resolve(NotRun(6, SegmentationOutcome::kBusy)).status, MaskStatus::kStale);
+  // Too old (max_age_frames 5 from frame 2).
+  EXPECT_EQ(carry.Resolve(NotRun(8, SegmentationOutcome::kBusy), frame(8)).status,
+            MaskStatus::kSkipped);
 }
 
 // A stereo message with keypoints at given pixels (no descriptors needed by the filter) over the

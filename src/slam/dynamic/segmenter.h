@@ -36,6 +36,9 @@ struct Segmentation {
   // more confident instance wins.
   cv::Mat instance_map;
   bool stale = false;   // true when an asynchronous wrapper re-used an older frame's result
+  // CV_8UC1: the grey image the maps describe, when whoever made them kept it (the pipeline does,
+  // so that a mask can be carried to later frames by their motion; mask_propagation.h).
+  cv::Mat source_grey;
   std::string backend;  // e.g. "opencv-dnn-cpu"
 };
 
