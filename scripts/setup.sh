@@ -4,7 +4,8 @@ set -euo pipefail
 PKGS=(build-essential cmake ninja-build pkg-config
       libopencv-dev libtbb-dev libeigen3-dev libceres-dev libspdlog-dev libfmt-dev
       libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
-      libjemalloc-dev)
+      libjemalloc-dev
+      python3-onnx python3-numpy)  # tools/yolo_resize.py and its test (ctest yolo_resize)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
