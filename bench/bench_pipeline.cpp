@@ -8,7 +8,20 @@
 //                  [--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none]
 //                  [--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]
 //                  [--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS]
-//                  [--repeat N]
+//                  [--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS]
+//                  [--labels FILE|none] [--every N]
+//
+// --every N adds two sequential rows that segment every N-th frame only, the frames between
+// carrying the newest mask along by its objects' motion (propagated) or using it where it was
+// (stale, at half confidence): the mask carry's effect on the filter without the timing of a
+// live run.
+//
+// Live masks (--model-low, e.g. a 160x512 export from tools/yolo_resize.py): the adaptive low
+// level runs that network on every frame, and frames without a fresh mask carry the newest one
+// along by its objects' motion. The table shows per row the fresh / propagated / stale masks and,
+// with tracking labels (--labels; by default those of drive 0005 when it is the input), the
+// filter's precision and recall against the moving objects' keypoints; the live check at the end
+// compares the realtime+adaptive row with the sequential one (every frame a fresh mask).
 //
 // Default input: KITTI raw drive 0005 (stereo, moving vehicles and a cyclist) with the
 // YOLOv8n-seg 224x640 model (the fast level) and, for adaptive quality, the 384x1280 model (the
@@ -61,14 +74,17 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <unordered_map>
 #include <vector>
 
 #include "driver/driver.h"
+#include "driver/filter_audit.h"
 #include "driver/inference.h"
 #include "eval/association.h"
+#include "eval/confusion.h"
 #include "eval/evaluation.h"
 #include "graph/heap.h"
 #include "graph/pipeline.h"
@@ -92,10 +108,14 @@ struct BenchArgs {
   bool filter = true;
   int threads = 2, max_in_flight = 4;
   double rate = 1.0;
-  double device_ms = 0;         // > 0: emulated device (see the top of the file)
-  std::string flow = "opencv";  // where the filter's LK runs (`pcr_orb pipeline --flow`)
-  double flow_device_ms = 0;    // > 0: the LK passes on an emulated device
-  int repeat = 1;               // rounds of all rows
+  double device_ms = 0;            // > 0: emulated device (see the top of the file)
+  std::string flow = "opencv";     // where the filter's LK runs (`pcr_orb pipeline --flow`)
+  double flow_device_ms = 0;       // > 0: the LK passes on an emulated device
+  int repeat = 1;                  // rounds of all rows
+  std::string model_low = "none";  // the light network of the adaptive low level
+  double mask_deadline_ms = 10;    // realtime: how long tracking waits for a frame's mask
+  std::string labels;              // tracking labels for the filter's confusion ("none": off)
+  int every = 0;                   // > 1: the two rows segmenting every n-th frame
 };
 
 BenchArgs ParseArgs(int argc, char** argv) {
@@ -122,6 +142,15 @@ BenchArgs ParseArgs(int argc, char** argv) {
       a.model = value();
     } else if (arg == "--model-high") {
       a.model_high = value();
+    } else if (arg == "--model-low") {
+      a.model_low = value();
+    } else if (arg == "--mask-deadline-ms") {
+      a.mask_deadline_ms = std::stod(value());
+    } else if (arg == "--labels") {
+      a.labels = value();
+    } else if (arg == "--every") {
+      a.every = std::stoi(value());
+      if (a.every < 2 || a.every > 100) throw std::invalid_argument("--every must be in 2..100");
     } else if (arg == "--filter") {
       const std::string v = value();
       if (v != "on" && v != "off") throw std::invalid_argument("--filter must be on or off");
@@ -149,7 +178,8 @@ BenchArgs ParseArgs(int argc, char** argv) {
           "[--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none] "
           "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR] "
           "[--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS] "
-          "[--repeat N]\n");
+          "[--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS] [--labels FILE|none] "
+          "[--every N]\n");
       std::exit(0);
     } else if (!arg.empty() && arg[0] != '-') {
       a.sequence = arg;
@@ -371,10 +401,13 @@ struct Row {
   bool adaptive = false;
   int threads = 2;
   bool device_overlap = true;
+  int inference_every = 1;
+  bool propagate = true;
   pcr::graph::PipelineStats stats;
   double ate_m = -1;
   double cpu_s = 0;
   double other_cores = -1;  // cores busy with other work while the row ran; -1 unknown
+  std::optional<pcr::eval::ConfusionMatrix> confusion;  // the filter against the labels
 };
 
 // Throughput of row `num` over row `den` within one round (0 when `den` completed nothing).
@@ -406,7 +439,7 @@ std::string Fixed(double value, int decimals, bool valid = true) {
 
 int main(int argc, char** argv) {
   try {
-    const BenchArgs args = ParseArgs(argc, argv);
+    BenchArgs args = ParseArgs(argc, argv);
     spdlog::set_level(spdlog::level::warn);
     const pcr::Dataset dataset = pcr::OpenDataset(args.sequence);
     const pcr::driver::FrameRange range =
@@ -465,6 +498,14 @@ int main(int argc, char** argv) {
             fmt::format(" (adaptive high: {}x{})", networks.back()->input_size().height,
                         networks.back()->input_size().width);
       }
+      if (args.model_low != "none") {
+        if (!std::filesystem::is_regular_file(args.model_low))
+          throw std::invalid_argument("--model-low: no file " + args.model_low);
+        segmenters.light = load(args.model_low);
+        segmenter_name +=
+            fmt::format(" (adaptive low: {}x{} on every frame)",
+                        networks.back()->input_size().height, networks.back()->input_size().width);
+      }
     }
     // Page-cache the images so that the first run does not pay the disk; with --device-ms, the
     // warm-up pass of the emulated device.
@@ -496,10 +537,20 @@ int main(int argc, char** argv) {
         flow_name.c_str(), args.rate, pcr::graph::AllocatorName().c_str());
     std::printf("load average before: %s\n", LoadAverage().c_str());
 
+    // The filter's confusion against the tracking labels (drive 0005's by default).
+    if (args.labels.empty() &&
+        std::filesystem::path(args.sequence).filename() == "2011_09_26_drive_0005_sync")
+      args.labels = SharedDir() + "/data/kitti_tracking/training/label_02/0000.txt";
+    std::optional<pcr::driver::FilterAudit> audit;
+    if (args.filter && !args.labels.empty() && args.labels != "none")
+      audit.emplace(dataset, args.labels, /*dump=*/false);
+
     std::vector<Row> rows;
-    auto add_row = [&](const char* name, Policy policy, bool adaptive, int threads,
-                       bool device_overlap = true) {
+    auto add_row = [&](const std::string& name, Policy policy, bool adaptive, int threads,
+                       bool device_overlap = true, int inference_every = 1, bool propagate = true) {
       Row row;
+      row.inference_every = inference_every;
+      row.propagate = propagate;
       row.name = name;
       row.policy = policy;
       row.adaptive = adaptive;
@@ -518,6 +569,12 @@ int main(int argc, char** argv) {
     if (on_device)
       add_row("pipelined, blocking", Policy::kPipelined, false, args.threads,
               /*device_overlap=*/false);
+    if (args.every > 1) {
+      add_row(fmt::format("seq 1/{} propagated", args.every), Policy::kSequential, false,
+              args.threads, true, args.every, true);
+      add_row(fmt::format("seq 1/{} stale", args.every), Policy::kSequential, false, args.threads,
+              true, args.every, false);
+    }
     // Rounds: every row once per round, so that a drift of the machine's speed (this project's
     // VMs vary by 30% within minutes) reaches all rows alike; each row keeps its median-fps run.
     std::vector<std::vector<Row>> rounds(static_cast<size_t>(args.repeat), rows);
@@ -530,6 +587,10 @@ int main(int argc, char** argv) {
         options.rate = args.rate;
         options.adaptive = row.adaptive;
         options.device_overlap = row.device_overlap;
+        options.mask_deadline_ms = args.mask_deadline_ms;
+        options.inference_every = row.inference_every;
+        options.carry.propagate = row.propagate;
+        options.keep_filter_reports = audit.has_value();
         const std::unique_ptr<pcr::nodes::DynamicFilterScorer> scorer = make_scorer();
         const double cpu_before = ProcessCpuSeconds();
         const double busy_before = MachineBusySeconds();
@@ -545,6 +606,12 @@ int main(int argc, char** argv) {
         if (!r.error.empty()) std::fprintf(stderr, "%s: %s\n", row.name.c_str(), r.error.c_str());
         row.stats = r.stats;
         row.ate_m = AteRmse(dataset, r.tracked);
+        if (audit) {
+          pcr::driver::RunSummary summary;
+          for (const pcr::graph::FrameRecord& f : r.frames)
+            if (f.filter_report) audit->Add(f.frame_index, *f.filter_report, &summary);
+          row.confusion = summary.filter_confusion;
+        }
         if (!args.out.empty() && round == args.repeat - 1) {
           std::string dir_name = row.name;
           std::replace_if(
@@ -559,7 +626,7 @@ int main(int argc, char** argv) {
         const std::vector<Row>& r = rounds[static_cast<size_t>(round)];
         std::printf("round %d: pipelined/sequential %.2f (%.2f / %.2f fps)%s\n", round + 1,
                     FpsRatio(r, 1, 0), r[1].stats.fps, r[0].stats.fps,
-                    r.size() > 5
+                    on_device
                         ? fmt::format(", blocking device pass {:.2f}", FpsRatio(r, 5, 0)).c_str()
                         : "");
       }
@@ -602,9 +669,9 @@ int main(int argc, char** argv) {
     const Row& seq = rows[0];
     const Row& pipe = rows[1];
     const Row& one = rows[4];
-    std::printf("%-19s %5s %5s %6s %6s %7s %7s %7s %7s %7s %5s %11s %7s %7s %5s %5s\n", "row",
+    std::printf("%-19s %5s %5s %6s %6s %7s %7s %7s %7s %7s %8s %11s %7s %7s %5s %5s\n", "row",
                 "done", "drop", "%proc", "fps", "lat p50", "lat p95", "lat p99", "lat max",
-                "ret p99", "stale", "quality H/M/L", "ATE [m]", "ATE/seq", "cpu%", "other");
+                "ret p99", "fr/pr/st", "quality H/M/L", "ATE [m]", "ATE/seq", "cpu%", "other");
     for (const Row& row : rows) {
       const pcr::graph::PipelineStats& s = row.stats;
       const double processed =
@@ -615,10 +682,11 @@ int main(int argc, char** argv) {
                                       : std::string("-");
       const double cpu_util = s.wall_s > 0 ? 100.0 * row.cpu_s / (s.wall_s * row.threads) : 0;
       std::printf(
-          "%-19s %5zu %5zu %6.1f %6.2f %7.1f %7.1f %7.1f %7.1f %7.1f %5zu %11s %7s %7s %5.0f %5s\n",
+          "%-19s %5zu %5zu %6.1f %6.2f %7.1f %7.1f %7.1f %7.1f %7.1f %8s %11s %7s %7s %5.0f %5s\n",
           row.name.c_str(), s.frames_completed, s.frames_dropped, processed, s.fps,
           s.latency.p50_ms, s.latency.p95_ms, s.latency.p99_ms, s.latency.max_ms, s.retire.p99_ms,
-          s.masks_stale, quality.c_str(), Fixed(row.ate_m, 3, row.ate_m >= 0).c_str(),
+          fmt::format("{}/{}/{}", s.masks_fresh, s.masks_propagated, s.masks_stale).c_str(),
+          quality.c_str(), Fixed(row.ate_m, 3, row.ate_m >= 0).c_str(),
           Fixed(row.ate_m / seq.ate_m, 2, row.ate_m >= 0 && seq.ate_m > 0).c_str(), cpu_util,
           Fixed(row.other_cores, 2, row.other_cores >= 0).c_str());
     }
@@ -627,6 +695,47 @@ int main(int argc, char** argv) {
         "pose for realtime; ret p99: the same to retirement, a keyframe's local mapping included; "
         "cpu%%: process CPU time / (wall x threads); other: cores the rest of the machine kept "
         "busy meanwhile, /proc/stat)\n");
+
+    // Masks and the filter's decisions per row; the live check of the realtime+adaptive row
+    // against the sequential one (each frame waits for its own mask there).
+    std::printf("\n%-19s %7s %7s %7s %9s %9s %8s\n", "row", "fresh%", "prop%", "stale%",
+                "precision", "recall", "keypts");
+    for (const Row& row : rows) {
+      const pcr::graph::PipelineStats& s = row.stats;
+      const double n = static_cast<double>(std::max<size_t>(1, s.frames_total));
+      const bool c = row.confusion.has_value();
+      std::printf("%-19s %7.1f %7.1f %7.1f %9s %9s %8s\n", row.name.c_str(),
+                  100.0 * s.masks_fresh / n, 100.0 * s.masks_propagated / n,
+                  100.0 * s.masks_stale / n,
+                  Fixed(c ? row.confusion->Precision() : 0, 3, c).c_str(),
+                  Fixed(c ? row.confusion->Recall() : 0, 3, c).c_str(),
+                  c ? std::to_string(row.confusion->Total()).c_str() : "-");
+    }
+    {
+      const Row& live = rows[3];
+      const pcr::graph::PipelineStats& s = live.stats;
+      const double n = static_cast<double>(std::max<size_t>(1, s.frames_total));
+      const double processed = 100.0 * s.frames_completed / n;
+      const double fresh = 100.0 * s.masks_fresh / n;
+      const double carried = 100.0 * (s.masks_fresh + s.masks_propagated) / n;
+      const double ate_ratio = seq.ate_m > 0 && live.ate_m >= 0 ? live.ate_m / seq.ate_m : -1;
+      auto verdict = [](bool ok) { return ok ? "ok" : "MISSED"; };
+      std::printf(
+          "live check (%s vs sequential, rate %.3g, %d threads): processed %.1f%% (>= 95: %s), "
+          "p99 latency %.0f ms (<= 200: %s), fresh masks %.1f%% (>= 80: %s), fresh or "
+          "propagated %.1f%% (>= 98: %s), ATE ratio %s (<= 1.1: %s)",
+          live.name.c_str(), args.rate, args.threads, processed, verdict(processed >= 95),
+          s.latency.p99_ms, verdict(s.latency.p99_ms <= 200), fresh, verdict(fresh >= 80), carried,
+          verdict(carried >= 98), Fixed(ate_ratio, 2, ate_ratio >= 0).c_str(),
+          verdict(ate_ratio >= 0 && ate_ratio <= 1.1));
+      if (live.confusion && seq.confusion) {
+        const double dp = live.confusion->Precision() - seq.confusion->Precision();
+        const double dr = live.confusion->Recall() - seq.confusion->Recall();
+        std::printf(", precision %+.3f, recall %+.3f (>= -0.03: %s)", dp, dr,
+                    verdict(dp >= -0.03 && dr >= -0.03));
+      }
+      std::printf("\n");
+    }
 
     // Per-stage times: wall per call in the sequential run (OpenCV's loops there use every
     // core), in the pipelined run (each stage runs OpenCV on its own thread, so its wall time is
@@ -716,7 +825,7 @@ int main(int argc, char** argv) {
         "\nthroughput ratio pipelined/sequential: %.2f (%.2f / %.2f fps); against the "
         "1-thread synchronous reference: %.2f%s\n",
         ratio(1, 0), pipe.stats.fps, seq_fps, ratio(1, 4), of_rounds.c_str());
-    if (rows.size() > 5) {
+    if (on_device) {
       std::string device = args.device_ms > 0
                                ? fmt::format("emulated device, {:.1f} ms a pass", args.device_ms)
                                : "inference " + args.inference;

@@ -38,6 +38,8 @@ struct Config {
   double rate = 1.0;             // realtime: 1 = the sequence's own clock, 0.5 = twice as fast
   int waiting = 1;               // realtime: released frames that wait for a slot
   double mask_deadline_ms = 10;  // realtime: how long tracking waits for a late mask
+  int inference_every = 1;       // without adaptive quality: segment every n-th frame
+  bool propagate_masks = true;   // frames without a fresh mask carry the newest one along
   bool adaptive = false;         // adaptive quality control (High/Medium/Low from the time budget)
 
   std::string config_file;             // YAML configuration (config/*.yaml); empty: defaults
@@ -48,6 +50,7 @@ struct Config {
   std::string segmenter = "none";    // "yolo", "truth" (synthetic sequences) or "none"
   std::string model;                 // YOLOv8-seg ONNX export for "yolo"
   std::string model_high;            // adaptive: the accurate model (optional)
+  std::string model_low;             // adaptive: the light model of the low level (optional)
   std::string inference = "opencv";  // network engine: opencv, twin, cuda, cuda:N, auto
   std::string flow = "opencv";       // the filter's LK flow: the same choices
   double truth_miss_rate = 0;        // "truth": probability that an instance is missed

@@ -95,8 +95,17 @@ void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
                   "realtime: how long tracking waits for a late mask before using the last one")
       ->capture_default_str();
   AddOnOff(cmd, "--adaptive", &c.adaptive, "adaptive quality control (Eq. 9)");
+  cmd->add_option("--inference-every", c.inference_every,
+                  "without --adaptive: segment every n-th frame")
+      ->capture_default_str();
+  AddOnOff(cmd, "--propagate-masks", &c.propagate_masks,
+           "frames without a fresh mask carry the newest one along by its objects' motion (off: "
+           "use it where it was, at half confidence)");
   cmd->add_option("--model-high", c.model_high,
                   "adaptive high-quality model (e.g. yolov8n-seg_coco_384x1280.onnx)");
+  cmd->add_option("--model-low", c.model_low,
+                  "adaptive low-quality model, run on every frame at the low level (e.g. a "
+                  "160x512 export made by tools/yolo_resize.py)");
   cmd->add_option("--trim-every", c.trim_every,
                   "hand free heap pages back to the system every N frames (0: never)")
       ->capture_default_str();

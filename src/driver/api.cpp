@@ -69,6 +69,8 @@ driver::DriverOptions ToDriverOptions(const Config& c) {
   p.rate = c.rate;
   p.waiting_capacity = c.waiting;
   p.mask_deadline_ms = c.mask_deadline_ms;
+  p.inference_every = c.inference_every;
+  p.carry.propagate = c.propagate_masks;
   p.adaptive = c.adaptive;
   p.tracking_delay_ms = c.tracking_delay_ms;
   p.trim_heap_every = c.trim_every;
@@ -77,6 +79,7 @@ driver::DriverOptions ToDriverOptions(const Config& c) {
   std::string why;
   if (!p.IsValid(&why)) throw ConfigError("pipeline options: " + why);
   o.model_high = c.model_high;
+  o.model_low = c.model_low;
   return o;
 }
 

@@ -25,7 +25,8 @@ struct Segmenters {
 };
 
 Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
-                          const std::string& model_high, const nodes::FrameSource& source) {
+                          const std::string& model_high, const std::string& model_low,
+                          const nodes::FrameSource& source) {
   Segmenters s;
   if (o.segmenter == "yolo") {
     if (o.model_path.empty())
@@ -39,6 +40,11 @@ Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
       yolo.model_path = model_high;
       s.owned.push_back(std::make_unique<YoloSegmenter>(yolo));
       s.set.accurate = s.owned.back().get();
+    }
+    if (!model_low.empty()) {
+      yolo.model_path = model_low;
+      s.owned.push_back(std::make_unique<YoloSegmenter>(yolo));
+      s.set.light = s.owned.back().get();
     }
     // The first forward pass initialises the network: keep it out of the run's timings.
     const int64_t first = source.frame_indices.front();
@@ -113,7 +119,8 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   const StereoRig rig = EffectiveRig(dataset, config.camera);
   const bool color = dynamic.segmenter == "yolo" && dataset.has_color();
   const nodes::FrameSource source = SourceFromDataset(dataset, rig, range, options.mode, color);
-  Segmenters segmenters = MakeSegmenters(dataset, dynamic, options.model_high, source);
+  Segmenters segmenters =
+      MakeSegmenters(dataset, dynamic, options.model_high, options.model_low, source);
   std::unique_ptr<nodes::DynamicFilterScorer> scorer;
   std::optional<FilterAudit> audit;
   if (dynamic.filter) {
@@ -181,11 +188,14 @@ nlohmann::json DriverOptionsJson(const RunConfig& config, const DriverOptions& o
           {"rate", p.rate},
           {"waiting_capacity", p.waiting_capacity},
           {"mask_deadline_ms", p.mask_deadline_ms},
+          {"inference_every", p.inference_every},
+          {"propagate_masks", p.carry.propagate ? "on" : "off"},
           {"adaptive", p.adaptive ? "on" : "off"},
           {"segmenter", d.segmenter},
           {"filter", d.filter ? "on" : "off"},
           {"model", d.model_path},
           {"model_high", options.model_high},
+          {"model_low", options.model_low},
           {"inference", d.inference},
           {"flow", d.flow},
           {"delay_ms", p.tracking_delay_ms},

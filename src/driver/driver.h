@@ -28,6 +28,7 @@ struct DriverOptions {
   // Policy, threads, adaptive quality, ... (its on_frame is the driver's; use on_frame below).
   graph::PipelineOptions pipeline;
   std::string model_high;  // adaptive quality: the accurate segmenter's model (optional)
+  std::string model_low;   // adaptive quality: the light segmenter's model (optional)
   // Called after each completed frame, in frame order (progress).
   std::function<void(size_t done, size_t total, const graph::FrameRecord& record)> on_frame;
 };

@@ -65,13 +65,16 @@ void MaskBoard::OnFeaturesReady(const nodes::FrameTicket& ticket, int64_t now_ns
     auto it = entries_.try_emplace(ticket.seq).first;
     it->second.ticket = ticket;
     it->second.features_ready = true;
-    if (!it->second.emitted && deadline_ms_ >= 0) {
-      if (deadline_ms_ == 0) {
+    const double wait_ms = deadline_ms_ >= 0 && ticket.settings.mask_wait_ms >= 0
+                               ? ticket.settings.mask_wait_ms
+                               : deadline_ms_;
+    if (!it->second.emitted && wait_ms >= 0) {
+      if (wait_ms == 0) {
         out = WithFallback(*nodes::SegmentNode::NotRun(ticket, nodes::SegmentationOutcome::kLate));
         it->second.emitted = true;
         ++late_;
       } else {
-        it->second.deadline_ns = now_ns + std::llround(deadline_ms_ * 1e6);
+        it->second.deadline_ns = now_ns + std::llround(wait_ms * 1e6);
         new_deadline = true;
       }
     }

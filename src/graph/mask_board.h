@@ -21,7 +21,8 @@ namespace pcr::graph {
 class MaskBoard {
  public:
   using Emit = std::function<void(const nodes::SegmentationPtr&)>;
-  // deadline_ms < 0: no deadline (always wait for the frame's own result). wake is called when a
+  // deadline_ms < 0: no deadline (always wait for the frame's own result); else a frame whose
+  // quality settings have mask_wait_ms >= 0 waits that long instead. wake is called when a
   // new deadline is registered, so the clock can recompute its sleep.
   MaskBoard(double deadline_ms, Emit emit, std::function<void()> wake);
 

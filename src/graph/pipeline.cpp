@@ -210,7 +210,7 @@ class DeviceWaitScope {
   DeviceWaitScope(const nodes::SegmenterSet& segmenters, const DeviceWait& inference_wait,
                   nodes::FrameScorer* scorer, const DeviceWait& flow_wait)
       : scorer_(scorer) {
-    for (Segmenter* s : {segmenters.accurate, segmenters.fast}) {
+    for (Segmenter* s : {segmenters.accurate, segmenters.fast, segmenters.light}) {
       if (!s || std::find(installed_.begin(), installed_.end(), s) != installed_.end()) continue;
       s->SetDeviceWait(inference_wait);
       installed_.push_back(s);
@@ -314,7 +314,7 @@ class GraphRun {
     nodes::QualitySettings s = o.levels.medium;
     s.orb_features = slam.orb.num_features;
     s.segmenter = nodes::SegmenterSlot::kFast;
-    s.inference_every = 1;
+    s.inference_every = o.inference_every;
     s.optical_flow = true;
     s.min_keyframe_interval_s = 0;
     s.ba_max_iterations = slam.mapping.bundle_adjustment.max_iterations;
@@ -1018,7 +1018,10 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
   spdlog::debug("pipeline: {} on {} ({} frames), {} threads, {} in flight",
                 ToString(options.policy), source.name, source.size(), options.threads,
                 max_in_flight);
-  GraphRun run(source, &slam, options, max_in_flight, segmenters, scorer, extra);
+  // With a light network the low level can afford inference on every frame.
+  PipelineOptions run_options = options;
+  if (segmenters.light) run_options.levels.low.inference_every = 1;
+  GraphRun run(source, &slam, run_options, max_in_flight, segmenters, scorer, extra);
   // Pipelined and realtime: work on a device (inference, the filter's LK flow) overlaps the CPU
   // stages on every thread. The sequential reference keeps its stages one after another
   // (T = T_slam + T_inference).

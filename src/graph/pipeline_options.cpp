@@ -35,6 +35,8 @@ bool PipelineOptions::IsValid(std::string* why) const {
   if (max_in_flight < 1 || max_in_flight > 1024) return fail("max_in_flight must be in [1, 1024]");
   if (!(std::isfinite(rate) && rate >= 0)) return fail("rate must be finite and >= 0");
   if (waiting_capacity < 1) return fail("waiting_capacity must be >= 1");
+  if (inference_every < 1 || inference_every > 1000)
+    return fail("inference_every must be in [1, 1000]");
   if (!(std::isfinite(mask_deadline_ms) && mask_deadline_ms >= 0))
     return fail("mask_deadline_ms must be finite and >= 0");
   if (trim_heap_every < 0) return fail("trim_heap_every must be >= 0");

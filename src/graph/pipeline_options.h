@@ -67,6 +67,11 @@ struct PipelineOptions {
   // Adaptive quality control (Eq. 9). Off: every frame uses the run configuration (ORB count of
   // the SLAM options, the fast segmenter slot on every frame).
   bool adaptive = false;
+  // Without adaptive quality: segment every n-th frame (the others carry the newest mask along,
+  // see carry); with it, the levels say.
+  int inference_every = 1;
+  // levels.low.inference_every holds when the run has no light network (SegmenterSet::light);
+  // with one, the low level runs it on every frame.
   nodes::QualityLevels levels;
   nodes::QualityControllerOptions controller;
   nodes::MaskCarryOptions carry;

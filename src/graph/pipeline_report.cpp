@@ -97,12 +97,9 @@ nlohmann::json StatsToJson(const PipelineStats& s) {
                  {"admitted", s.frames_admitted},
                  {"completed", s.frames_completed},
                  {"dropped", s.frames_dropped}};
-  j["masks"] = {{"fresh", s.masks_fresh},
-                {"propagated", s.masks_propagated},
-                {"stale", s.masks_stale},
-                {"skipped", s.masks_skipped},
-                {"late", s.masks_late},
-                {"inference_busy", s.inferences_busy},
+  j["masks"] = {{"fresh", s.masks_fresh},        {"propagated", s.masks_propagated},
+                {"stale", s.masks_stale},        {"skipped", s.masks_skipped},
+                {"late", s.masks_late},          {"inference_busy", s.inferences_busy},
                 {"late_results", s.late_results}};
   j["wall_s"] = s.wall_s;
   j["fps"] = s.fps;

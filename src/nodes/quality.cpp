@@ -37,6 +37,7 @@ bool QualitySettings::IsValid(std::string* why) const {
     return Fail(why, "ba_max_iterations must be in [1, 1000]");
   if (!(min_keyframe_interval_s >= 0 && min_keyframe_interval_s <= 60))
     return Fail(why, "min_keyframe_interval_s must be in [0, 60]");
+  if (!(mask_wait_ms <= 10000)) return Fail(why, "mask_wait_ms must be <= 10000 (< 0: default)");
   return true;
 }
 

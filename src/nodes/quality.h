@@ -19,7 +19,10 @@ bool ParseQualityLevel(const std::string& text, QualityLevel* level);
 
 // Which network the segmentation branch runs (the pipeline holds one segmenter per slot; a slot
 // without a segmenter falls back to the other).
-enum class SegmenterSlot { kAccurate = 0, kFast = 1 };
+// kLight: a cheaper export (a smaller input, e.g. 160x512 made by tools/yolo_resize.py) that the
+// low level can afford on every frame; without one the low level uses the fast network on every
+// inference_every-th frame.
+enum class SegmenterSlot { kAccurate = 0, kFast = 1, kLight = 2 };
 
 struct QualitySettings {
   int orb_features = 2000;  // keypoints per image
@@ -34,17 +37,22 @@ struct QualitySettings {
   // Frames without a fresh mask carry the newest one along by its objects' motion (else they
   // use it where it was, as a stale mask).
   bool propagate_masks = true;
+  // Realtime: how long tracking waits, once the frame's features are ready, for the frame's own
+  // mask (< 0: PipelineOptions::mask_deadline_ms).
+  double mask_wait_ms = -1;
   bool IsValid(std::string* why) const;
   bool operator==(const QualitySettings&) const = default;
 };
 
 // The three levels, defaults as in the issue: High = YOLO 384x1280 every frame, 2000 features,
-// LK flow on; Medium = YOLO 224x640; Low = inference every second frame, 1200 features, no LK
-// flow, fewer BA iterations, at most 5 keyframes a second.
+// LK flow on; Medium = YOLO 224x640; Low = the light network (when there is one; on every frame,
+// see PipelineOptions::levels) or the fast one on every second frame, 1200 features, no LK flow,
+// fewer BA iterations, at most 5 keyframes a second. Frames without a fresh mask carry the newest
+// one along by its objects' motion at every level.
 struct QualityLevels {
   QualitySettings high{2000, SegmenterSlot::kAccurate, 1, true, 10};
   QualitySettings medium{2000, SegmenterSlot::kFast, 1, true, 10};
-  QualitySettings low{1200, SegmenterSlot::kFast, 2, false, 5, 0.2};
+  QualitySettings low{1200, SegmenterSlot::kLight, 2, false, 5, 0.2};
   const QualitySettings& At(QualityLevel level) const;
   bool IsValid(std::string* why) const;
 };

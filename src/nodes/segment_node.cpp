@@ -38,8 +38,15 @@ const char* ToString(MaskStatus status) {
 }
 
 Segmenter* SegmenterSet::For(SegmenterSlot slot) const {
-  Segmenter* wanted = slot == SegmenterSlot::kAccurate ? accurate : fast;
-  return wanted ? wanted : (accurate ? accurate : fast);
+  switch (slot) {
+    case SegmenterSlot::kAccurate:
+      return accurate ? accurate : (fast ? fast : light);
+    case SegmenterSlot::kFast:
+      return fast ? fast : (light ? light : accurate);
+    case SegmenterSlot::kLight:
+      break;
+  }
+  return light ? light : (fast ? fast : accurate);
 }
 
 bool SegmentNode::WillRun(const FrameTicket& ticket) const {

@@ -15,7 +15,9 @@ namespace pcr::nodes {
 struct SegmenterSet {
   Segmenter* accurate = nullptr;  // e.g. YOLOv8n-seg 384x1280
   Segmenter* fast = nullptr;      // e.g. YOLOv8n-seg 224x640
-  bool empty() const { return !accurate && !fast; }
+  Segmenter* light = nullptr;     // e.g. YOLOv8n-seg 160x512 (tools/yolo_resize.py)
+  bool empty() const { return !accurate && !fast && !light; }
+  // The slot's network, else the next cheaper one, else the next dearer one.
   Segmenter* For(SegmenterSlot slot) const;
 };
 

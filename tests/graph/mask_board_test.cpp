@@ -81,6 +81,25 @@ TEST(MaskBoardTest, DeadlineEmitsLateWithTheNewestEarlierResult) {
   EXPECT_EQ(board.late_results(), 1u);
 }
 
+TEST(MaskBoardTest, AFramesQualitySettingsCanWaitLongerForItsMask) {
+  Recorder r;
+  MaskBoard board = r.Board(10);
+  nodes::FrameTicket patient = Ticket(0);
+  patient.settings.mask_wait_ms = 120;
+  board.OnFeaturesReady(patient, 0);
+  EXPECT_EQ(board.NextDeadlineNs(), 120'000'000);
+  board.ExpireDue(100'000'000);
+  EXPECT_TRUE(r.emitted.empty());
+  board.OnSegmentation(Fresh(0));  // in time for the longer wait
+  ASSERT_EQ(r.emitted.size(), 1u);
+  EXPECT_EQ(r.emitted[0]->outcome, SegmentationOutcome::kFresh);
+  // Without a deadline (not realtime) the frame's setting changes nothing: it always waits.
+  Recorder r2;
+  MaskBoard no_deadline = r2.Board(-1);
+  no_deadline.OnFeaturesReady(patient, 0);
+  EXPECT_FALSE(no_deadline.NextDeadlineNs().has_value());
+}
+
 TEST(MaskBoardTest, ZeroDeadlineAndNotRunResultsCarryTheFallbackAtOnce) {
   Recorder r;
   MaskBoard board = r.Board(0);

@@ -490,6 +490,43 @@ TEST(PipelineTest, LowQualityRunsInferenceEverySecondFrameWithFewerFeatures) {
   }
 }
 
+TEST(PipelineTest, WithALightNetworkTheLowLevelSegmentsEveryFrameWithIt) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 5);
+  HalfImageSegmenter fast(0.25), light(0.25);
+  nodes::SegmenterSet segmenters;
+  segmenters.fast = &fast;
+  segmenters.light = &light;
+  PipelineOptions options = Options(Policy::kPipelined, 3);
+  options.adaptive = true;
+  options.controller.initial = nodes::QualityLevel::kLow;
+  options.controller.min_dwell_frames = 1000;
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options, segmenters);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(r.stats.quality_frames[0], 5u);
+  EXPECT_EQ(r.stats.masks_fresh, 5u);
+  EXPECT_EQ(light.calls(), 5);
+  EXPECT_EQ(fast.calls(), 0);
+}
+
+TEST(PipelineTest, WithoutAdaptiveQualityInferenceEveryNthFrameCarriesMasksBetween) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 6);
+  HalfImageSegmenter seg(0.25);
+  nodes::SegmenterSet segmenters;
+  segmenters.fast = &seg;
+  PipelineOptions options = Options(Policy::kSequential, 1);
+  options.inference_every = 3;
+  PipelineResult r = RunPipeline(clip, SlamOptions{}, options, segmenters);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(seg.calls(), 2);  // frames 0 and 3
+  EXPECT_EQ(r.stats.masks_fresh, 2u);
+  EXPECT_EQ(r.stats.masks_propagated, 4u);
+  options.carry.propagate = false;
+  r = RunPipeline(clip, SlamOptions{}, options, segmenters);
+  EXPECT_EQ(r.stats.masks_stale, 4u);
+  options.inference_every = 0;
+  EXPECT_THROW(RunPipeline(clip, SlamOptions{}, options, segmenters), ConfigError);
+}
+
 TEST(PipelineTest, AdaptiveControllerLowersQualityWhenFramesTakeLongerThanThePeriod) {
   const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 8);
   HalfImageSegmenter seg(0.25);

@@ -340,6 +340,28 @@ TEST(SegmentNodeTest, RunsTheSlotOfTheTicketOrSaysWhyNot) {
   images->ticket.run_inference = true;
   images->ticket.settings.segmenter = SegmenterSlot::kAccurate;  // falls back to the other slot
   EXPECT_EQ(fast_only(images)->model, "fast");
+  // The fresh segmentation keeps the image it describes (for carrying it to later frames).
+  EXPECT_EQ(fast_only(images)->segmentation->source_grey.data, images->left.data);
+}
+
+TEST(SegmentNodeTest, TheLightSlotFallsBackToTheNextCheaperNetworkFirst) {
+  NamedSegmenter accurate("accurate"), fast("fast"), light("light");
+  const auto model = [](const SegmenterSet& set, SegmenterSlot slot) {
+    Segmenter* s = set.For(slot);
+    return s ? s->Name() : std::string("none");
+  };
+  const SegmenterSet all{&accurate, &fast, &light};
+  EXPECT_EQ(model(all, SegmenterSlot::kLight), "light");
+  EXPECT_EQ(model(all, SegmenterSlot::kFast), "fast");
+  EXPECT_EQ(model(all, SegmenterSlot::kAccurate), "accurate");
+  const SegmenterSet no_light{&accurate, &fast, nullptr};
+  EXPECT_EQ(model(no_light, SegmenterSlot::kLight), "fast");
+  const SegmenterSet light_only{nullptr, nullptr, &light};
+  EXPECT_FALSE(light_only.empty());
+  EXPECT_EQ(model(light_only, SegmenterSlot::kAccurate), "light");
+  const SegmenterSet accurate_and_light{&accurate, nullptr, &light};
+  EXPECT_EQ(model(accurate_and_light, SegmenterSlot::kFast), "light");  // cheaper first
+  EXPECT_EQ(model(SegmenterSet{}, SegmenterSlot::kLight), "none");
 }
 
 }  // namespace

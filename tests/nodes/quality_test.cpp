@@ -120,7 +120,10 @@ TEST(QualityLevelsTest, DefaultsMatchTheIssue) {
   EXPECT_EQ(levels.At(L::kHigh).orb_features, 2000);
   EXPECT_TRUE(levels.At(L::kHigh).optical_flow);
   EXPECT_EQ(levels.At(L::kMedium).segmenter, SegmenterSlot::kFast);
-  EXPECT_EQ(levels.At(L::kLow).inference_every, 2);
+  EXPECT_EQ(levels.At(L::kLow).inference_every, 2);  // every frame with a light network
+  EXPECT_EQ(levels.At(L::kLow).segmenter, SegmenterSlot::kLight);
+  EXPECT_TRUE(levels.At(L::kLow).propagate_masks);
+  EXPECT_LT(levels.At(L::kLow).mask_wait_ms, 0);  // the pipeline's deadline
   EXPECT_EQ(levels.At(L::kLow).orb_features, 1200);
   EXPECT_LT(levels.At(L::kLow).ba_max_iterations, levels.At(L::kHigh).ba_max_iterations);
   EXPECT_FALSE(levels.At(L::kLow).optical_flow);
