@@ -2,7 +2,12 @@
 // model: forward time per OpenCV thread count, and what the masks lose.
 //
 //   bench_masks [--models FILE,FILE,...] [--threads 1,2] [--frames A:B] [--sequence DIR]
-//               [--labels FILE|none] [--reference FILE] [--runs N] [--detail]
+//               [--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8]
+//
+// --int8 adds the reference quantised to int8 by OpenCV DNN itself (cv::dnn::Net::quantize,
+// OpenCV 4.6's int8 path, calibrated on the reference's blob of the sequence's first frame: it
+// takes one blob per input, and the graph's reshapes fix the batch at 1) as one more model, run
+// through the same segmenter code.
 //
 // The reference (default PCR_SHARED_DIR/models/yolov8n-seg_coco_224x640.onnx) is always the first
 // model; --models adds more. Four markdown tables:
@@ -41,6 +46,7 @@
 #include <fstream>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <opencv2/dnn.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <set>
 #include <stdexcept>
@@ -70,6 +76,36 @@ struct Args {
   std::string image = SharedDir() + "/models/test_images/kitti_000008.png";
   int runs = 15;
   bool detail = false;  // per-instance matches on the test image
+  bool int8 = false;    // also the reference quantised to int8 by OpenCV DNN
+};
+
+// OpenCV DNN's own int8 network (Net::quantize) as the segmenter's engine.
+class QuantizedEngine final : public pcr::InferenceEngine {
+ public:
+  QuantizedEngine(const std::vector<uint8_t>& bytes, const std::vector<cv::Mat>& calibration,
+                  std::vector<std::vector<int>> output_shapes)
+      : output_shapes_(std::move(output_shapes)) {
+    // One blob per network input, and the graph's reshapes fix the batch at 1: one frame.
+    cv::dnn::Net net = cv::dnn::readNetFromONNX(bytes);
+    net_ = net.quantize(std::vector<cv::Mat>{calibration.front()}, CV_32F, CV_32F);
+    net_.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
+    net_.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
+    names_ = net_.getUnconnectedOutLayersNames();
+  }
+  std::vector<std::vector<int>> OutputShapes() const override { return output_shapes_; }
+  std::vector<cv::Mat> Forward(const cv::Mat& blob) override {
+    net_.setInput(blob);
+    std::vector<cv::Mat> raw;
+    net_.forward(raw, names_);
+    for (cv::Mat& m : raw) m = m.clone();
+    return raw;
+  }
+  std::string Backend() const override { return "opencv-dnn-cpu-int8"; }
+
+ private:
+  cv::dnn::Net net_;
+  std::vector<std::string> names_;
+  std::vector<std::vector<int>> output_shapes_;
 };
 
 std::vector<std::string> SplitCommas(const std::string& text) {
@@ -87,7 +123,7 @@ std::vector<std::string> SplitCommas(const std::string& text) {
 
 constexpr const char* kUsage =
     "bench_masks [--models FILE,FILE,...] [--threads 1,2] [--frames A:B] [--sequence DIR] "
-    "[--labels FILE|none] [--reference FILE] [--runs N] [--detail]\n";
+    "[--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8]\n";
 
 Args ParseArgs(int argc, char** argv) {
   Args a;
@@ -119,6 +155,8 @@ Args ParseArgs(int argc, char** argv) {
       if (a.runs < 1 || a.runs > 1000) throw std::invalid_argument("--runs must be in 1..1000");
     } else if (arg == "--detail") {
       a.detail = true;
+    } else if (arg == "--int8") {
+      a.int8 = true;
     } else if (arg == "-h" || arg == "--help") {
       std::printf("%s", kUsage);
       std::exit(0);
@@ -393,6 +431,27 @@ int main(int argc, char** argv) {
     const pcr::Dataset dataset = pcr::OpenDataset(args.sequence);
     const pcr::driver::FrameRange range =
         pcr::driver::FrameRange::Parse(args.frames, dataset.size());
+    if (args.int8) {
+      // Calibration blobs: the reference's own preprocessing of the sequence's first frames.
+      const pcr::YoloSegmenter& reference = *models.front().segmenter;
+      std::vector<cv::Mat> calibration;
+      pcr::LetterboxInfo letterbox;
+      calibration.push_back(reference.Preprocess(
+          dataset.has_color() ? dataset.LoadLeftColor(range.first) : dataset.LoadLeft(range.first),
+          &letterbox));
+      pcr::YoloOptions options;
+      options.model_path = args.reference;
+      options.allow_cuda = false;
+      options.engine_factory = [&](const std::vector<uint8_t>& bytes, cv::Size) {
+        auto engine = pcr::MakeOpenCvDnnEngine(bytes, reference.input_size(), false);
+        return std::make_unique<QuantizedEngine>(bytes, calibration, engine->OutputShapes());
+      };
+      const auto start = std::chrono::steady_clock::now();
+      models.push_back({args.reference, Basename(args.reference) + " int8",
+                        std::make_unique<pcr::YoloSegmenter>(options)});
+      std::fprintf(stderr, "int8: quantised on %zu frames in %.0f ms\n", calibration.size(),
+                   MsSince(start));
+    }
     pcr::TrackingLabels labels;
     if (with_labels) labels = pcr::ReadTrackingLabels(args.labels);
 

@@ -741,8 +741,8 @@ int main(int argc, char** argv) {
     // core), in the pipelined run (each stage runs OpenCV on its own thread, so its wall time is
     // its CPU work, taken under the same load as the throughput it explains) and in the 1-thread
     // run (the synchronous reference: one core for everything).
-    std::printf("\n%-11s %6s %12s %12s %12s %13s\n", "stage", "calls", "seq ms/call",
-                "pipe ms/call", "1thr ms/call", "pipe ms/frame");
+    std::printf("\n%-11s %6s %12s %12s %12s %13s %13s\n", "stage", "calls", "seq ms/call",
+                "pipe ms/call", "1thr ms/call", "pipe ms/frame", "rt+ad ms/call");
     const double frames_pipe =
         static_cast<double>(std::max<size_t>(1, pipe.stats.frames_completed));
     double cpu_per_frame_ms = 0, serial_chain_ms = 0, segment_ms = 0, filter_ms = 0;
@@ -801,9 +801,10 @@ int main(int argc, char** argv) {
         serial_chain_ms += per_frame;
       if (name == pcr::graph::kStageSegment) segment_ms = per_frame;
       if (name == pcr::graph::kStageFilter) filter_ms = per_frame;
-      std::printf("%-11s %6zu %12s %12s %12s %13.1f\n", stage, has_p ? p->second.time.count : 0,
-                  mean_of(seq, stage).c_str(), mean_of(pipe, stage).c_str(),
-                  mean_of(one, stage).c_str(), per_frame);
+      std::printf("%-11s %6zu %12s %12s %12s %13.1f %13s\n", stage,
+                  has_p ? p->second.time.count : 0, mean_of(seq, stage).c_str(),
+                  mean_of(pipe, stage).c_str(), mean_of(one, stage).c_str(), per_frame,
+                  mean_of(rows[3], stage).c_str());
     }
     std::printf("%-11s %6s %12s %12s %12s %13.1f%s%s\n", "sum", "", "", "", "", cpu_per_frame_ms,
                 device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "",
