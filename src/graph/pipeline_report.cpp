@@ -168,10 +168,16 @@ std::string FormatPipelineStats(const PipelineStats& s) {
   return o.str();
 }
 
+// Place-recognition time per keyframe, for stats.json and the summary line alike.
+static TimingSummary DetectionTimes(const LoopStats& st) {
+  TimingSeries detect;
+  for (double ms : st.detect_ms) detect.Add(ms);
+  return detect.Summarize();
+}
+
 nlohmann::json LoopToJson(const PipelineResult& result) {
   const LoopStats& st = result.loop_stats;
-  TimingSeries detect, verify, correct, graph, ba;
-  for (double ms : st.detect_ms) detect.Add(ms);
+  TimingSeries verify, correct, graph, ba;
   nlohmann::json events = nlohmann::json::array();
   for (const LoopEvent& e : result.loop_events) {
     const LoopOutcome& o = e.outcome;
@@ -230,7 +236,7 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
           {"candidates_prechecked", st.candidates_prechecked},
           {"global_bas", st.global_bas},
           {"global_bas_aborted", st.global_bas_aborted},
-          {"detect_ms", TimingJson(detect.Summarize())},
+          {"detect_ms", TimingJson(DetectionTimes(st))},
           {"verify_ms", TimingJson(verify.Summarize())},
           {"correct_ms", TimingJson(correct.Summarize())},
           {"pose_graph_ms", TimingJson(graph.Summarize())},
@@ -241,9 +247,7 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
 std::string FormatLoopSummary(const PipelineResult& result) {
   const LoopStats& st = result.loop_stats;
   if (st.keyframes_seen == 0) return "";
-  TimingSeries detect;
-  for (double ms : st.detect_ms) detect.Add(ms);
-  const TimingSummary d = detect.Summarize();
+  const TimingSummary d = DetectionTimes(st);
   std::string out = fmt::format(
       "loop closing: {} loops closed, {} global BAs ({} aborted); {} keyframes in the database, "
       "{} queries, {} candidates, {} jobs rejected ({} candidates failed the geometry); "

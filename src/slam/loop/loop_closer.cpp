@@ -314,14 +314,16 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   // The cheap part of the verification here, on the owner: candidates sharing too few
   // descriptor matches with the query (most look-alike places) never cost a snapshot.
   std::vector<KeyframeId> plausible;
+  std::map<KeyframeId, std::vector<std::pair<int, int>>> word_matches;
   for (KeyframeId c : consistent) {
     const Keyframe* ck = map.keyframe(c);
     const auto fc = features_.find(c);
     if (!ck || fc == features_.end()) continue;
-    const auto pairs = MatchByWords(map, *kf, features_.at(id), *ck, fc->second,
-                                    options_.bow_max_distance, options_.bow_ratio);
+    auto pairs = MatchByWords(map, *kf, features_.at(id), *ck, fc->second,
+                              options_.bow_max_distance, options_.bow_ratio);
     if (static_cast<int>(pairs.size()) >= options_.min_bow_matches) {
       plausible.push_back(c);
+      word_matches[c] = std::move(pairs);
     } else {
       ++stats_.candidates_rejected;
       ++stats_.candidates_prechecked;
@@ -339,6 +341,7 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   job->features[id] = features_.at(id);
   for (KeyframeId c : consistent)
     if (const auto it = features_.find(c); it != features_.end()) job->features[c] = it->second;
+  job->word_matches = std::move(word_matches);  // the lane does not match them again
   job->loop_edges = loop_edges_;
   job->fix_scale = fix_scale_;
   job->options = options_;
@@ -354,14 +357,22 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
                      LoopMatch* match, std::string* why) {
   const Map& map = *job.map;
   const LoopClosingOptions& o = job.options;
-  const auto fq = job.features.find(query.id);
-  const auto fc = job.features.find(candidate.id);
-  if (fq == job.features.end() || fc == job.features.end()) {
-    *why = "no direct index";
-    return false;
+  std::vector<std::pair<int, int>> matched_here;
+  const std::vector<std::pair<int, int>>* found = nullptr;
+  if (const auto it = job.word_matches.find(candidate.id); it != job.word_matches.end()) {
+    found = &it->second;  // the owner's precheck matched them on the same map
+  } else {
+    const auto fq = job.features.find(query.id);
+    const auto fc = job.features.find(candidate.id);
+    if (fq == job.features.end() || fc == job.features.end()) {
+      *why = "no direct index";
+      return false;
+    }
+    matched_here = MatchByWords(map, query, fq->second, candidate, fc->second, o.bow_max_distance,
+                                o.bow_ratio);
+    found = &matched_here;
   }
-  const auto pairs =
-      MatchByWords(map, query, fq->second, candidate, fc->second, o.bow_max_distance, o.bow_ratio);
+  const std::vector<std::pair<int, int>>& pairs = *found;
   match->bow_matches = static_cast<int>(pairs.size());
   if (static_cast<int>(pairs.size()) < o.min_bow_matches) {
     *why = "few word matches (" + std::to_string(pairs.size()) + ")";
