@@ -758,6 +758,8 @@ void GraphRun::Complete(const FrameResultPtr& result) {
   r.quality = t.quality;
   r.inference_scheduled = t.run_inference;
   r.mask = result->mask;
+  r.mask_source_seq = result->mask_source_seq;
+  r.propagate_ms = result->propagate_ms;
   r.num_excluded = result->num_excluded;
   r.output = result->output;
   r.filter_report = result->filter_report;
@@ -880,7 +882,7 @@ PipelineResult GraphRun::Collect() {
   s.inferences_busy = inferences_busy_.load();
   s.max_in_flight_observed = max_observed_in_flight_;
   s.profile_threads = profiler_.num_threads();
-  TimingSeries latency, retire, busy;
+  TimingSeries latency, retire, busy, propagate;
   int64_t last_done = 0;
   for (const FrameRecord& f : out.frames) {
     latency.Add(f.latency_ms);
@@ -893,6 +895,7 @@ PipelineResult GraphRun::Collect() {
         break;
       case nodes::MaskStatus::kPropagated:
         ++s.masks_propagated;
+        propagate.Add(f.propagate_ms);
         break;
       case nodes::MaskStatus::kStale:
         ++s.masks_stale;
@@ -904,6 +907,7 @@ PipelineResult GraphRun::Collect() {
     ++s.quality_frames[static_cast<size_t>(f.quality)];
   }
   s.latency = latency.Summarize();
+  s.propagate = propagate.Summarize();
   s.retire = retire.Summarize();
   s.busy = busy.Summarize();
   s.wall_s = static_cast<double>(last_done) * 1e-9;

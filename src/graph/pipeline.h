@@ -58,6 +58,8 @@ struct FrameRecord {
   bool inference_scheduled = false;
   nodes::SegmentationOutcome segmentation = nodes::SegmentationOutcome::kNoSegmenter;
   nodes::MaskStatus mask = nodes::MaskStatus::kSkipped;
+  int64_t mask_source_seq = -1;  // the frame (seq) the mask was computed on; -1: none
+  double propagate_ms = 0;       // propagated masks: time spent moving the mask onto the frame
   int num_excluded = 0;
   FrameOutput output;
   // The dynamic filter's decisions (null without the dynamic filter, and after on_frame unless
@@ -90,10 +92,11 @@ struct PipelineStats {
   size_t inferences_busy = 0;  // realtime: frame not segmented, network busy
   size_t late_results = 0;     // inference finished after its frame went on
   size_t max_in_flight_observed = 0;
-  double wall_s = 0;      // start to the last retirement
-  double fps = 0;         // completed frames / wall_s
-  TimingSummary latency;  // to the pose
-  TimingSummary retire;   // to the frame's retirement (local mapping included)
+  double wall_s = 0;        // start to the last retirement
+  double fps = 0;           // completed frames / wall_s
+  TimingSummary propagate;  // moving a mask onto a frame (the propagated frames)
+  TimingSummary latency;    // to the pose
+  TimingSummary retire;     // to the frame's retirement (local mapping included)
   TimingSummary busy;  // per frame max(T_slam, T_inference) + T_sync (Eq. 8), the controller input
   std::map<std::string, StageStats> stages;
   std::array<size_t, nodes::kNumQualityLevels> quality_frames{};  // indexed by QualityLevel

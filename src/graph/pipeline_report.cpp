@@ -97,10 +97,10 @@ nlohmann::json StatsToJson(const PipelineStats& s) {
                  {"admitted", s.frames_admitted},
                  {"completed", s.frames_completed},
                  {"dropped", s.frames_dropped}};
-  j["masks"] = {{"fresh", s.masks_fresh},        {"propagated", s.masks_propagated},
-                {"stale", s.masks_stale},        {"skipped", s.masks_skipped},
-                {"late", s.masks_late},          {"inference_busy", s.inferences_busy},
-                {"late_results", s.late_results}};
+  j["masks"] = {{"fresh", s.masks_fresh},         {"propagated", s.masks_propagated},
+                {"stale", s.masks_stale},         {"skipped", s.masks_skipped},
+                {"late", s.masks_late},           {"inference_busy", s.inferences_busy},
+                {"late_results", s.late_results}, {"propagate_ms", TimingJson(s.propagate)}};
   j["wall_s"] = s.wall_s;
   j["fps"] = s.fps;
   j["latency_ms"] = TimingJson(s.latency);
@@ -141,9 +141,13 @@ std::string FormatPipelineStats(const PipelineStats& s) {
       "p95 {:.1f} p99 {:.1f} ms (to retirement, mapping included: p99 {:.1f} ms)\n",
       s.frames_completed, s.frames_total, s.frames_dropped, s.wall_s, s.fps, s.latency.p50_ms,
       s.latency.p95_ms, s.latency.p99_ms, s.retire.p99_ms);
-  o << fmt::format("masks: {} fresh, {} propagated, {} stale, {} skipped ({} late, {} busy)\n",
+  o << fmt::format("masks: {} fresh, {} propagated, {} stale, {} skipped ({} late, {} busy)",
                    s.masks_fresh, s.masks_propagated, s.masks_stale, s.masks_skipped, s.masks_late,
                    s.inferences_busy);
+  if (s.masks_propagated > 0)
+    o << fmt::format("; propagation p50 {:.1f} p99 {:.1f} ms", s.propagate.p50_ms,
+                     s.propagate.p99_ms);
+  o << "\n";
   if (s.resident_bytes >= 0) {
     o << fmt::format("memory: {:.1f} MiB resident at the end, peak {:.1f} MiB ({})\n",
                      MiB(s.resident_bytes), MiB(s.peak_resident_bytes), s.allocator);
@@ -316,6 +320,8 @@ void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
           {{"seq", f.seq},
            {"quality", nodes::ToString(f.quality)},
            {"mask", nodes::ToString(f.mask)},
+           {"mask_from_seq", f.mask_source_seq},
+           {"propagate_ms", f.propagate_ms},
            {"segmentation", nodes::ToString(f.segmentation)},
            {"excluded", f.num_excluded},
            {"tracked", f.output.num_tracked},

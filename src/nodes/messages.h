@@ -130,6 +130,8 @@ struct FrameResultMsg {
   FrameTicket ticket;
   SegmentationOutcome segmentation = SegmentationOutcome::kNoSegmenter;
   MaskStatus mask = MaskStatus::kSkipped;
+  int64_t mask_source_seq = -1;  // the frame the mask was computed on (-1: none)
+  double propagate_ms = 0;       // kPropagated: time spent moving it onto this frame
   int num_excluded = 0;
   double filter_ms = 0;
   FilterReportPtr filter_report;  // the filter's decisions (null without the dynamic filter)

@@ -39,6 +39,8 @@ FrameResultPtr MappingNode::operator()(const TrackedPtr& tracked) {
   msg->ticket = tracked->ticket;
   msg->segmentation = tracked->filtered->segmentation;
   msg->mask = tracked->filtered->mask.status;
+  msg->mask_source_seq = tracked->filtered->mask.source_seq;
+  msg->propagate_ms = tracked->filtered->mask.propagate_ms;
   msg->num_excluded = tracked->filtered->num_excluded;
   msg->filter_ms = tracked->filtered->filter_ms;
   msg->filter_report = tracked->filtered->report;

@@ -122,86 +122,112 @@ Segmentation PropagateSegmentation(const Segmentation& seg, const cv::Mat& prev_
 
   const int n = static_cast<int>(seg.instances.size());
   const cv::Rect image_rect(cv::Point(), size);
-  // Corners per instance: its own (inside its mask) and its ring's (outside every instance).
-  std::vector<cv::Point2f> points;
-  std::vector<int> own_begin(n + 1), ring_begin(n + 1);
   std::vector<cv::Rect> pixels(n);
-  for (int k = 0; k < n; ++k) {
-    pixels[k] = PixelsInBox(seg.instances[k].box_px, size);
-    own_begin[k] = static_cast<int>(points.size());
-    if (!pixels[k].empty()) {
-      // Inside the mask, away from its outline: corners on the outline are half background.
-      cv::Mat mine = instance_map(pixels[k]) == (k + 1);
-      cv::erode(mine, mine, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(7, 7)),
-                cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
-      CornersIn(prev_grey, mine, pixels[k], options.max_points_per_instance, &points);
-    }
-    ring_begin[k] = static_cast<int>(points.size());
-    if (!pixels[k].empty()) {
-      const int gx = static_cast<int>(std::lround(pixels[k].width * options.ring_fraction));
-      const int gy = static_cast<int>(std::lround(pixels[k].height * options.ring_fraction));
-      const cv::Rect ring = (pixels[k] + cv::Size(2 * gx, 2 * gy) - cv::Point(gx, gy)) & image_rect;
-      const cv::Mat free_pixels = instance_map(ring) == 0;
-      CornersIn(prev_grey, free_pixels, ring, options.max_points_per_instance, &points);
-    }
-  }
-  own_begin[n] = ring_begin[n] = static_cast<int>(points.size());
+  for (int k = 0; k < n; ++k) pixels[k] = PixelsInBox(seg.instances[k].box_px, size);
 
-  std::vector<uint8_t> good(points.size(), 0);
-  std::vector<cv::Point2f> moved;
-  if (!points.empty()) {
-    const cv::Size window(options.lk_window_px, options.lk_window_px);
+  // LK on both pyramids, built once (with their derivatives) for every pass: points tracked
+  // forward and back, kept (good) when they come back within max_fb_error_px.
+  const cv::Size window(options.lk_window_px, options.lk_window_px);
+  std::vector<cv::Mat> prev_pyramid, pyramid;
+  int levels = -1;
+  const auto track = [&](const std::vector<cv::Point2f>& points, std::vector<cv::Point2f>* moved,
+                         std::vector<uint8_t>* good) {
+    good->assign(points.size(), 0);
+    if (points.empty()) return;
+    if (levels < 0) {
+      levels = cv::buildOpticalFlowPyramid(prev_grey, prev_pyramid, window, options.lk_levels);
+      cv::buildOpticalFlowPyramid(grey, pyramid, window, options.lk_levels);
+    }
     const cv::TermCriteria stop(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01);
     std::vector<uint8_t> status_fw, status_bw;
     std::vector<float> err;
     std::vector<cv::Point2f> back;
-    cv::calcOpticalFlowPyrLK(prev_grey, grey, points, moved, status_fw, err, window,
-                             options.lk_levels, stop);
-    cv::calcOpticalFlowPyrLK(grey, prev_grey, moved, back, status_bw, err, window,
-                             options.lk_levels, stop);
+    cv::calcOpticalFlowPyrLK(prev_pyramid, pyramid, points, *moved, status_fw, err, window, levels,
+                             stop);
+    cv::calcOpticalFlowPyrLK(pyramid, prev_pyramid, *moved, back, status_bw, err, window, levels,
+                             stop);
     for (size_t i = 0; i < points.size(); ++i) {
-      good[i] = status_fw[i] && status_bw[i] &&
-                cv::norm(back[i] - points[i]) <= options.max_fb_error_px &&
-                image_rect.contains(cv::Point(cvRound(moved[i].x), cvRound(moved[i].y)));
+      (*good)[i] = status_fw[i] && status_bw[i] &&
+                   cv::norm(back[i] - points[i]) <= options.max_fb_error_px &&
+                   image_rect.contains(cv::Point(cvRound((*moved)[i].x), cvRound((*moved)[i].y)));
     }
-  }
+  };
+  // The good tracks of points[begin[k], begin[k + 1]).
+  const auto tracks_of = [](int k, const std::vector<int>& begin,
+                            const std::vector<cv::Point2f>& points,
+                            const std::vector<cv::Point2f>& moved, const std::vector<uint8_t>& good,
+                            std::vector<cv::Point2f>* from, std::vector<cv::Point2f>* to) {
+    for (int i = begin[k]; i < begin[k + 1]; ++i) {
+      if (!good[i]) continue;
+      from->push_back(points[i]);
+      to->push_back(moved[i]);
+    }
+  };
 
   PropagationReport local;
   PropagationReport& rep = report ? *report : local;
   rep = PropagationReport{};
   rep.moves.resize(n);
+
+  // 1. Each instance's own corners: inside its mask, away from its outline (corners on the
+  // outline are half background).
+  std::vector<cv::Point2f> points, moved;
+  std::vector<uint8_t> good;
+  std::vector<int> begin(n + 1);
   for (int k = 0; k < n; ++k) {
-    std::vector<cv::Point2f> from, to, ring_from, ring_to;
-    for (int i = own_begin[k]; i < ring_begin[k]; ++i) {
-      if (good[i]) {
-        from.push_back(points[i]);
-        to.push_back(moved[i]);
-      }
-    }
-    for (int i = ring_begin[k]; i < own_begin[k + 1]; ++i) {
-      if (good[i]) {
-        ring_from.push_back(points[i]);
-        ring_to.push_back(moved[i]);
-      }
-    }
-    InstanceMove& m = rep.moves[k];
+    begin[k] = static_cast<int>(points.size());
+    if (pixels[k].empty()) continue;
+    cv::Mat mine = instance_map(pixels[k]) == (k + 1);
+    cv::erode(mine, mine, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(7, 7)),
+              cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+    CornersIn(prev_grey, mine, pixels[k], options.max_points_per_instance, &points);
+  }
+  begin[n] = static_cast<int>(points.size());
+  track(points, &moved, &good);
+  std::vector<int> without;  // instances with too few tracks of their own
+  for (int k = 0; k < n; ++k) {
+    std::vector<cv::Point2f> from, to;
+    tracks_of(k, begin, points, moved, good, &from, &to);
     if (static_cast<int>(from.size()) >= options.min_points) {
-      m = Fit(from, to, true, options);
-      m.source = InstanceMoveSource::kOwnTracks;
+      rep.moves[k] = Fit(from, to, true, options);
+      rep.moves[k].source = InstanceMoveSource::kOwnTracks;
       ++rep.own;
-    } else if (static_cast<int>(ring_from.size()) >= options.min_points) {
-      // The surroundings' translation, applied about the instance's own centre.
-      const InstanceMove ring = Fit(ring_from, ring_to, false, options);
-      const cv::Point2f centre(pixels[k].x + 0.5f * pixels[k].width,
-                               pixels[k].y + 0.5f * pixels[k].height);
-      m.centre_from = centre;
+    } else {
+      without.push_back(k);
+    }
+  }
+
+  // 2. The others move as their surroundings do: corners in a ring around the box, outside every
+  // instance; their translation is applied about the instance's own centre.
+  points.clear();
+  std::vector<int> ring_begin(without.size() + 1);
+  for (size_t w = 0; w < without.size(); ++w) {
+    const int k = without[w];
+    ring_begin[w] = static_cast<int>(points.size());
+    if (pixels[k].empty()) continue;
+    const int gx = static_cast<int>(std::lround(pixels[k].width * options.ring_fraction));
+    const int gy = static_cast<int>(std::lround(pixels[k].height * options.ring_fraction));
+    const cv::Rect ring = (pixels[k] + cv::Size(2 * gx, 2 * gy) - cv::Point(gx, gy)) & image_rect;
+    const cv::Mat free_pixels = instance_map(ring) == 0;
+    CornersIn(prev_grey, free_pixels, ring, options.max_points_per_instance, &points);
+  }
+  ring_begin[without.size()] = static_cast<int>(points.size());
+  track(points, &moved, &good);
+  for (size_t w = 0; w < without.size(); ++w) {
+    const int k = without[w];
+    std::vector<cv::Point2f> from, to;
+    tracks_of(static_cast<int>(w), ring_begin, points, moved, good, &from, &to);
+    InstanceMove& m = rep.moves[k];
+    const cv::Point2f centre(pixels[k].x + 0.5f * pixels[k].width,
+                             pixels[k].y + 0.5f * pixels[k].height);
+    m.centre_from = m.centre_to = centre;
+    if (static_cast<int>(from.size()) >= options.min_points) {
+      const InstanceMove ring = Fit(from, to, false, options);
       m.centre_to = centre + (ring.centre_to - ring.centre_from);
       m.tracks = ring.tracks;
       m.source = InstanceMoveSource::kSurroundings;
       ++rep.surroundings;
     } else {
-      const cv::Point2f centre(pixels[k].x, pixels[k].y);
-      m.centre_from = m.centre_to = centre;
       ++rep.unmoved;
     }
   }
