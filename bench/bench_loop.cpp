@@ -110,13 +110,6 @@ std::string CommandLine(const std::string& command) {
   return line;
 }
 
-std::string LoadAverage() {
-  std::ifstream in("/proc/loadavg");
-  double one = 0, five = 0, fifteen = 0;
-  in >> one >> five >> fifteen;
-  return in ? fmt::format("{:.2f} {:.2f} {:.2f}", one, five, fifteen) : "?";
-}
-
 // The file LoadLoopVocabulary(path) reads.
 std::string VocabularyPath(const std::string& path) {
   if (!path.empty()) return path;
@@ -618,7 +611,7 @@ int main(int argc, char** argv) {
         pcr::driver::LoadLoopVocabulary(a.vocabulary);
     std::printf("bench_loop: commit %s, vocabulary %s (%zu words), load average %s\n",
                 commit.empty() ? "?" : commit.c_str(), VocabularyPath(a.vocabulary).c_str(),
-                vocabulary ? vocabulary->num_words() : 0, LoadAverage().c_str());
+                vocabulary ? vocabulary->num_words() : 0, pcr::bench::LoadAverage().c_str());
     std::fflush(stdout);
     if (!vocabulary) {
       std::fprintf(stderr, "no vocabulary: give --vocabulary FILE\n");

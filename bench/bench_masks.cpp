@@ -57,6 +57,7 @@
 #include "driver/run_slam.h"
 #include "io/dataset.h"
 #include "io/kitti_tracking.h"
+#include "slam/common/timing.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
 namespace {
@@ -108,19 +109,6 @@ class QuantizedEngine final : public pcr::InferenceEngine {
   std::vector<std::vector<int>> output_shapes_;
 };
 
-std::vector<std::string> SplitCommas(const std::string& text) {
-  std::vector<std::string> items;
-  size_t start = 0;
-  while (start <= text.size()) {
-    const size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? comma : comma - start);
-    if (!item.empty()) items.push_back(item);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  return items;
-}
-
 constexpr const char* kUsage =
     "bench_masks [--models FILE,FILE,...] [--threads 1,2] [--frames A:B] [--sequence DIR] "
     "[--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8]\n";
@@ -134,7 +122,7 @@ Args ParseArgs(int argc, char** argv) {
       return argv[++i];
     };
     if (arg == "--models") {
-      a.models = SplitCommas(value());
+      a.models = pcr::bench::SplitList(value());
     } else if (arg == "--reference") {
       a.reference = value();
     } else if (arg == "--threads") {
@@ -392,17 +380,6 @@ struct Model {
   }
 };
 
-// The 1-minute load average (another process on the cores skews the times), "?" when unknown.
-std::string LoadAverage() {
-  std::ifstream in("/proc/loadavg");
-  std::string first;
-  return in >> first ? first : std::string("?");
-}
-
-double MsSince(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -450,7 +427,7 @@ int main(int argc, char** argv) {
       models.push_back({args.reference, Basename(args.reference) + " int8",
                         std::make_unique<pcr::YoloSegmenter>(options)});
       std::fprintf(stderr, "int8: quantised on %zu frames in %.0f ms\n", calibration.size(),
-                   MsSince(start));
+                   pcr::MsSince(start));
     }
     pcr::TrackingLabels labels;
     if (with_labels) labels = pcr::ReadTrackingLabels(args.labels);
@@ -460,7 +437,8 @@ int main(int argc, char** argv) {
         "%zu:%zu; labels %s; load average at start %s\n\n",
         models.front().name.c_str(), models.size(), Basename(args.image).c_str(),
         dataset.name.c_str(), dataset.has_color() ? "image_02 colour" : "image_00 grey",
-        range.first, range.end, with_labels ? args.labels.c_str() : "none", LoadAverage().c_str());
+        range.first, range.end, with_labels ? args.labels.c_str() : "none",
+        pcr::bench::LoadAverage().c_str());
 
     // 1. Speed: net.forward() on the test image's blob, models in turn pass by pass.
     std::vector<cv::Mat> blobs;
@@ -481,7 +459,7 @@ int main(int argc, char** argv) {
         for (size_t k = 0; k < models.size(); ++k) {
           const auto t = std::chrono::steady_clock::now();
           models[k].segmenter->Forward(blobs[k]);
-          times[ti][k].push_back(MsSince(t));
+          times[ti][k].push_back(pcr::MsSince(t));
         }
       }
     }
@@ -550,7 +528,7 @@ int main(int argc, char** argv) {
       for (size_t k = 0; k < models.size(); ++k) {
         const auto t = std::chrono::steady_clock::now();
         pcr::Segmentation seg = models[k].segmenter->Segment(frame);
-        stats[k].segment_ms.push_back(MsSince(t));
+        stats[k].segment_ms.push_back(pcr::MsSince(t));
         if (k == 0) ref = seg;
         stats[k].Add(ref, seg, policy);
         recall[k].Add(objects, seg.instances);

@@ -80,6 +80,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "bench_args.h"
 #include "driver/driver.h"
 #include "driver/filter_audit.h"
 #include "driver/inference.h"
@@ -364,15 +365,6 @@ double AteRmse(const pcr::Dataset& dataset, const pcr::Trajectory& tracked) {
   }
 }
 
-// The first line of /proc/loadavg (1, 5 and 15 minute load averages, ...): the benchmark's
-// figures only mean something when nothing else loads the machine.
-std::string LoadAverage() {
-  std::ifstream in("/proc/loadavg");
-  std::string line;
-  std::getline(in, line);
-  return line.empty() ? "?" : line;
-}
-
 // Busy CPU seconds of the whole machine so far, all CPUs (the first line of /proc/stat: user,
 // nice, system, irq, softirq and steal time); -1 where /proc/stat cannot be read. Less this
 // process's own CPU time, what other processes (and the hypervisor) took while a row ran.
@@ -535,7 +527,7 @@ int main(int argc, char** argv) {
         dataset.name.c_str(), range.first, range.end - 1, source.size(), args.threads,
         args.max_in_flight, segmenter_name.c_str(), args.filter ? "on (multi-stage)" : "off",
         flow_name.c_str(), args.rate, pcr::graph::AllocatorName().c_str());
-    std::printf("load average before: %s\n", LoadAverage().c_str());
+    std::printf("load average before: %s\n", pcr::bench::LoadAverage().c_str());
 
     // The filter's confusion against the tracking labels (drive 0005's by default).
     if (args.labels.empty() &&
@@ -646,7 +638,7 @@ int main(int argc, char** argv) {
           args.repeat, ratios[ratios.size() / 2], ratios.front(), ratios.back());
     }
 
-    const std::string load_after = LoadAverage();
+    const std::string load_after = pcr::bench::LoadAverage();
     std::printf("load average after: %s\n", load_after.c_str());
     // The 1-minute load includes this benchmark (about `threads`); more means other processes
     // took cores from it.

@@ -338,9 +338,6 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   job->query = id;
   job->candidates = consistent;
   job->map = std::make_shared<const Map>(map);
-  job->features[id] = features_.at(id);
-  for (KeyframeId c : consistent)
-    if (const auto it = features_.find(c); it != features_.end()) job->features[c] = it->second;
   job->word_matches = std::move(word_matches);  // the lane does not match them again
   job->loop_edges = loop_edges_;
   job->fix_scale = fix_scale_;
@@ -357,22 +354,12 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
                      LoopMatch* match, std::string* why) {
   const Map& map = *job.map;
   const LoopClosingOptions& o = job.options;
-  std::vector<std::pair<int, int>> matched_here;
-  const std::vector<std::pair<int, int>>* found = nullptr;
-  if (const auto it = job.word_matches.find(candidate.id); it != job.word_matches.end()) {
-    found = &it->second;  // the owner's precheck matched them on the same map
-  } else {
-    const auto fq = job.features.find(query.id);
-    const auto fc = job.features.find(candidate.id);
-    if (fq == job.features.end() || fc == job.features.end()) {
-      *why = "no direct index";
-      return false;
-    }
-    matched_here = MatchByWords(map, query, fq->second, candidate, fc->second, o.bow_max_distance,
-                                o.bow_ratio);
-    found = &matched_here;
+  const auto found = job.word_matches.find(candidate.id);
+  if (found == job.word_matches.end()) {
+    *why = "no word matches";
+    return false;
   }
-  const std::vector<std::pair<int, int>>& pairs = *found;
+  const std::vector<std::pair<int, int>>& pairs = found->second;
   match->bow_matches = static_cast<int>(pairs.size());
   if (static_cast<int>(pairs.size()) < o.min_bow_matches) {
     *why = "few word matches (" + std::to_string(pairs.size()) + ")";

@@ -77,11 +77,10 @@ struct LoopMatch {
 struct LoopJob {
   int64_t id = 0;  // 0, 1, 2, ... per LoopCloser
   KeyframeId query;
-  std::vector<KeyframeId> candidates;            // best first
-  std::shared_ptr<const Map> map;                // the map when the job was made (owned copy)
-  std::map<KeyframeId, FeatureVector> features;  // direct index of the query and candidates
-  // Query <-> candidate keypoint pairs by words, as the owner's precheck found them (a
-  // candidate missing here is matched again on the lane).
+  std::vector<KeyframeId> candidates;  // best first
+  std::shared_ptr<const Map> map;      // the map when the job was made (owned copy)
+  // Query <-> candidate keypoint pairs by words, as the owner's precheck found them on the map
+  // the snapshot copies (one entry per candidate).
   std::map<KeyframeId, std::vector<std::pair<int, int>>> word_matches;
   std::vector<std::pair<KeyframeId, KeyframeId>> loop_edges;  // of earlier loops
   bool fix_scale = true;                                      // stereo: SE(3); mono: Sim(3)
