@@ -16,10 +16,16 @@
 //  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
 //              (must be 0: "FALSE LOOP" and exit 1 otherwise), detection p50/p99.
 //  --place     place recognition alone (no SLAM): ORB + bag of words on every --place-stride'th
-//              left frame of each clip; each frame's best Vocabulary::Score among all frames of
-//              all clips outside its own window (same clip, |i - j| <= --window). Correct: same
-//              clip and within 10 m (ground truth). Precision, and recall against the frames that
-//              have a frame within 10 m outside the window, at --thresholds.
+//              left frame of each clip, all clips in one pool. A query's database: the frames of
+//              the other clips (as if mapped before) and its own clip's earlier frames outside its
+//              window (|i - j| <= --window). Correct: same clip and within 10 m (ground truth).
+//              Two answers per query: (1) its best-scoring database frame (precision, and that
+//              precision at --thresholds minimum scores); (2) the loop detector's consistent
+//              candidates (LoopCloser::Detect's rules with the frame's window standing in for its
+//              covisible keyframes: the minimum score is the lowest against its window, word
+//              and group filters as KeyframeDatabase::DetectLoopCandidates, consistency over 3
+//              queries), counted by verdict, with precision and recall against the queries that
+//              have a frame of their database within 10 m.
 //
 //   bench_loop [--seeds 1,2,3] [--frames 600] [--speed 8] [--movers 6] [--work DIR]
 //              [--policy sequential|pipelined] [--mode stereo|mono] [--vocabulary FILE]
@@ -44,6 +50,7 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -51,6 +58,7 @@
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <memory>
@@ -69,6 +77,8 @@
 #include "sim/sequence_writer.h"
 #include "slam/common/timing.h"
 #include "slam/features/orb_extractor.h"
+#include "slam/loop/keyframe_database.h"
+#include "slam/loop/loop_closer.h"
 #include "slam/loop/vocabulary.h"
 
 namespace {
@@ -486,89 +496,206 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       images.push_back(std::move(image));
     }
   }
-
+  const size_t n = images.size();
+  // All pairwise scores once (a few hundred images).
+  std::vector<double> score(n * n, 0.0);
+  std::vector<int> common(n * n, 0);
+  for (size_t a = 0; a < n; ++a)
+    for (size_t b = a + 1; b < n; ++b) {
+      score[a * n + b] = score[b * n + a] = pcr::Vocabulary::Score(images[a].bow, images[b].bow);
+      int shared = 0;
+      auto i = images[a].bow.words.begin(), j = images[b].bow.words.begin();
+      while (i != images[a].bow.words.end() && j != images[b].bow.words.end()) {
+        if (i->first < j->first) {
+          ++i;
+        } else if (j->first < i->first) {
+          ++j;
+        } else {
+          ++shared, ++i, ++j;
+        }
+      }
+      common[a * n + b] = common[b * n + a] = shared;
+    }
+  auto in_window = [&](size_t a, size_t b) {
+    return images[a].clip == images[b].clip &&
+           std::abs(images[a].frame - images[b].frame) <= args.window;
+  };
+  // The database at query q: every frame of the other clips (as if mapped before) and the frames
+  // of q's clip seen before it, outside its window.
+  auto in_database = [&](size_t q, size_t j) {
+    if (images[j].clip != images[q].clip) return true;
+    return images[j].frame < images[q].frame && !in_window(q, j);
+  };
   enum class Verdict { kCorrect, kSameClipFar, kOtherClip };
-  struct Query {
-    int clip = 0;
+  auto verdict = [&](size_t q, size_t j) {
+    if (images[j].clip != images[q].clip) return Verdict::kOtherClip;
+    return (images[q].position - images[j].position).norm() <= kPlaceRadiusM
+               ? Verdict::kCorrect
+               : Verdict::kSameClipFar;
+  };
+  std::vector<bool> has_near(n, false);  // a frame of the database within kPlaceRadiusM
+  for (size_t q = 0; q < n; ++q)
+    for (size_t j = 0; j < n; ++j)
+      if (in_database(q, j) && verdict(q, j) == Verdict::kCorrect) has_near[q] = true;
+
+  // (1) The best-scoring database frame of every query.
+  struct Best {
+    size_t query = 0;
     double score = 0;
     Verdict verdict = Verdict::kOtherClip;
-    bool has_near = false;  // a frame within kPlaceRadiusM outside the window exists
   };
-  std::vector<Query> queries;
-  for (size_t q = 0; q < images.size(); ++q) {
-    const Image& a = images[q];
-    Query result;
-    result.clip = a.clip;
+  std::vector<Best> bests;
+  for (size_t q = 0; q < n; ++q) {
     int best = -1;
-    for (size_t j = 0; j < images.size(); ++j) {
-      const Image& b = images[j];
-      const bool same_clip = a.clip == b.clip;
-      if (same_clip && std::abs(a.frame - b.frame) <= args.window) continue;
-      if (same_clip && (a.position - b.position).norm() <= kPlaceRadiusM) result.has_near = true;
-      const double score = pcr::Vocabulary::Score(a.bow, b.bow);
-      if (best < 0 || score > result.score) {
+    for (size_t j = 0; j < n; ++j)
+      if (in_database(q, j) && (best < 0 || score[q * n + j] > score[q * n + best]))
         best = static_cast<int>(j);
-        result.score = score;
+    if (best >= 0) bests.push_back({q, score[q * n + best], verdict(q, static_cast<size_t>(best))});
+  }
+
+  // (2) The loop detector's candidates (LoopCloser::Detect with KeyframeDatabase::
+  // DetectLoopCandidates), with a frame's window standing in for its covisible keyframes: the
+  // minimum score is the lowest against the clip's earlier frames in the window; candidates share
+  // >= 80% of the most words any database frame shares and score at least that; each one's group
+  // (itself and the database frames of its window) sums its members' scores, groups >= 75% of the
+  // best are kept (by their best member); a candidate is consistent when its group overlaps a
+  // group of the previous queries 3 times in a row.
+  const pcr::LoopQueryOptions query_options;
+  const pcr::LoopClosingOptions loop_options;
+  struct Candidate {
+    size_t query = 0, frame = 0;
+    Verdict verdict = Verdict::kOtherClip;
+  };
+  std::vector<Candidate> raw, consistent;
+  struct Group {
+    std::vector<size_t> frames;
+    int consistency = 0;
+  };
+  std::vector<Group> groups;
+  int queried = 0;
+  for (size_t q = 0; q < n; ++q) {
+    if (q > 0 && images[q - 1].clip != images[q].clip) groups.clear();
+    double min_score = 1.0;
+    bool any = false;
+    for (size_t j = 0; j < q; ++j)
+      if (in_window(q, j)) min_score = std::min(min_score, score[q * n + j]), any = true;
+    if (!any) continue;
+    ++queried;
+    int most_common = 0;
+    for (size_t j = 0; j < n; ++j)
+      if (in_database(q, j)) most_common = std::max(most_common, common[q * n + j]);
+    const double min_common = query_options.min_common_words_ratio * most_common;
+    auto similar = [&](size_t j) {
+      return in_database(q, j) && common[q * n + j] > 0 && common[q * n + j] >= min_common;
+    };
+    std::vector<std::pair<double, size_t>> group_scores;  // (accumulated, best member)
+    for (size_t j = 0; j < n; ++j) {
+      if (!similar(j) || score[q * n + j] < min_score) continue;
+      double accumulated = 0;
+      size_t best = j;
+      for (size_t m = 0; m < n; ++m) {
+        if (!similar(m) || !in_window(j, m)) continue;
+        accumulated += score[q * n + m];
+        if (score[q * n + m] > score[q * n + best]) best = m;
       }
+      group_scores.emplace_back(accumulated, best);
     }
-    if (best < 0) continue;  // nothing outside the window
-    const Image& b = images[static_cast<size_t>(best)];
-    result.verdict = b.clip != a.clip                                    ? Verdict::kOtherClip
-                     : (a.position - b.position).norm() <= kPlaceRadiusM ? Verdict::kCorrect
-                                                                         : Verdict::kSameClipFar;
-    queries.push_back(result);
+    double best_accumulated = 0;
+    for (const auto& g : group_scores) best_accumulated = std::max(best_accumulated, g.first);
+    std::vector<size_t> candidates;
+    for (const auto& [accumulated, best] : group_scores)
+      if (accumulated >= query_options.min_accumulated_ratio * best_accumulated &&
+          std::find(candidates.begin(), candidates.end(), best) == candidates.end())
+        candidates.push_back(best);
+    if (candidates.empty()) {
+      groups.clear();
+      continue;
+    }
+    std::vector<Group> current;
+    std::vector<bool> extended(groups.size(), false);
+    for (size_t c : candidates) {
+      raw.push_back({q, c, verdict(q, c)});
+      std::vector<size_t> members;
+      for (size_t m = 0; m < n; ++m)
+        if (in_window(c, m)) members.push_back(m);
+      bool enough = false, extended_any = false;
+      for (size_t g = 0; g < groups.size(); ++g) {
+        std::vector<size_t> shared;
+        std::set_intersection(members.begin(), members.end(), groups[g].frames.begin(),
+                              groups[g].frames.end(), std::back_inserter(shared));
+        if (shared.empty()) continue;
+        extended_any = true;
+        const int consistency = groups[g].consistency + 1;
+        if (!extended[g]) current.push_back({members, consistency}), extended[g] = true;
+        if (consistency >= loop_options.consistency) enough = true;
+      }
+      if (!extended_any) current.push_back({members, 0});
+      if (enough) consistent.push_back({q, c, verdict(q, c)});
+    }
+    groups = std::move(current);
   }
 
   std::printf(
       "\nPlace recognition: left frames at stride %d, window +-%d frames, correct within %.0f m "
-      "(ORB %.1f ms, bag of words %.2f ms per image, p50)\n",
+      "(ORB %.1f ms, bag of words %.2f ms per image, p50); the database of a query: the frames of "
+      "the other clips and its own clip's earlier frames outside the window\n",
       args.place_stride, args.window, kPlaceRadiusM, extract_ms.Summarize().p50_ms,
       transform_ms.Summarize().p50_ms);
-  std::printf("%-28s %7s %8s %7s %8s %8s %9s | %9s %9s\n", "clip", "queries", "revisits", "correct",
-              "same far", "other", "precision", "score ok", "score bad");
+  std::printf("%-28s %7s %8s | %-34s | %-42s\n", "", "", "", "best database frame of every query",
+              "loop detector: consistent candidates");
+  std::printf("%-28s %7s %8s | %7s %8s %5s %5s | %5s %7s %8s %5s %5s %6s\n", "clip", "queries",
+              "revisits", "correct", "same far", "other", "prec", "cands", "correct", "same far",
+              "other", "prec", "recall");
   auto print_clip = [&](const std::string& name, int clip) {
-    int n = 0, near = 0, correct = 0, far = 0, other = 0;
-    std::vector<double> good, bad;
-    for (const Query& q : queries) {
-      if (clip >= 0 && q.clip != clip) continue;
-      ++n;
-      near += q.has_near;
-      correct += q.verdict == Verdict::kCorrect;
-      far += q.verdict == Verdict::kSameClipFar;
-      other += q.verdict == Verdict::kOtherClip;
-      (q.verdict == Verdict::kCorrect ? good : bad).push_back(q.score);
+    int queries = 0, near = 0;
+    for (size_t q = 0; q < n; ++q)
+      if (clip < 0 || images[q].clip == clip) ++queries, near += has_near[q];
+    std::array<int, 3> best_counts{}, cand_counts{};
+    for (const Best& b : bests)
+      if (clip < 0 || images[b.query].clip == clip) ++best_counts[static_cast<int>(b.verdict)];
+    std::vector<bool> found(n, false);
+    int cands = 0;
+    for (const Candidate& c : consistent) {
+      if (clip >= 0 && images[c.query].clip != clip) continue;
+      ++cands;
+      ++cand_counts[static_cast<int>(c.verdict)];
+      if (c.verdict == Verdict::kCorrect) found[c.query] = true;
     }
-    auto median = [](std::vector<double> v) {
-      if (v.empty()) return kNaN;
-      std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-      return v[v.size() / 2];
-    };
-    std::printf("%-28s %7d %8d %7d %8d %8d %9.3f | %9.4f %9.4f\n", name.c_str(), n, near, correct,
-                far, other, n > 0 ? static_cast<double>(correct) / n : kNaN, median(good),
-                median(bad));
+    const int best_total = best_counts[0] + best_counts[1] + best_counts[2];
+    std::printf(
+        "%-28s %7d %8d | %7d %8d %5d %5.2f | %5d %7d %8d %5d %5.2f %6.3f\n", name.c_str(), queries,
+        near, best_counts[0], best_counts[1], best_counts[2],
+        best_total > 0 ? static_cast<double>(best_counts[0]) / best_total : kNaN, cands,
+        cand_counts[0], cand_counts[1], cand_counts[2],
+        cands > 0 ? static_cast<double>(cand_counts[0]) / cands : kNaN,
+        near > 0 ? static_cast<double>(std::count(found.begin(), found.end(), true)) / near : kNaN);
   };
   for (size_t c = 0; c < names.size(); ++c) print_clip(names[c], static_cast<int>(c));
   print_clip("all", -1);
+  int raw_other = 0;
+  for (const Candidate& c : raw) raw_other += c.verdict == Verdict::kOtherClip;
   std::printf(
-      "(revisits: queries with a frame of their clip within %.0f m outside the window; "
-      "score ok/bad: median best score of correct/wrong queries)\n",
-      kPlaceRadiusM);
+      "(revisits: queries with a frame of their database within %.0f m; prec: correct / reported; "
+      "recall: queries with a correct consistent candidate / revisits; before the consistency "
+      "check the detector returned %zu candidates to %d queries, %d of another clip)\n",
+      kPlaceRadiusM, raw.size(), queried, raw_other);
 
   int revisits = 0;
-  for (const Query& q : queries) revisits += q.has_near;
-  std::printf("\n%9s %8s %7s %9s %7s\n", "min score", "accepted", "correct", "precision", "recall");
+  for (size_t q = 0; q < n; ++q) revisits += has_near[q];
+  std::printf("\nbest database frame with a minimum score:\n%9s %8s %7s %5s %9s %7s\n", "min score",
+              "accepted", "correct", "other", "precision", "recall");
   for (double t : ParseList(args.thresholds)) {
-    int accepted = 0, correct = 0;
-    for (const Query& q : queries) {
-      if (q.score < t) continue;
+    int accepted = 0, correct = 0, other = 0;
+    for (const Best& b : bests) {
+      if (b.score < t) continue;
       ++accepted;
-      correct += q.verdict == Verdict::kCorrect;
+      correct += b.verdict == Verdict::kCorrect;
+      other += b.verdict == Verdict::kOtherClip;
     }
-    std::printf("%9.3f %8d %7d %9.3f %7.3f\n", t, accepted, correct,
+    std::printf("%9.3f %8d %7d %5d %9.3f %7.3f\n", t, accepted, correct, other,
                 accepted > 0 ? static_cast<double>(correct) / accepted : kNaN,
                 revisits > 0 ? static_cast<double>(correct) / revisits : kNaN);
   }
-  std::printf("(recall: correct / revisits = %d)\n", revisits);
   return 0;
 }
 
