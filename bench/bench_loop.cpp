@@ -472,6 +472,9 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     int64_t frame = 0;
     Eigen::Vector3d position = Eigen::Vector3d::Zero();
     pcr::BowVector bow;
+    pcr::FeatureVector direct;  // the direct index the loop closer keeps (2 levels up)
+    std::vector<cv::KeyPoint> keypoints;
+    cv::Mat descriptors;
   };
   std::vector<std::string> names;
   std::vector<Image> images;
@@ -489,10 +492,14 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       const auto t0 = std::chrono::steady_clock::now();
       const pcr::OrbFeatures features = orb.Extract(d.LoadLeft(i));
       const auto t1 = std::chrono::steady_clock::now();
-      vocabulary.Transform(features.descriptors, nullptr, 2, &image.bow, nullptr);
+      vocabulary.Transform(features.descriptors, nullptr,
+                           pcr::LoopClosingOptions{}.direct_index_levels_up, &image.bow,
+                           &image.direct);
       const auto t2 = std::chrono::steady_clock::now();
       extract_ms.Add(std::chrono::duration<double, std::milli>(t1 - t0).count());
       transform_ms.Add(std::chrono::duration<double, std::milli>(t2 - t1).count());
+      image.keypoints = features.keypoints;
+      image.descriptors = features.descriptors;
       images.push_back(std::move(image));
     }
   }
@@ -566,7 +573,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     size_t query = 0, frame = 0;
     Verdict verdict = Verdict::kOtherClip;
   };
-  std::vector<Candidate> raw, consistent;
+  std::vector<Candidate> raw, consistent, plausible;
   struct Group {
     std::vector<size_t> frames;
     int consistency = 0;
@@ -630,7 +637,15 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
         if (consistency >= loop_options.consistency) enough = true;
       }
       if (!extended_any) current.push_back({members, 0});
-      if (enough) consistent.push_back({q, c, verdict(q, c)});
+      if (!enough) continue;
+      consistent.push_back({q, c, verdict(q, c)});
+      const Image& a = images[q];
+      const Image& b = images[c];
+      const auto pairs = pcr::MatchFeaturesByWords(
+          a.keypoints, a.descriptors, a.direct, nullptr, b.keypoints, b.descriptors, b.direct,
+          nullptr, loop_options.bow_max_distance, loop_options.bow_ratio);
+      if (static_cast<int>(pairs.size()) >= loop_options.min_bow_matches)
+        plausible.push_back({q, c, verdict(q, c)});
     }
     groups = std::move(current);
   }
@@ -641,34 +656,52 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       "the other clips and its own clip's earlier frames outside the window\n",
       args.place_stride, args.window, kPlaceRadiusM, extract_ms.Summarize().p50_ms,
       transform_ms.Summarize().p50_ms);
-  std::printf("%-28s %7s %8s | %-34s | %-42s\n", "", "", "", "best database frame of every query",
-              "loop detector: consistent candidates");
-  std::printf("%-28s %7s %8s | %7s %8s %5s %5s | %5s %7s %8s %5s %5s %6s\n", "clip", "queries",
-              "revisits", "correct", "same far", "other", "prec", "cands", "correct", "same far",
-              "other", "prec", "recall");
+  std::printf("%-28s %7s %8s | %-34s | %-42s | %s\n", "", "", "",
+              "best database frame of every query", "loop detector: consistent candidates",
+              "of those, >= min_bow_matches word matches");
+  std::printf(
+      "%-28s %7s %8s | %7s %8s %5s %5s | %5s %7s %8s %5s %5s %6s | %5s %7s %8s %5s %5s %6s\n",
+      "clip", "queries", "revisits", "correct", "same far", "other", "prec", "cands", "correct",
+      "same far", "other", "prec", "recall", "cands", "correct", "same far", "other", "prec",
+      "recall");
   auto print_clip = [&](const std::string& name, int clip) {
     int queries = 0, near = 0;
     for (size_t q = 0; q < n; ++q)
       if (clip < 0 || images[q].clip == clip) ++queries, near += has_near[q];
-    std::array<int, 3> best_counts{}, cand_counts{};
+    std::array<int, 3> best_counts{};
     for (const Best& b : bests)
       if (clip < 0 || images[b.query].clip == clip) ++best_counts[static_cast<int>(b.verdict)];
-    std::vector<bool> found(n, false);
-    int cands = 0;
-    for (const Candidate& c : consistent) {
-      if (clip >= 0 && images[c.query].clip != clip) continue;
-      ++cands;
-      ++cand_counts[static_cast<int>(c.verdict)];
-      if (c.verdict == Verdict::kCorrect) found[c.query] = true;
-    }
+    struct Counts {
+      int cands = 0;
+      std::array<int, 3> by_verdict{};
+      double recall = kNaN;
+    };
+    auto count = [&](const std::vector<Candidate>& list) {
+      Counts counts;
+      std::vector<bool> found(n, false);
+      for (const Candidate& c : list) {
+        if (clip >= 0 && images[c.query].clip != clip) continue;
+        ++counts.cands;
+        ++counts.by_verdict[static_cast<int>(c.verdict)];
+        if (c.verdict == Verdict::kCorrect) found[c.query] = true;
+      }
+      if (near > 0)
+        counts.recall = static_cast<double>(std::count(found.begin(), found.end(), true)) / near;
+      return counts;
+    };
+    const Counts detector = count(consistent), checked = count(plausible);
+    auto precision = [](const Counts& c) {
+      return c.cands > 0 ? static_cast<double>(c.by_verdict[0]) / c.cands : kNaN;
+    };
     const int best_total = best_counts[0] + best_counts[1] + best_counts[2];
     std::printf(
-        "%-28s %7d %8d | %7d %8d %5d %5.2f | %5d %7d %8d %5d %5.2f %6.3f\n", name.c_str(), queries,
-        near, best_counts[0], best_counts[1], best_counts[2],
-        best_total > 0 ? static_cast<double>(best_counts[0]) / best_total : kNaN, cands,
-        cand_counts[0], cand_counts[1], cand_counts[2],
-        cands > 0 ? static_cast<double>(cand_counts[0]) / cands : kNaN,
-        near > 0 ? static_cast<double>(std::count(found.begin(), found.end(), true)) / near : kNaN);
+        "%-28s %7d %8d | %7d %8d %5d %5.2f | %5d %7d %8d %5d %5.2f %6.3f | %5d %7d %8d %5d %5.2f "
+        "%6.3f\n",
+        name.c_str(), queries, near, best_counts[0], best_counts[1], best_counts[2],
+        best_total > 0 ? static_cast<double>(best_counts[0]) / best_total : kNaN, detector.cands,
+        detector.by_verdict[0], detector.by_verdict[1], detector.by_verdict[2], precision(detector),
+        detector.recall, checked.cands, checked.by_verdict[0], checked.by_verdict[1],
+        checked.by_verdict[2], precision(checked), checked.recall);
   };
   for (size_t c = 0; c < names.size(); ++c) print_clip(names[c], static_cast<int>(c));
   print_clip("all", -1);
@@ -676,8 +709,9 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   for (const Candidate& c : raw) raw_other += c.verdict == Verdict::kOtherClip;
   std::printf(
       "(revisits: queries with a frame of their database within %.0f m; prec: correct / reported; "
-      "recall: queries with a correct consistent candidate / revisits; before the consistency "
-      "check the detector returned %zu candidates to %d queries, %d of another clip)\n",
+      "recall: queries with a correct candidate / revisits; the last columns are the candidates "
+      "that would reach geometric verification; before the consistency check the detector "
+      "returned %zu candidates to %d queries, %d of another clip)\n",
       kPlaceRadiusM, raw.size(), queried, raw_other);
 
   int revisits = 0;

@@ -92,14 +92,18 @@ bool LoopClosingOptions::IsValid(std::string* why) const {
 
 SE3 PoseOfSim3(const Sim3& cam_from_world) { return cam_from_world.ToSE3(); }
 
-std::vector<std::pair<int, int>> MatchByWords(const Map& map, const Keyframe& a,
-                                              const FeatureVector& features_a, const Keyframe& b,
-                                              const FeatureVector& features_b, int max_distance,
-                                              double ratio) {
-  const Frame& fa = *a.frame;
-  const Frame& fb = *b.frame;
-  std::vector<int> b_to_a(static_cast<size_t>(fb.size()), -1);
-  std::vector<int> b_best(static_cast<size_t>(fb.size()), max_distance + 1);
+std::vector<std::pair<int, int>> MatchFeaturesByWords(
+    const std::vector<cv::KeyPoint>& keypoints_a, const cv::Mat& descriptors_a,
+    const FeatureVector& features_a, const std::vector<uint8_t>* usable_a,
+    const std::vector<cv::KeyPoint>& keypoints_b, const cv::Mat& descriptors_b,
+    const FeatureVector& features_b, const std::vector<uint8_t>* usable_b, int max_distance,
+    double ratio) {
+  auto usable = [](const std::vector<uint8_t>* u, int i) {
+    return u == nullptr || (*u)[static_cast<size_t>(i)] != 0;
+  };
+  const size_t nb = keypoints_b.size();
+  std::vector<int> b_to_a(nb, -1);
+  std::vector<int> b_best(nb, max_distance + 1);
   auto ia = features_a.nodes.begin();
   auto ib = features_b.nodes.begin();
   while (ia != features_a.nodes.end() && ib != features_b.nodes.end()) {
@@ -112,12 +116,12 @@ std::vector<std::pair<int, int>> MatchByWords(const Map& map, const Keyframe& a,
       continue;
     }
     for (int i : ia->second) {
-      if (!PointAt(map, a, i)) continue;
-      const uint8_t* da = fa.descriptors().ptr<uint8_t>(i);
+      if (!usable(usable_a, i)) continue;
+      const uint8_t* da = descriptors_a.ptr<uint8_t>(i);
       int best = 257, second = 257, best_j = -1;
       for (int j : ib->second) {
-        if (!PointAt(map, b, j)) continue;
-        const int d = DescriptorDistance(da, fb.descriptors().ptr<uint8_t>(j));
+        if (!usable(usable_b, j)) continue;
+        const int d = DescriptorDistance(da, descriptors_b.ptr<uint8_t>(j));
         if (d < best) {
           second = best;
           best = d;
@@ -136,13 +140,13 @@ std::vector<std::pair<int, int>> MatchByWords(const Map& map, const Keyframe& a,
     ++ib;
   }
   std::vector<std::pair<int, int>> pairs;
-  for (int j = 0; j < fb.size(); ++j)
-    if (b_to_a[static_cast<size_t>(j)] >= 0) pairs.emplace_back(b_to_a[static_cast<size_t>(j)], j);
+  for (size_t j = 0; j < nb; ++j)
+    if (b_to_a[j] >= 0) pairs.emplace_back(b_to_a[j], static_cast<int>(j));
   std::sort(pairs.begin(), pairs.end());
   RotationConsistency rotation;
   for (size_t k = 0; k < pairs.size(); ++k)
-    rotation.Add(fa.keypoint(pairs[k].first).angle, fb.keypoint(pairs[k].second).angle,
-                 static_cast<int>(k));
+    rotation.Add(keypoints_a[static_cast<size_t>(pairs[k].first)].angle,
+                 keypoints_b[static_cast<size_t>(pairs[k].second)].angle, static_cast<int>(k));
   std::vector<int> rejected = rotation.Rejected();
   std::sort(rejected.begin(), rejected.end());
   std::vector<std::pair<int, int>> kept;
@@ -150,6 +154,22 @@ std::vector<std::pair<int, int>> MatchByWords(const Map& map, const Keyframe& a,
     if (!std::binary_search(rejected.begin(), rejected.end(), static_cast<int>(k)))
       kept.push_back(pairs[k]);
   return kept;
+}
+
+std::vector<std::pair<int, int>> MatchByWords(const Map& map, const Keyframe& a,
+                                              const FeatureVector& features_a, const Keyframe& b,
+                                              const FeatureVector& features_b, int max_distance,
+                                              double ratio) {
+  auto with_points = [&map](const Keyframe& kf) {
+    std::vector<uint8_t> usable(static_cast<size_t>(kf.frame->size()), 0);
+    for (int i = 0; i < kf.frame->size(); ++i)
+      usable[static_cast<size_t>(i)] = PointAt(map, kf, i) != nullptr;
+    return usable;
+  };
+  const std::vector<uint8_t> usable_a = with_points(a), usable_b = with_points(b);
+  return MatchFeaturesByWords(a.frame->keypoints(), a.frame->descriptors(), features_a, &usable_a,
+                              b.frame->keypoints(), b.frame->descriptors(), features_b, &usable_b,
+                              max_distance, ratio);
 }
 
 LoopCloser::LoopCloser(const LoopClosingOptions& options,

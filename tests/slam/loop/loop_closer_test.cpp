@@ -53,6 +53,49 @@ Map ChainMap(int num_keyframes) {
   return map;
 }
 
+// Descriptors whose bytes are all `fill`, one row each: rows with fills f and g differ in
+// 32 * popcount(f ^ g) bits.
+cv::Mat FilledDescriptors(const std::vector<uint8_t>& fills) {
+  cv::Mat d(static_cast<int>(fills.size()), 32, CV_8U);
+  for (int i = 0; i < d.rows; ++i) d.row(i).setTo(fills[static_cast<size_t>(i)]);
+  return d;
+}
+
+TEST(MatchFeaturesByWords, MatchesWithinANodeByDistanceRatioAndUsability) {
+  std::vector<cv::KeyPoint> keypoints(4, cv::KeyPoint(10.f, 10.f, 31.f, 0.f));
+  // a0 equals b1 and a1 equals b0 (node 5); a2 and b2 (node 7) differ by 64 bits; b3 (node 5)
+  // is one bit per byte (32 bits) from b1.
+  const cv::Mat a = FilledDescriptors({0x00, 0xFF, 0x0F, 0x00});
+  const cv::Mat b = FilledDescriptors({0xFF, 0x00, 0x3C, 0x01});
+  FeatureVector fa, fb;
+  fa.nodes = {{5, {0, 1}}, {7, {2}}};
+  fb.nodes = {{5, {0, 1}}, {7, {2}}};
+  using Pairs = std::vector<std::pair<int, int>>;
+  EXPECT_EQ(MatchFeaturesByWords(keypoints, a, fa, nullptr, keypoints, b, fb, nullptr, 50, 0.75),
+            (Pairs{{0, 1}, {1, 0}}));
+  // b3 joins node 5, 32 bits from a0: a0's best (b1, 0 bits) stays clear of it by the ratio,
+  // and a distance cap of 0 still keeps both exact matches.
+  fb.nodes = {{5, {0, 1, 3}}, {7, {2}}};
+  EXPECT_EQ(MatchFeaturesByWords(keypoints, a, fa, nullptr, keypoints, b, fb, nullptr, 0, 0.75),
+            (Pairs{{0, 1}, {1, 0}}));
+  // Without b1, a0's nearest is b3 at 32 bits: too far for 30, close enough for 40.
+  const std::vector<uint8_t> without_b1 = {1, 0, 1, 1};
+  EXPECT_EQ(
+      MatchFeaturesByWords(keypoints, a, fa, nullptr, keypoints, b, fb, &without_b1, 30, 0.75),
+      (Pairs{{1, 0}}));
+  EXPECT_EQ(
+      MatchFeaturesByWords(keypoints, a, fa, nullptr, keypoints, b, fb, &without_b1, 40, 0.75),
+      (Pairs{{0, 3}, {1, 0}}));
+  // An unusable query keypoint takes no part; nodes that only one side has match nothing.
+  const std::vector<uint8_t> without_a1 = {1, 0, 1, 1};
+  EXPECT_EQ(
+      MatchFeaturesByWords(keypoints, a, fa, &without_a1, keypoints, b, fb, nullptr, 50, 0.75),
+      (Pairs{{0, 1}}));
+  fb.nodes = {{6, {0, 1, 3}}, {8, {2}}};
+  EXPECT_TRUE(
+      MatchFeaturesByWords(keypoints, a, fa, nullptr, keypoints, b, fb, nullptr, 256, 1.0).empty());
+}
+
 TEST(LoopCloser, CorrectionDeltaCarriesTheCorrectionOverToLaterKeyframesAndPoints) {
   // The snapshot held keyframes 0..2; the live map has gained keyframe 3 (child of 2) since.
   const Map snapshot = ChainMap(3);
