@@ -77,6 +77,8 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("mapping", "min_found_ratio", &m.min_found_ratio);
   s.Add("mapping", "fuse_neighbours", &m.fuse_neighbours);
   s.Add("mapping", "local_bundle_adjustment", &m.local_bundle_adjustment);
+  s.Add("mapping", "ba_local_keyframes", &m.ba_local_keyframes,
+        "0: every covisible keyframe; else the local BA optimises the best this many");
   s.Add("mapping", "ba_max_iterations", &m.bundle_adjustment.max_iterations);
   s.Add("mapping", "ba_optimise_twice", &m.bundle_adjustment.optimise_twice);
   s.Add("mapping", "cull_keyframes", &m.cull_keyframes);

@@ -59,6 +59,7 @@ bool LocalMapperOptions::IsValid(std::string* why) const {
   };
   if (!(close_depth_baselines > 0)) return fail("close_depth_baselines must be > 0");
   if (max_keyframes != 0 && max_keyframes < 10) return fail("max_keyframes must be 0 or >= 10");
+  if (ba_local_keyframes < 0) return fail("ba_local_keyframes must be >= 0");
   if (min_stereo_points < 0 || triangulation_neighbours < 0 || fuse_neighbours < 0 ||
       fuse_second_neighbours < 0)
     return fail("point and neighbour counts must be >= 0");
@@ -290,7 +291,10 @@ MapDelta LocalMapper::LocalBundleAdjustment(KeyframeId id, const Map& map, Mappi
   if (!kf) return delta;
   std::vector<KeyframeId> local{id};
   std::set<KeyframeId> in_local{id};
-  for (const auto& [n, w] : kf->covisible)
+  const std::vector<KeyframeId> neighbours = kf->BestCovisible(
+      options_.ba_local_keyframes > 0 ? static_cast<size_t>(options_.ba_local_keyframes)
+                                      : kf->covisible.size());
+  for (KeyframeId n : neighbours)
     if (map.keyframe(n) && in_local.insert(n).second) local.push_back(n);
   std::vector<MapPointId> points;
   std::set<MapPointId> in_points;

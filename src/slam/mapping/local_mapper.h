@@ -27,6 +27,11 @@ struct LocalMapperOptions {
   int fuse_second_neighbours = 5;     // neighbours of each of them
   double fuse_radius_factor = 3.0;    // search window (times the level scale)
   bool local_bundle_adjustment = true;
+  // Keyframes the local BA optimises besides the new one: its best covisible neighbours (by
+  // shared points), at most this many; 0: all of them. On a long straight street every keyframe
+  // shares its far points with all the earlier ones, and after a loop closure with the first
+  // pass's too, so an unbounded window grows to the whole street.
+  int ba_local_keyframes = 20;
   BundleAdjustmentOptions bundle_adjustment;
   bool cull_keyframes = true;
   // Bounded map (long replays, odometry without loop closing): above this many keyframes the

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include "slam/common/error.h"
 #include "slam/map/synthetic_scene.h"
 
@@ -235,6 +237,30 @@ TEST(LocalMapper, BundleAdjustmentPullsAPerturbedKeyframeBack) {
   EXPECT_TRUE(s.map.keyframe(KeyframeId(0))->cam_from_world.isApprox(TruePose(0)));
 }
 
+TEST(LocalMapper, TheLocalWindowHoldsTheBestCovisibleKeyframesOnly) {
+  SceneMap s(35);
+  const KeyframeId k4 = AddPerturbedThirdKeyframe(s);
+  ASSERT_EQ(s.map.keyframe(k4)->covisible.size(), 2u);
+  const KeyframeId best = s.map.keyframe(k4)->covisible[0].first;
+  const KeyframeId other = s.map.keyframe(k4)->covisible[1].first;
+  LocalMapperOptions options;
+  options.ba_local_keyframes = 1;
+  MappingResult stats;
+  const MapDelta d = LocalMapper(options).LocalBundleAdjustment(k4, s.map, &stats);
+  // The new keyframe and its best neighbour are optimised; the other one only holds its
+  // observations of their points, fixed.
+  EXPECT_EQ(stats.ba_keyframes, 2);
+  EXPECT_EQ(stats.ba_fixed_keyframes, 1);
+  std::set<KeyframeId> moved;
+  for (const auto& [id, pose] : d.keyframe_poses) moved.insert(id);
+  EXPECT_TRUE(moved.count(k4));
+  EXPECT_FALSE(moved.count(other));
+  EXPECT_TRUE(moved.count(best) || best == s.map.first_keyframe());
+  s.map.Apply(d);
+  const SE3& refined = s.map.keyframe(k4)->cam_from_world;
+  EXPECT_LT((refined.inverse().translation() - TruePose(4).inverse().translation()).norm(), 0.03);
+}
+
 TEST(LocalMapper, PerKeyframeIterationCapLimitsTheBundleAdjustment) {
   SceneMap s(35);
   const KeyframeId k4 = AddPerturbedThirdKeyframe(s);
@@ -317,6 +343,10 @@ TEST(LocalMapper, OptionsValidation) {
   bad = {};
   bad.bundle_adjustment.max_iterations = 0;
   EXPECT_FALSE(bad.IsValid(&why));
+  bad = {};
+  bad.ba_local_keyframes = -1;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_EQ(why, "ba_local_keyframes must be >= 0");
   EXPECT_TRUE(LocalMapperOptions{}.IsValid(&why)) << why;
 }
 
