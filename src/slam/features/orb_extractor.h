@@ -6,6 +6,7 @@
 // interchangeable with OpenCV's or ORB-SLAM's (e.g. a vocabulary trained on those won't fit).
 // Thread-compatible: Extract() is const and may be called from several threads at once.
 #include <cstdint>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -73,5 +74,30 @@ class OrbExtractor {
 int DescriptorDistance(const cv::Mat& a, const cv::Mat& b);
 // Same on raw descriptors (kOrbDescriptorBytes bytes each, no alignment needed); no checks.
 int DescriptorDistance(const std::uint8_t* a, const std::uint8_t* b);
+
+// The nearest and the second nearest distance of a run of match candidates, for the matchers'
+// distance and ratio tests. Ties keep the earlier candidate as the nearest. `none` is the
+// distance both start at (a lone candidate is compared with it as its second).
+struct NearestTwo {
+  enum class Rank { kNone, kSecond, kNearest };
+  explicit NearestTwo(int none = std::numeric_limits<int>::max()) : nearest(none), second(none) {}
+  // Offers candidate `index` at distance d; says whether it became the nearest or the second.
+  Rank Add(int d, int index) {
+    if (d < nearest) {
+      second = nearest;
+      nearest = d;
+      nearest_index = index;
+      return Rank::kNearest;
+    }
+    if (d < second) {
+      second = d;
+      return Rank::kSecond;
+    }
+    return Rank::kNone;
+  }
+  int nearest;
+  int second;
+  int nearest_index = -1;  // -1 until a candidate was nearer than `none`
+};
 
 }  // namespace pcr

@@ -118,19 +118,11 @@ std::vector<std::pair<int, int>> MatchFeaturesByWords(
     for (int i : ia->second) {
       if (!usable(usable_a, i)) continue;
       const uint8_t* da = descriptors_a.ptr<uint8_t>(i);
-      int best = 257, second = 257, best_j = -1;
-      for (int j : ib->second) {
-        if (!usable(usable_b, j)) continue;
-        const int d = DescriptorDistance(da, descriptors_b.ptr<uint8_t>(j));
-        if (d < best) {
-          second = best;
-          best = d;
-          best_j = j;
-        } else if (d < second) {
-          second = d;
-        }
-      }
-      if (best_j < 0 || best > max_distance || best >= ratio * second) continue;
+      NearestTwo near(257);
+      for (int j : ib->second)
+        if (usable(usable_b, j)) near.Add(DescriptorDistance(da, descriptors_b.ptr<uint8_t>(j)), j);
+      const int best = near.nearest, best_j = near.nearest_index;
+      if (best_j < 0 || best > max_distance || best >= ratio * near.second) continue;
       if (best < b_best[static_cast<size_t>(best_j)]) {
         b_best[static_cast<size_t>(best_j)] = best;
         b_to_a[static_cast<size_t>(best_j)] = i;

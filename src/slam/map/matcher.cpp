@@ -128,27 +128,28 @@ int SearchLocalPoints(const Frame& current, const std::vector<ProjectedPoint>& c
     const std::vector<int> indices = current.FeaturesInArea(
         cand.uv_px.x(), cand.uv_px.y(), r, std::max(0, cand.predicted_level - levels_below),
         cand.predicted_level + levels_above);
-    int best = std::numeric_limits<int>::max(), second = std::numeric_limits<int>::max();
-    int best_level = -1, second_level = -1, best_idx = -1;
+    NearestTwo near;
+    int best_level = -1, second_level = -1;
     for (int i : indices) {
       if (assigned[i] != -1) continue;
       if (cand.u_right_px >= 0 && current.u_right_px(i) > 0 &&
           std::abs(cand.u_right_px - current.u_right_px(i)) > r)
         continue;
-      const int d = DescriptorDistance(cand.descriptor, current.descriptor(i));
-      if (d < best) {
-        second = best;
-        second_level = best_level;
-        best = d;
-        best_level = current.octave(i);
-        best_idx = i;
-      } else if (d < second) {
-        second = d;
-        second_level = current.octave(i);
+      switch (near.Add(DescriptorDistance(cand.descriptor, current.descriptor(i)), i)) {
+        case NearestTwo::Rank::kNearest:
+          second_level = best_level;
+          best_level = current.octave(i);
+          break;
+        case NearestTwo::Rank::kSecond:
+          second_level = current.octave(i);
+          break;
+        case NearestTwo::Rank::kNone:
+          break;
       }
     }
+    const int best = near.nearest, best_idx = near.nearest_index;
     if (best_idx < 0 || best > kDescriptorDistanceHigh) continue;
-    if (best_level == second_level && best > 0.8 * second) continue;
+    if (best_level == second_level && best > 0.8 * near.second) continue;
     assigned[best_idx] = static_cast<int>(c);
     ++count;
   }
@@ -239,8 +240,7 @@ std::vector<std::pair<int, int>> SearchForTriangulation(const Frame& f1, const S
     const double norm2 = line.x() * line.x() + line.y() * line.y();
     if (norm2 <= 0) continue;
     const cv::Mat d1 = f1.descriptor(i);
-    int best = std::numeric_limits<int>::max(), second = std::numeric_limits<int>::max();
-    int best_j = -1;
+    NearestTwo near;
     const double a = line.x(), b = line.y(), c = line.z();
     for (size_t k = 0; k < idx2.size(); ++k) {
       const double num = a * u2[k] + b * v2[k] + c;
@@ -251,16 +251,10 @@ std::vector<std::pair<int, int>> SearchForTriangulation(const Frame& f1, const S
         const double ex = epipole.x() - u2[k], ey = epipole.y() - v2[k];
         if (ex * ex + ey * ey < 100.0 * scale2.scale_factors[oct]) continue;
       }
-      const int d = DescriptorDistance(d1, f2.descriptor(j));
-      if (d < best) {
-        second = best;
-        best = d;
-        best_j = j;
-      } else if (d < second) {
-        second = d;
-      }
+      near.Add(DescriptorDistance(d1, f2.descriptor(j)), j);
     }
-    if (best_j < 0 || best > kDescriptorDistanceLow || best >= 0.9 * second) continue;
+    const int best = near.nearest, best_j = near.nearest_index;
+    if (best_j < 0 || best > kDescriptorDistanceLow || best >= 0.9 * near.second) continue;
     if (best < dist_of_2[best_j]) {
       dist_of_2[best_j] = best;
       match_of_2[best_j] = i;

@@ -44,23 +44,17 @@ std::vector<int> SearchForInitialization(const Frame& ref, const Frame& cur,
     const Eigen::Vector2d& at = (*last_positions_px)[i];
     const std::vector<int> candidates =
         cur.FeaturesInArea(at.x(), at.y(), options.search_window_px, octave, octave);
-    int best = std::numeric_limits<int>::max(), second = std::numeric_limits<int>::max();
-    int best_j = -1;
+    NearestTwo near;
     for (int j : candidates) {
       if (cur.excluded(j)) continue;
       const int d =
           DescriptorDistance(ref.descriptors().ptr<uint8_t>(i), cur.descriptors().ptr<uint8_t>(j));
       if (cur_distance[j] <= d) continue;  // already held by a closer reference keypoint
-      if (d < best) {
-        second = best;
-        best = d;
-        best_j = j;
-      } else if (d < second) {
-        second = d;
-      }
+      near.Add(d, j);
     }
+    const int best = near.nearest, best_j = near.nearest_index;
     if (best_j < 0 || best > options.max_descriptor_distance) continue;
-    if (!(best < options.match_ratio * second)) continue;
+    if (!(best < options.match_ratio * near.second)) continue;
     if (cur_to_ref[best_j] >= 0) ref_to_cur[cur_to_ref[best_j]] = -1;
     ref_to_cur[i] = best_j;
     cur_to_ref[best_j] = i;
