@@ -660,6 +660,7 @@ int main(int argc, char** argv) {
     }
     const Row& seq = rows[0];
     const Row& pipe = rows[1];
+    const Row& live = rows[3];  // realtime+adaptive
     const Row& one = rows[4];
     std::printf("%-19s %5s %5s %6s %6s %7s %7s %7s %7s %7s %8s %11s %7s %7s %5s %5s\n", "row",
                 "done", "drop", "%proc", "fps", "lat p50", "lat p95", "lat p99", "lat max",
@@ -704,7 +705,6 @@ int main(int argc, char** argv) {
                   c ? std::to_string(row.confusion->Total()).c_str() : "-");
     }
     {
-      const Row& live = rows[3];
       const pcr::graph::PipelineStats& s = live.stats;
       const double n = static_cast<double>(std::max<size_t>(1, s.frames_total));
       const double processed = 100.0 * s.frames_completed / n;
@@ -796,7 +796,7 @@ int main(int argc, char** argv) {
       std::printf("%-11s %6zu %12s %12s %12s %13.1f %13s\n", stage,
                   has_p ? p->second.time.count : 0, mean_of(seq, stage).c_str(),
                   mean_of(pipe, stage).c_str(), mean_of(one, stage).c_str(), per_frame,
-                  mean_of(rows[3], stage).c_str());
+                  mean_of(live, stage).c_str());
     }
     std::printf("%-11s %6s %12s %12s %12s %13.1f%s%s\n", "sum", "", "", "", "", cpu_per_frame_ms,
                 device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "",

@@ -371,12 +371,10 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
     *why = "no word matches";
     return false;
   }
+  // The owner's precheck (LoopCloser::Detect) passed only candidates with at least
+  // min_bow_matches of them.
   const std::vector<std::pair<int, int>>& pairs = found->second;
   match->bow_matches = static_cast<int>(pairs.size());
-  if (static_cast<int>(pairs.size()) < o.min_bow_matches) {
-    *why = "few word matches (" + std::to_string(pairs.size()) + ")";
-    return false;
-  }
   const Frame& fqf = *query.frame;
   const Frame& fcf = *candidate.frame;
   std::vector<Sim3Correspondence> corr;

@@ -153,6 +153,10 @@ struct LoopStats {
 // vocabulary's direct index (features_a/b): both keypoints must hold a live map point and not be
 // excluded; best distance <= max_distance, best < ratio * second best, rotation consistency, each
 // b keypoint used once. Returns (a keypoint, b keypoint) pairs.
+std::vector<std::pair<int, int>> MatchByWords(const Map& map, const Keyframe& a,
+                                              const FeatureVector& features_a, const Keyframe& b,
+                                              const FeatureVector& features_b, int max_distance,
+                                              double ratio);
 // The same on bare features (keypoints with their descriptors and direct index): keypoint i of
 // a (j of b) takes part when usable_a (usable_b) is null or holds a non-zero entry i (j).
 std::vector<std::pair<int, int>> MatchFeaturesByWords(
@@ -161,10 +165,6 @@ std::vector<std::pair<int, int>> MatchFeaturesByWords(
     const std::vector<cv::KeyPoint>& keypoints_b, const cv::Mat& descriptors_b,
     const FeatureVector& features_b, const std::vector<uint8_t>* usable_b, int max_distance,
     double ratio);
-std::vector<std::pair<int, int>> MatchByWords(const Map& map, const Keyframe& a,
-                                              const FeatureVector& features_a, const Keyframe& b,
-                                              const FeatureVector& features_b, int max_distance,
-                                              double ratio);
 
 // SE(3) of a Sim(3) pose cam_from_world = [sR, t]: [R, t / s] (the same pixels for every point).
 SE3 PoseOfSim3(const Sim3& cam_from_world);
