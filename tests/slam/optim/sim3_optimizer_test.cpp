@@ -3,61 +3,23 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <random>
 #include <vector>
 
 #include "slam/common/error.h"
+#include "support/sim3_scene.h"
 #include "support/test_helpers.h"
 
 namespace pcr {
 namespace {
 
-struct MatchScene {
-  Sim3 cam1_from_cam2;
-  std::vector<Sim3Correspondence> matches;
-  std::vector<bool> is_outlier;
-};
+using test::MatchScene;
+using test::RotationErrorDeg;
 
-// Points seen by both cameras (depth 4-30 m in camera 1, inside both images); outliers pair a
-// point with another point's position and keypoint in camera 2.
+// The shared two-camera scene (support/sim3_scene.h) with this file's similarity.
 MatchScene MakeScene(uint64_t seed, int count, double outlier_fraction, double scale,
                      double noise_px) {
-  const PinholeCamera camera = test::KittiCamera();
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> noise(0.0, noise_px);
-  std::uniform_int_distribution<int> octave(0, 3);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  std::uniform_real_distribution<double> u(0.0, camera.width_px - 1.0);
-  std::uniform_real_distribution<double> v(0.0, camera.height_px - 1.0);
-  std::uniform_real_distribution<double> depth(4.0, 30.0);
-  MatchScene scene;
-  scene.cam1_from_cam2.scale = scale;
-  scene.cam1_from_cam2.rotation = ExpSO3(Eigen::Vector3d(-0.02, 0.1, 0.04));
-  scene.cam1_from_cam2.translation = Eigen::Vector3d(-0.3, 0.05, -1.2);
-  const Sim3 cam2_from_cam1 = scene.cam1_from_cam2.Inverse();
-  auto sample = [&](Eigen::Vector3d* p1, Eigen::Vector3d* p2) {
-    do {
-      *p1 = camera.Unproject({u(rng), v(rng)}, depth(rng));
-      *p2 = cam2_from_cam1.Map(*p1);
-    } while (!(p2->z() > 1.0 && camera.InImage(camera.Project(*p2))));
-  };
-  for (int i = 0; i < count; ++i) {
-    Sim3Correspondence m;
-    sample(&m.p_in_cam1, &m.p_in_cam2);
-    const double level1 = std::pow(1.2, octave(rng)), level2 = std::pow(1.2, octave(rng));
-    m.sigma2_1 = level1 * level1;
-    m.sigma2_2 = level2 * level2;
-    m.uv1_px = camera.Project(m.p_in_cam1) + level1 * Eigen::Vector2d(noise(rng), noise(rng));
-    const bool outlier = unit(rng) < outlier_fraction;
-    if (outlier) {
-      Eigen::Vector3d other_in_cam1;
-      sample(&other_in_cam1, &m.p_in_cam2);
-    }
-    m.uv2_px = camera.Project(m.p_in_cam2) + level2 * Eigen::Vector2d(noise(rng), noise(rng));
-    scene.matches.push_back(m);
-    scene.is_outlier.push_back(outlier);
-  }
-  return scene;
+  return test::MakeMatchScene(Eigen::Vector3d(-0.02, 0.1, 0.04), Eigen::Vector3d(-0.3, 0.05, -1.2),
+                              scale, seed, count, outlier_fraction, noise_px);
 }
 
 Sim3 Perturb(const Sim3& s, double angle_rad, double translation_m, double scale_factor) {
@@ -66,10 +28,6 @@ Sim3 Perturb(const Sim3& s, double angle_rad, double translation_m, double scale
   p.translation += Eigen::Vector3d(1, 1, -1).normalized() * translation_m;
   p.scale *= scale_factor;
   return p;
-}
-
-double RotationErrorDeg(const Sim3& a, const Sim3& b) {
-  return RotationDistanceRad(a.rotation, b.rotation) / test::kDegToRad;
 }
 
 TEST(Sim3Optimizer, PerturbedStartConvergesToTruth) {
