@@ -130,6 +130,9 @@ struct Statistics {
   std::optional<double> ate_rmse_m, rpe_rmse_m;
   // Loop closing: loops corrected, jobs whose candidates all failed the geometry, global BAs.
   int loops_closed = 0, loop_jobs_rejected = 0, global_bas = 0;
+  // Relocalisation (a lost frame; in localisation mode also the checks in the whole map): poses
+  // accepted, and candidates that held PnP but that the local map did not confirm.
+  int relocalisations = 0, relocalisations_rejected = 0;
 };
 
 struct Result {

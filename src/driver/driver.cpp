@@ -211,13 +211,17 @@ void WriteDriverOutputs(const std::string& out_dir, const DriverResult& result,
   const nlohmann::json map = WriteMapOutputs(out_dir, result.pipeline.map, result.summary);
   WriteRunOutputs(
       out_dir, result.summary, config_yaml,
-      {{"pipeline", pipeline}, {"map", map}, {"loop", graph::LoopToJson(result.pipeline)}});
+      {{"pipeline", pipeline},
+       {"map", map},
+       {"loop", graph::LoopToJson(result.pipeline)},
+       {"relocalisation", graph::RelocalisationToJson(result.pipeline.relocalisation_stats)}});
   graph::WriteChromeTrace(out_dir + "/trace.json", result.pipeline);
   graph::WriteTimingChart(out_dir + "/timing.png", result.pipeline);
 }
 
 std::string FormatDriverSummary(const DriverResult& result) {
   return FormatRunSummary(result.summary) + graph::FormatLoopSummary(result.pipeline) +
+         graph::FormatRelocalisationSummary(result.pipeline.relocalisation_stats) +
          graph::FormatPipelineStats(result.pipeline.stats);
 }
 

@@ -836,6 +836,7 @@ PipelineResult GraphRun::Collect() {
   for (const nodes::LoopOutcomePtr& o : TakeLoopOutcomes()) mapping_.ApplyLoopOutcome(*o, -1);
   out.loop_events = slam_->loop_events();
   out.loop_stats = slam_->loop_closer().stats();
+  out.relocalisation_stats = slam_->relocalisation_stats();
   out.tracked = slam_->RefinedTrajectory();
   out.keyframes = slam_->map().num_keyframes();
   out.map_points = slam_->map().num_points();

@@ -132,6 +132,7 @@ struct PipelineResult {
   // Loop closing: every outcome the map's owner dealt with, and the closer's counters.
   std::vector<LoopEvent> loop_events;
   LoopStats loop_stats;
+  RelocalisationStats relocalisation_stats;  // the tracker's, at the end
   std::string error;  // empty when every frame ran; else "frame N, stage S: what"
   int64_t error_frame_index = -1;
   std::string error_stage;

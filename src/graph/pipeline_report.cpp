@@ -275,6 +275,25 @@ std::string FormatLoopSummary(const PipelineResult& result) {
   return out;
 }
 
+nlohmann::json RelocalisationToJson(const RelocalisationStats& st) {
+  return {{"calls", st.calls},
+          {"place_candidates", st.place_candidates},
+          {"keyframes_tried", st.keyframes_tried},
+          {"matched", st.matched},
+          {"passed", st.passed},
+          {"rejected", st.rejected},
+          {"accepted", st.accepted}};
+}
+
+std::string FormatRelocalisationSummary(const RelocalisationStats& st) {
+  if (st.calls == 0) return "";
+  return fmt::format(
+      "relocalisation: {} calls, {} accepted; {} place-recognition candidates, {} keyframes "
+      "tried, {} with enough matches, {} held by PnP, {} of those rejected by the local map\n",
+      st.calls, st.accepted, st.place_candidates, st.keyframes_tried, st.matched, st.passed,
+      st.rejected);
+}
+
 void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
   nlohmann::json events = nlohmann::json::array();
   events.push_back(

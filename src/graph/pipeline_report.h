@@ -21,6 +21,11 @@ nlohmann::json LoopToJson(const PipelineResult& result);
 // One or two lines: loops closed, rejected jobs and candidates, times ("" without loop closing).
 std::string FormatLoopSummary(const PipelineResult& result);
 
+// Relocalisation's counters (RelocalisationStats) for stats.json, and as one line ("" when no
+// frame had to be relocalised).
+nlohmann::json RelocalisationToJson(const RelocalisationStats& stats);
+std::string FormatRelocalisationSummary(const RelocalisationStats& stats);
+
 // Chrome trace: one "X" (complete) event per stage call on pid 1 with the thread as tid; one per
 // frame (release -> pose) on pid 2, lanes by seq modulo the in-flight bound; an instant event per
 // dropped frame. ts/dur in microseconds. Throws InputError when the file cannot be written.

@@ -50,6 +50,7 @@ TEST(MapFile, TheSecondLapIsLocalisedInTheSavedMapOfTheFirst) {
   const api::Result lap = api::Run(c, api::Source::Dataset(LoopStreet(), 0, 175));
   ASSERT_TRUE(lap.error.empty()) << lap.error;
   EXPECT_EQ(lap.stats.frames_tracked, 175u);
+  EXPECT_EQ(lap.stats.relocalisations, 0) << "the first lap is never lost";
   ASSERT_TRUE(lap.stats.ate_rmse_m.has_value());
   const MapArchive saved = LoadMap(c.save_map);
   EXPECT_EQ(saved.map.num_keyframes(), lap.stats.keyframes);
@@ -63,6 +64,7 @@ TEST(MapFile, TheSecondLapIsLocalisedInTheSavedMapOfTheFirst) {
   const api::Result loc = api::Run(l, api::Source::Dataset(LoopStreet(), 175, 200));
   ASSERT_TRUE(loc.error.empty()) << loc.error;
   EXPECT_EQ(loc.stats.frames_tracked, 25u);
+  EXPECT_GE(loc.stats.relocalisations, 1) << "the first frame is relocalised in the whole map";
   EXPECT_EQ(loc.stats.keyframes, lap.stats.keyframes);
   EXPECT_EQ(loc.stats.map_points, lap.stats.map_points);
   for (const api::FrameResult& f : loc.frames) {

@@ -146,6 +146,9 @@ class SlamSystem {
   // The loop lane's work on a job, inline: CloseLoop, applied, then the global BA, applied.
   void RunLoopJob(const LoopJob& job, int64_t frame_index);
   const LoopCloser& loop_closer() const { return loop_closer_; }
+  const RelocalisationStats& relocalisation_stats() const {
+    return tracker_.relocalisation_stats();
+  }
   const std::vector<LoopEvent>& loop_events() const { return loop_events_; }
 
   // --- Saving and loading the map (slam/system/map_archive.h) ---

@@ -334,11 +334,14 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, const PlaceQuery& p
                          Matches* m, int* n0) {
   // Candidates: keyframes anywhere in the map that look like the frame (place recognition), then
   // the most recent keyframes, then the reference keyframe's covisible ones.
+  RelocalisationStats& st = relocalisation_stats_;
+  ++st.calls;
   std::vector<KeyframeId> candidates;
   std::set<KeyframeId> seen;
   if (place)
     for (KeyframeId id : place(frame))
       if (map.keyframe(id) && seen.insert(id).second) candidates.push_back(id);
+  st.place_candidates += static_cast<int>(candidates.size());
   std::vector<const Keyframe*> by_index;
   for (const auto& [id, kf] : map.keyframes()) by_index.push_back(&kf);
   std::sort(by_index.begin(), by_index.end(),
@@ -353,6 +356,7 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, const PlaceQuery& p
   std::vector<int> a;
   for (int i = 0; i < frame.size(); ++i)
     if (!frame.excluded(i)) a.push_back(i);
+  st.keyframes_tried += static_cast<int>(candidates.size());
   for (KeyframeId id : candidates) {
     const Keyframe* kf = map.keyframe(id);
     std::vector<int> b;
@@ -362,6 +366,7 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, const PlaceQuery& p
         MatchDescriptors(frame, a, *kf->frame, b, options_.relocalisation_max_distance,
                          options_.relocalisation_match_ratio, true);
     if (static_cast<int>(pairs.size()) < options_.min_relocalisation_matches) continue;
+    ++st.matched;
     std::vector<int> inliers;
     SE3 candidate_pose;
     if (!PnpRansac(frame, map, *kf, pairs, &candidate_pose, &inliers) ||
@@ -412,11 +417,12 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, const PlaceQuery& p
     for (int i = 0; i < frame.size(); ++i)
       confirmations += verified.kind[i] == 1 && m->kind[i] != 1 ? 1 : 0;
     const bool explained = tracked && confirmations >= options_.min_relocalisation_confirmations;
-    ++relocalisation_candidates_;
+    ++st.passed;
     if (!explained) {
-      ++relocalisation_rejections_;
+      ++st.rejected;
       continue;
     }
+    ++st.accepted;
     *pose = candidate_pose;
     *n0 = static_cast<int>(pairs.size());
     reference_ = id;

@@ -115,6 +115,21 @@ struct TrackingResult {
   KeyframeDecisionInput keyframe_input;  // for ShouldInsertKeyframe
 };
 
+// What relocalisation did: calls (a lost frame, or localisation mode's check in the whole map),
+// keyframes the place query returned, keyframes tried (those, the most recent ones and the
+// reference's covisible ones), candidates with enough descriptor matches, candidates whose PnP
+// RANSAC and pose optimisation held (passed), of those the ones the local map did not confirm
+// (rejected), and accepted poses.
+struct RelocalisationStats {
+  int calls = 0;
+  int place_candidates = 0;
+  int keyframes_tried = 0;
+  int matched = 0;
+  int passed = 0;
+  int rejected = 0;
+  int accepted = 0;
+};
+
 // Place recognition for relocalisation: keyframes of the whole map that look like the frame, best
 // first (slam/loop: the keyframe database). Called only when a frame must be relocalised.
 using PlaceQuery = std::function<std::vector<KeyframeId>(const Frame&)>;
@@ -145,10 +160,8 @@ class Tracker {
   TrackingStatus status() const { return status_; }
   const TrackerOptions& options() const { return options_; }
   const MonoInitializer& mono_initializer() const { return mono_initializer_; }
-  // Relocalisation candidates that passed PnP and pose optimisation so far, and those of them the
-  // local map did not confirm (rejected).
-  int relocalisation_candidates() const { return relocalisation_candidates_; }
-  int relocalisation_rejections() const { return relocalisation_rejections_; }
+  // Relocalisation counters since construction (see RelocalisationStats).
+  const RelocalisationStats& relocalisation_stats() const { return relocalisation_stats_; }
 
  private:
   // Matches of the frame under construction: per keypoint, a map point or a temporary point.
@@ -205,7 +218,7 @@ class Tracker {
   void StartFromInitialisation(const FramePtr& frame, const SE3& cam_from_world);
   KeyframeId reference_;
   int64_t last_keyframe_t_ns_ = 0;
-  int relocalisation_candidates_ = 0, relocalisation_rejections_ = 0;
+  RelocalisationStats relocalisation_stats_;
   SE3 last_keyframe_cam_from_world_ = SE3::Identity();
   int64_t frames_since_relocalisation_ = 1 << 30;
 };

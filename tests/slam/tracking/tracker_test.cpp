@@ -247,14 +247,23 @@ TEST(Tracker, ARelocalisationCandidateTheLocalMapDoesNotConfirmIsRejected) {
     cv::vconcat(rows, r.features.descriptors);
     const FramePtr poster =
         Frame::Create(9, 9 * 100'000'000, scene.rig(), scene.scale(), r.features, r.stereo, {});
+    const RelocalisationStats before = run.tracker.relocalisation_stats();
     const TrackingResult result = run.tracker.Track(poster, run.map);
-    EXPECT_GE(run.tracker.relocalisation_candidates(), 1) << "PnP supported a candidate";
+    const RelocalisationStats& after = run.tracker.relocalisation_stats();
+    EXPECT_EQ(after.calls, before.calls + 1);
+    const int passed = after.passed - before.passed, rejected = after.rejected - before.rejected;
+    EXPECT_GE(passed, 1) << "PnP supported a candidate";
+    EXPECT_GE(after.matched - before.matched, passed);
+    EXPECT_GE(after.keyframes_tried - before.keyframes_tried, after.matched - before.matched);
     if (verify) {
       EXPECT_EQ(result.status, TrackingStatus::kLost);
-      EXPECT_EQ(run.tracker.relocalisation_rejections(), run.tracker.relocalisation_candidates());
+      EXPECT_EQ(rejected, passed);
+      EXPECT_EQ(after.accepted, before.accepted);
     } else {
       EXPECT_EQ(result.status, TrackingStatus::kOk);
       EXPECT_EQ(result.method, TrackingMethod::kRelocalisation);
+      EXPECT_EQ(after.accepted, before.accepted + 1);
+      EXPECT_EQ(passed, rejected + 1);
     }
   }
 }
