@@ -1,6 +1,7 @@
 // Loop closing: what it buys and what it costs. Prints figures, asserts nothing; the exit status
 // is 1 when a run fails (stops early, throws) or, with --sequence, when a loop is accepted on a
-// clip without one ("FALSE LOOP"). Four modes:
+// clip without one ("FALSE LOOP"), or with --cross, when a clip is localised in another clip's map
+// ("FALSE PLACE"). Five modes:
 //
 //  default     synthetic loop routes (`pcr_orb synth --route loop`), each run twice in this
 //              process, loop closing ON and OFF (OFF: no vocabulary). Per seed: path length,
@@ -11,6 +12,10 @@
 //              closed, the first correction (frame, metres, mono scale), candidates rejected
 //              (and of those, by the owner's word-match precheck), detection p50/p99 and the loop
 //              lane's times (verify + correct + pose graph of the corrections; global BA).
+//              Stereo also prints an oracle: the OFF run's own drift corrected by a pose graph
+//              with perfect loops (ground-truth loop edges at every revisit frame, OracleOf),
+//              the best any loop correction of that drift can do without re-estimating the
+//              structure, so ATE on/off can be read against ATE oracle/off of the same run.
 //  --latency   one seed, pipelined policy: ON/OFF/ON/OFF... for --repeat rounds; tracking latency
 //              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages.
 //  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
@@ -27,10 +32,18 @@
 //              queries), counted by verdict, with precision and recall against the queries that
 //              have a frame of their database within 10 m.
 //
+//  --cross     place recognition through the whole system: each clip is mapped alone (mono,
+//              sequential), then every clip runs in that map in localisation mode, where each
+//              lost frame relocalises in the whole map (place query, PnP RANSAC, local-map
+//              check). Per pair: frames tracked (0 unless it is the clip's own map, the control)
+//              and the relocalisation counters. A clip with another camera is warped into the
+//              map's camera (pinhole to pinhole, same orientation; images under WORK/cross/).
+//
 //   bench_loop [--seeds 1,2,3] [--frames 600] [--speed 8] [--movers 6] [--work DIR]
 //              [--policy sequential|pipelined] [--mode stereo|mono] [--vocabulary FILE]
 //   bench_loop --latency [--seeds 1] [--repeat 2]
 //   bench_loop --sequence DIR... [--mode mono]
+//   bench_loop --cross DIR... [--work DIR]
 //   bench_loop --place DIR... [--place-stride 2] [--window 10] [--thresholds 0,0.02,...]
 //
 // Work directory: seed S is looked up as WORK/loopS/ (the layout of `pcr_orb synth --out
@@ -43,7 +56,8 @@
 // Runtime (2 cores shared with other work, load average 2-3, 600 frames, seed 1): stereo
 // sequential ~160 s ON / ~130 s OFF, so the default 3 seeds take ~15 minutes (plus rendering of
 // missing loops); mono ~100 s / ~55 s; --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7
-// minutes); --sequence 10-40 s a KITTI clip; --place ~6 s on the four shipped clips.
+// minutes); --sequence 10-40 s a KITTI clip; --place ~6 s on the four shipped clips; --cross ~8
+// minutes on them (16 runs, most frames of the cross pairs try 10-20 keyframes).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -62,6 +76,8 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -75,11 +91,14 @@
 #include "graph/pipeline_options.h"
 #include "io/dataset.h"
 #include "sim/sequence_writer.h"
+#include "slam/common/lie.h"
 #include "slam/common/timing.h"
 #include "slam/features/orb_extractor.h"
+#include "slam/geometry/se3.h"
 #include "slam/loop/keyframe_database.h"
 #include "slam/loop/loop_closer.h"
 #include "slam/loop/vocabulary.h"
+#include "slam/optim/pose_graph.h"
 
 namespace {
 
@@ -102,6 +121,7 @@ struct Args {
   int repeat = 2;
   std::vector<std::string> sequences;
   std::vector<std::string> place;
+  std::vector<std::string> cross;
   int place_stride = 2;
   int window = 10;
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
@@ -261,6 +281,97 @@ Figures Measure(const pcr::Dataset& d, const pcr::driver::DriverResult& run, boo
   return f;
 }
 
+// What correcting the OFF run's drift by loops can buy at best: its tracked poses in a pose
+// graph (pcr::OptimizePoseGraph, the first frame fixed) with its own frame-to-frame motions as
+// odometry edges and, as loop edges, the ground truth's relative pose from every frame to the
+// nearest frame of an earlier pass (>= kOracleGap frames before, within kOracleRadius metres and
+// kOracleMaxDeg degrees): perfect place recognition and perfect loop geometry, no re-estimation
+// of the structure. Odometry edges are whitened by the run's own step errors (translations
+// scaled by sigma_rotation / sigma_translation, so a metre and a radian of error weigh what
+// the run's noise says). Returns NaN when the run has no revisit or too few poses.
+constexpr int64_t kOracleGap = 150;
+constexpr double kOracleRadius = 3.0, kOracleMaxDeg = 30.0, kOracleLoopWeight = 100.0;
+
+struct Oracle {
+  double ate_m = kNaN;
+  int loop_edges = 0;
+};
+
+Oracle OracleOf(const pcr::Dataset& d, const pcr::Trajectory& tracked) {
+  Oracle out;
+  if (!d.ground_truth || tracked.size() < 3) return out;
+  const pcr::Trajectory& truth = *d.ground_truth;
+  auto gt = [&](size_t i) -> const pcr::SE3& {
+    return truth[static_cast<size_t>(tracked[i].frame_index)].world_from_cam;
+  };
+  double t2 = 0, r2 = 0;
+  for (size_t i = 1; i < tracked.size(); ++i) {
+    const pcr::SE3 est_step = tracked[i - 1].world_from_cam.inverse() * tracked[i].world_from_cam;
+    const pcr::SE3 gt_step = gt(i - 1).inverse() * gt(i);
+    const pcr::SE3 e = gt_step.inverse() * est_step;
+    t2 += e.translation().squaredNorm();
+    r2 += pcr::LogSO3(Eigen::Matrix3d(e.linear())).squaredNorm();
+  }
+  if (!(t2 > 0 && r2 > 0)) return out;
+  const double k = std::sqrt(r2 / t2);  // metres -> whitened units
+  auto scaled = [k](pcr::SE3 world_from_cam) {
+    world_from_cam.translation() *= k;
+    return pcr::Sim3::FromSE3(world_from_cam.inverse());  // cam_from_world
+  };
+  std::vector<pcr::PoseGraphVertex> vertices(tracked.size());
+  for (size_t i = 0; i < tracked.size(); ++i) {
+    vertices[i].id = static_cast<int64_t>(i);
+    vertices[i].cam_from_world = scaled(tracked[i].world_from_cam);
+  }
+  vertices[0].fixed = true;
+  std::vector<pcr::PoseGraphEdge> edges;
+  for (size_t j = 1; j < tracked.size(); ++j) {
+    pcr::PoseGraphEdge e;
+    e.i = static_cast<int>(j - 1);
+    e.j = static_cast<int>(j);
+    e.i_from_j = vertices[j - 1].cam_from_world * vertices[j].cam_from_world.Inverse();
+    edges.push_back(e);
+  }
+  for (size_t j = 0; j < tracked.size(); ++j) {
+    int best = -1;
+    double best_m = kOracleRadius;
+    for (size_t i = 0; i < tracked.size(); ++i) {
+      if (tracked[i].frame_index + kOracleGap > tracked[j].frame_index) break;
+      const double m = (gt(i).translation() - gt(j).translation()).norm();
+      const double deg = pcr::RadToDeg(pcr::RotationDistanceRad(gt(i).linear(), gt(j).linear()));
+      if (m < best_m && deg < kOracleMaxDeg) {
+        best_m = m;
+        best = static_cast<int>(i);
+      }
+    }
+    if (best < 0) continue;
+    pcr::PoseGraphEdge e;
+    e.i = best;
+    e.j = static_cast<int>(j);
+    e.i_from_j = scaled(gt(static_cast<size_t>(best))) * scaled(gt(j)).Inverse();
+    e.weight = kOracleLoopWeight;
+    e.is_loop = true;
+    edges.push_back(e);
+    ++out.loop_edges;
+  }
+  if (out.loop_edges == 0) return out;
+  pcr::PoseGraphOptions options;
+  options.fix_scale = true;
+  options.max_iterations = 100;
+  const pcr::PoseGraphResult result = pcr::OptimizePoseGraph(vertices, edges, options);
+  pcr::Trajectory corrected = tracked;
+  for (size_t i = 0; i < tracked.size(); ++i) {
+    pcr::SE3 world_from_cam = result.cam_from_world[i].Inverse().ToSE3();
+    world_from_cam.translation() /= k;
+    corrected[i].world_from_cam = world_from_cam;
+  }
+  pcr::eval::EvalOptions eval;
+  eval.alignment.mode = pcr::eval::AlignMode::kSe3;
+  out.ate_m = pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(truth, corrected), eval)
+                  .ape.trans_m.rmse;
+  return out;
+}
+
 struct LoopFigures {
   int loops = 0, global_bas = 0, jobs = 0, jobs_rejected = 0;
   int candidates_rejected = 0, candidates_prechecked = 0;
@@ -310,6 +421,7 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
     size_t frames = 0;
     double path_m = 0;
     Figures off, on;
+    Oracle oracle;  // stereo: the OFF run's drift corrected by perfect loops (OracleOf)
     LoopFigures loop;
   };
   std::vector<Row> rows;
@@ -333,6 +445,7 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
         r.loop = LoopFiguresOf(run.pipeline);
       } else {
         r.off = f;
+        if (!mono) r.oracle = OracleOf(d, run.summary.tracked);
       }
     }
     rows.push_back(r);
@@ -341,19 +454,23 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
   std::printf("\nAccuracy (%s, %s ATE; end: last frame's error without alignment%s)\n",
               args.mode.c_str(), mono ? "Sim(3)" : "SE(3)",
               mono ? ", estimate scaled by its first 100 tracked frames" : "");
-  std::printf("%4s %6s %8s | %7s %7s | %8s %8s | %7s %7s | %6s | %8s %8s", "seed", "frames",
-              "path m", "trk off", "trk on", "ATE off", "ATE on", "% off", "% on", "on/off",
-              "end off", "end on");
+  std::printf("%4s %6s %8s | %7s %7s | %8s %8s | %7s %7s | %6s | %8s %8s | %8s %7s %6s", "seed",
+              "frames", "path m", "trk off", "trk on", "ATE off", "ATE on", "% off", "% on",
+              "on/off", "end off", "end on", "ATE orc", "orc/off", "edges");
   if (mono) std::printf(" | %8s %8s", "scl% off", "scl% on");
   std::printf("\n");
-  std::vector<double> ratios;
+  std::vector<double> ratios, oracle_ratios;
   for (const Row& r : rows) {
+    if (std::isfinite(r.oracle.ate_m / r.off.ate_m))
+      oracle_ratios.push_back(r.oracle.ate_m / r.off.ate_m);
     const double ratio = r.on.ate_m / r.off.ate_m;
     if (std::isfinite(ratio)) ratios.push_back(ratio);
     std::printf("%4d %6zu %8.1f | %7zu %7zu | %8.3f %8.3f | %6.2f%% %6.2f%% | %6.3f | %8.3f %8.3f",
                 static_cast<int>(r.seed), r.frames, r.path_m, r.off.tracked, r.on.tracked,
                 r.off.ate_m, r.on.ate_m, 100 * r.off.ate_m / r.path_m, 100 * r.on.ate_m / r.path_m,
                 ratio, r.off.end_m, r.on.end_m);
+    std::printf(" | %8.3f %7.3f %6d", r.oracle.ate_m, r.oracle.ate_m / r.off.ate_m,
+                r.oracle.loop_edges);
     if (mono) std::printf(" | %+8.2f %+8.2f", r.off.end_scale_pct, r.on.end_scale_pct);
     std::printf("\n");
   }
@@ -361,6 +478,13 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
     std::sort(ratios.begin(), ratios.end());
     std::printf("ATE ratio on/off: median %.3f, min %.3f, max %.3f over %zu seeds\n",
                 ratios[ratios.size() / 2], ratios.front(), ratios.back(), ratios.size());
+  }
+  if (!oracle_ratios.empty()) {
+    std::sort(oracle_ratios.begin(), oracle_ratios.end());
+    std::printf(
+        "ATE ratio oracle/off (the OFF run's drift, pose graph with ground-truth loop edges): "
+        "median %.3f, min %.3f, max %.3f\n",
+        oracle_ratios[oracle_ratios.size() / 2], oracle_ratios.front(), oracle_ratios.back());
   }
 
   std::printf(
@@ -735,6 +859,105 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
 
 }  // namespace
 
+// --- Cross-clip localisation ---------------------------------------------------------------------
+
+// Clip `clip` as camera `camera` would have seen it (both pinhole, same orientation): each left
+// image warped by u' = fx'/fx (u - cx) + cx' (the same in v), grey, written once under `dir`; a
+// monocular dataset with `camera`'s rig. The clip itself when the cameras are the same.
+pcr::Dataset ThroughCamera(const pcr::Dataset& clip, const pcr::PinholeCamera& camera,
+                           const fs::path& dir) {
+  const pcr::PinholeCamera& c = clip.rig.left;
+  pcr::Dataset out = clip;
+  out.right_paths.clear();
+  out.left_color_paths.clear();
+  out.rig = pcr::StereoRig{};
+  out.rig.left = camera;
+  out.rig.baseline_m = 0;
+  if (c.fx == camera.fx && c.fy == camera.fy && c.cx == camera.cx && c.cy == camera.cy &&
+      c.width_px == camera.width_px && c.height_px == camera.height_px)
+    return out;
+  fs::create_directories(dir);
+  const double sx = camera.fx / c.fx, sy = camera.fy / c.fy;
+  const cv::Mat warp =
+      (cv::Mat_<double>(2, 3) << sx, 0, camera.cx - sx * c.cx, 0, sy, camera.cy - sy * c.cy);
+  for (size_t i = 0; i < clip.size(); ++i) {
+    const fs::path path = dir / fmt::format("{:06d}.png", i);
+    if (!fs::exists(path)) {
+      cv::Mat warped;
+      cv::warpAffine(clip.LoadLeft(i), warped, warp, cv::Size(camera.width_px, camera.height_px),
+                     cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+      const fs::path partial = dir / fmt::format("{:06d}.partial.png", i);
+      if (!cv::imwrite(partial.string(), warped))
+        throw std::runtime_error("cannot write " + partial.string());
+      fs::rename(partial, path);
+    }
+    out.left_paths[i] = path.string();
+  }
+  return out;
+}
+
+int RunCross(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary) {
+  std::vector<pcr::Dataset> clips;
+  for (const std::string& path : args.cross) clips.push_back(pcr::OpenDataset(path));
+  auto run = [&](const pcr::Dataset& d, std::shared_ptr<const pcr::MapArchive> map) {
+    pcr::driver::RunConfig config;
+    config.slam.localize_only = map != nullptr;
+    pcr::driver::DriverOptions options;
+    options.mode = pcr::SlamMode::kMonocular;
+    options.pipeline.policy = pcr::graph::Policy::kSequential;
+    options.pipeline.threads = args.threads;
+    options.pipeline.vocabulary = vocabulary;
+    options.pipeline.initial_map = std::move(map);
+    options.pipeline.keep_final_map = !config.slam.localize_only;
+    return pcr::driver::RunDataset(d, config, {0, d.size()}, options);
+  };
+  std::printf(
+      "\nCross-clip localisation (monocular, sequential): each clip mapped alone, then every clip "
+      "run in that map in localisation mode (a lost frame relocalises in the whole map: place "
+      "recognition, PnP, local-map check). A frame of another clip tracked there is a false "
+      "place; its own clip is the control. A clip with another camera is warped into the map's.\n");
+  std::printf("%-28s %-28s %6s %7s | %6s %7s %7s %7s %6s %6s %6s\n", "map", "clip", "frames",
+              "tracked", "calls", "place c", "kf try", "matched", "PnP", "reject", "accept");
+  int false_places = 0, failed = 0;
+  for (size_t a = 0; a < clips.size(); ++a) {
+    const pcr::driver::DriverResult mapped = run(clips[a], nullptr);
+    if (!mapped.summary.error.empty() || !mapped.pipeline.final_map) {
+      std::printf("%-28s mapping FAILED: %s\n", clips[a].name.c_str(),
+                  mapped.summary.error.c_str());
+      ++failed;
+      continue;
+    }
+    std::printf("%-28s mapped: %zu/%zu frames tracked, %zu keyframes, %zu points\n",
+                clips[a].name.c_str(), mapped.summary.frames_tracked, clips[a].size(),
+                mapped.summary.keyframes, mapped.summary.map_points);
+    for (size_t b = 0; b < clips.size(); ++b) {
+      const pcr::Dataset shown =
+          ThroughCamera(clips[b], clips[a].rig.left,
+                        fs::path(args.work) / "cross" / (clips[b].name + "_as_" + clips[a].name));
+      const pcr::driver::DriverResult r = run(shown, mapped.pipeline.final_map);
+      const pcr::RelocalisationStats& st = r.pipeline.relocalisation_stats;
+      const bool own = a == b;
+      const bool false_place = !own && r.summary.frames_tracked > 0;
+      false_places += false_place;
+      failed += !r.summary.error.empty();
+      std::printf("%-28s %-28s %6zu %7zu | %6d %7d %7d %7d %6d %6d %6d%s%s\n",
+                  clips[a].name.c_str(), clips[b].name.c_str(), clips[b].size(),
+                  r.summary.frames_tracked, st.calls, st.place_candidates, st.keyframes_tried,
+                  st.matched, st.passed, st.rejected, st.accepted, own ? "  (control)" : "",
+                  false_place ? "  FALSE PLACE" : "");
+      std::fflush(stdout);
+    }
+  }
+  std::printf(
+      "(calls: relocalisations tried; place c: keyframes the place query returned; kf try: "
+      "keyframes tried, with the recent and covisible ones; matched: with enough descriptor "
+      "matches; PnP: held by PnP RANSAC and pose optimisation; reject: of those, not confirmed "
+      "by the local map; accept: poses accepted)\n");
+  if (false_places > 0) std::printf("%d FALSE PLACE pair(s)\n", false_places);
+  if (failed > 0) std::printf("%d run(s) FAILED\n", failed);
+  return false_places > 0 || failed > 0 ? 1 : 0;
+}
+
 int main(int argc, char** argv) {
   CLI::App app{"Loop closing: accuracy, costs, false loops and place recognition"};
   Args a;
@@ -755,6 +978,9 @@ int main(int argc, char** argv) {
   app.add_option("--repeat", a.repeat, "--latency: on/off rounds")->capture_default_str();
   app.add_option("--sequence", a.sequences, "real clips without a loop: false loops");
   app.add_option("--place", a.place, "place recognition alone on these clips");
+  app.add_option("--cross", a.cross,
+                 "whole-system place recognition across clips: each clip mapped, every other "
+                 "clip localised in its map");
   app.add_option("--place-stride", a.place_stride, "--place: every N-th frame")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
@@ -779,6 +1005,7 @@ int main(int argc, char** argv) {
       return 1;
     }
     if (!a.place.empty()) return RunPlace(a, *vocabulary);
+    if (!a.cross.empty()) return RunCross(a, vocabulary);
     if (!a.sequences.empty()) return RunSequences(a, vocabulary);
     if (a.latency) return RunLatency(a, vocabulary);
     return RunLoops(a, vocabulary);
