@@ -208,14 +208,22 @@ std::string LoopSequence(const Args& args, uint64_t seed) {
   return pcr::sim::WriteSequence(o, written.string()).sequence_dir;
 }
 
+// A run of every frame of d in --mode. localise_in: run in that map in localisation mode
+// (--localize-only); keep_map: PipelineResult::final_map holds the map at the end.
 pcr::driver::DriverResult Run(const pcr::Dataset& d, const Args& args, pcr::graph::Policy policy,
-                              std::shared_ptr<const pcr::Vocabulary> vocabulary) {
+                              std::shared_ptr<const pcr::Vocabulary> vocabulary,
+                              std::shared_ptr<const pcr::MapArchive> localise_in = nullptr,
+                              bool keep_map = false) {
+  pcr::driver::RunConfig config;
+  config.slam.localize_only = localise_in != nullptr;
   pcr::driver::DriverOptions options;
   options.mode = args.mode == "mono" ? pcr::SlamMode::kMonocular : pcr::SlamMode::kStereo;
   options.pipeline.policy = policy;
   options.pipeline.threads = args.threads;
   options.pipeline.vocabulary = std::move(vocabulary);
-  return pcr::driver::RunDataset(d, pcr::driver::RunConfig{}, {0, d.size()}, options);
+  options.pipeline.initial_map = std::move(localise_in);
+  options.pipeline.keep_final_map = keep_map;
+  return pcr::driver::RunDataset(d, config, {0, d.size()}, options);
 }
 
 // Summed step lengths of tracked[first, last) (metres; estimate units for the estimate) and of
@@ -903,18 +911,9 @@ pcr::Dataset ThroughCamera(const pcr::Dataset& clip, const pcr::PinholeCamera& c
 int RunCross(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary) {
   std::vector<pcr::Dataset> clips;
   for (const std::string& path : args.cross) clips.push_back(pcr::OpenDataset(path));
-  auto run = [&](const pcr::Dataset& d, std::shared_ptr<const pcr::MapArchive> map) {
-    pcr::driver::RunConfig config;
-    config.slam.localize_only = map != nullptr;
-    pcr::driver::DriverOptions options;
-    options.mode = pcr::SlamMode::kMonocular;
-    options.pipeline.policy = pcr::graph::Policy::kSequential;
-    options.pipeline.threads = args.threads;
-    options.pipeline.vocabulary = vocabulary;
-    options.pipeline.initial_map = std::move(map);
-    options.pipeline.keep_final_map = !config.slam.localize_only;
-    return pcr::driver::RunDataset(d, config, {0, d.size()}, options);
-  };
+  Args mono = args;
+  mono.mode = "mono";
+  constexpr pcr::graph::Policy kSequential = pcr::graph::Policy::kSequential;
   std::printf(
       "\nCross-clip localisation (monocular, sequential): each clip mapped alone, then every clip "
       "run in that map in localisation mode (a lost frame relocalises in the whole map: place "
@@ -924,7 +923,8 @@ int RunCross(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
               "tracked", "calls", "place c", "kf try", "matched", "PnP", "reject", "accept");
   int false_places = 0, failed = 0;
   for (size_t a = 0; a < clips.size(); ++a) {
-    const pcr::driver::DriverResult mapped = run(clips[a], nullptr);
+    const pcr::driver::DriverResult mapped =
+        Run(clips[a], mono, kSequential, vocabulary, nullptr, /*keep_map=*/true);
     if (!mapped.summary.error.empty() || !mapped.pipeline.final_map) {
       std::printf("%-28s mapping FAILED: %s\n", clips[a].name.c_str(),
                   mapped.summary.error.c_str());
@@ -938,7 +938,8 @@ int RunCross(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
       const pcr::Dataset shown =
           ThroughCamera(clips[b], clips[a].rig.left,
                         fs::path(args.work) / "cross" / (clips[b].name + "_as_" + clips[a].name));
-      const pcr::driver::DriverResult r = run(shown, mapped.pipeline.final_map);
+      const pcr::driver::DriverResult r =
+          Run(shown, mono, kSequential, vocabulary, mapped.pipeline.final_map);
       const pcr::RelocalisationStats& st = r.pipeline.relocalisation_stats;
       const bool own = a == b;
       const bool false_place = !own && r.summary.frames_tracked > 0;

@@ -356,8 +356,8 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, const PlaceQuery& p
   std::vector<int> a;
   for (int i = 0; i < frame.size(); ++i)
     if (!frame.excluded(i)) a.push_back(i);
-  st.keyframes_tried += static_cast<int>(candidates.size());
   for (KeyframeId id : candidates) {
+    ++st.keyframes_tried;
     const Keyframe* kf = map.keyframe(id);
     std::vector<int> b;
     for (int j = 0; j < kf->frame->size(); ++j)

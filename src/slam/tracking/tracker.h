@@ -116,10 +116,10 @@ struct TrackingResult {
 };
 
 // What relocalisation did: calls (a lost frame, or localisation mode's check in the whole map),
-// keyframes the place query returned, keyframes tried (those, the most recent ones and the
-// reference's covisible ones), candidates with enough descriptor matches, candidates whose PnP
-// RANSAC and pose optimisation held (passed), of those the ones the local map did not confirm
-// (rejected), and accepted poses.
+// keyframes the place query returned, keyframes tried (from those, the most recent ones and the
+// reference's covisible ones, until one is accepted), candidates with enough descriptor matches,
+// candidates whose PnP RANSAC and pose optimisation held (passed), of those the ones the local map
+// did not confirm (rejected), and accepted poses.
 struct RelocalisationStats {
   int calls = 0;
   int place_candidates = 0;
