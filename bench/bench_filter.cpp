@@ -4,6 +4,7 @@
 //   BM_FilterFlow           LK back into the previous image: zero-flow and predicted-flow searches
 //                           plus the forward-backward check (as Process runs it);
 //   BM_FilterFlowNoGuess    the zero-flow search and the check only (lk_predict_initial_flow off);
+//                           both per LK window side (11, 15, 21 px);
 //   BM_FilterPnp            PnP RANSAC ego-motion on the tracked stereo points;
 //   BM_FilterGroundRansac   ground plane RANSAC + least squares on the stereo points;
 //   BM_FilterProcess*       the whole DynamicFilter::Process of frame 11 (frame 10 processed
@@ -159,7 +160,8 @@ void BM_FilterLkPyramid(benchmark::State& state) {
 void RunFlow(benchmark::State& state, bool with_guess) {
   cv::setNumThreads(1);
   const PairData& d = Pair();
-  const pcr::LkOptions options;
+  pcr::LkOptions options;
+  options.window_px = static_cast<int>(state.range(0));
   const auto prev = pcr::BuildLkPyramid(d.image[0], options);
   const auto cur = pcr::BuildLkPyramid(d.image[1], options);
   const std::vector<cv::Point2f> pts = Points(d.keypoints[1]);
@@ -171,6 +173,7 @@ void RunFlow(benchmark::State& state, bool with_guess) {
   }
   state.counters["keypoints"] = static_cast<double>(pts.size());
   state.counters["tracked"] = tracks.num_valid;
+  state.counters["window"] = options.window_px;
 }
 void BM_FilterFlow(benchmark::State& state) { RunFlow(state, true); }
 void BM_FilterFlowNoGuess(benchmark::State& state) { RunFlow(state, false); }
@@ -246,8 +249,9 @@ void BM_FilterProcessWithPriorYolo(benchmark::State& state) { RunProcess(state, 
 }  // namespace
 
 BENCHMARK(BM_FilterLkPyramid)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_FilterFlow)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_FilterFlowNoGuess)->Unit(benchmark::kMillisecond);
+// The argument is the LK window side (LkOptions::window_px; the default is 11).
+BENCHMARK(BM_FilterFlow)->Arg(11)->Arg(15)->Arg(21)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FilterFlowNoGuess)->Arg(11)->Arg(15)->Arg(21)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FilterPnp)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FilterGroundRansac)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FilterProcessWithPrior)->Unit(benchmark::kMillisecond);

@@ -19,6 +19,9 @@ shared=${PCR_SHARED_DIR:-$(cd .. && pwd)/shared}
 model=$shared/models/yolov8n-seg_coco_224x640.onnx
 # PCR_FQ_COUNTS="1950 1960 ..." averages over other feature counts (more counts, less noise).
 read -r -a counts <<<"${PCR_FQ_COUNTS:-1980 1990 2000 2010 2020}"
+# PCR_FQ_SET="filter.lk_window_px=21 ..." adds configuration overrides to every run.
+extra=()
+for kv in ${PCR_FQ_SET:-}; do extra+=(--set "$kv"); done
 mkdir -p "$work"
 [ -d "$work/heavy" ] || "$bin" synth --out "$work/heavy" --frames 300 --movers 40 --parked 10 \
   --lead-gap 5 --seed 1 >/dev/null
@@ -49,7 +52,7 @@ run_set() {  # run_set NAME SEQUENCE ARGS... : mean ATE over the feature counts,
     local out="$work/runs/$name-$n"
     # Runs already in WORK_DIR are reused (delete WORK_DIR/runs to measure again).
     [ -f "$out/stats.json" ] ||
-      "$bin" run --sequence "$seq" --out "$out" --set orb.num_features=$n "$@" >"$out.log" 2>&1 ||
+      "$bin" run --sequence "$seq" --out "$out" --set orb.num_features=$n "${extra[@]}" "$@" >"$out.log" 2>&1 ||
       { echo "run failed: $out.log" >&2; exit 1; }
     line=$(stat "$out")
     sum=$(python3 -c "print($sum + ${line%% *})")

@@ -121,6 +121,9 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("filter", "reference_speed_mps", &f.motion.reference_speed_mps,
         "motion the test must see before it confirms a point static");
   s.Add("filter", "lk_sigma_px", &f.lk_sigma_px);
+  s.Add("filter", "lk_window_px", &f.lk.window_px, "side of the motion test's LK window (odd)");
+  s.Add("filter", "lk_max_level", &f.lk.max_level, "LK pyramid levels above the base");
+  s.Add("filter", "lk_max_iterations", &f.lk.max_iterations, "LK iterations per level");
   s.Add("filter", "long_baseline_frames", &f.long_baseline_frames, "0: one-frame motion test only");
   s.Add("filter", "temporal_window_frames", &f.voting.window_frames, "Eq. 4 window");
   s.Add("filter", "vote_threshold", &f.voting.dynamic_threshold, "log-odds of 'moving'");
