@@ -46,13 +46,14 @@ struct QualitySettings {
 
 // The three levels, defaults as in the issue: High = YOLO 384x1280 every frame, 2000 features,
 // LK flow on; Medium = YOLO 224x640; Low = the light network (when there is one; on every frame,
-// see PipelineOptions::levels) or the fast one on every second frame, 1200 features, no LK flow,
-// fewer BA iterations, at most 5 keyframes a second. Frames without a fresh mask carry the newest
-// one along by its objects' motion at every level.
+// see PipelineOptions::levels) or the fast one on every second frame, 1200 features, LK flow on
+// (with an 11 px window it costs ~30 ms a frame; without it the filter cannot tell parked from
+// moving cars in a mask), fewer BA iterations, at most 5 keyframes a second. Frames without a fresh
+// mask carry the newest one along by its objects' motion at every level.
 struct QualityLevels {
   QualitySettings high{2000, SegmenterSlot::kAccurate, 1, true, 10};
   QualitySettings medium{2000, SegmenterSlot::kFast, 1, true, 10};
-  QualitySettings low{1200, SegmenterSlot::kLight, 2, false, 5, 0.2};
+  QualitySettings low{1200, SegmenterSlot::kLight, 2, true, 5, 0.2};
   const QualitySettings& At(QualityLevel level) const;
   bool IsValid(std::string* why) const;
 };

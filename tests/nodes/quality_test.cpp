@@ -126,7 +126,7 @@ TEST(QualityLevelsTest, DefaultsMatchTheIssue) {
   EXPECT_LT(levels.At(L::kLow).mask_wait_ms, 0);  // the pipeline's deadline
   EXPECT_EQ(levels.At(L::kLow).orb_features, 1200);
   EXPECT_LT(levels.At(L::kLow).ba_max_iterations, levels.At(L::kHigh).ba_max_iterations);
-  EXPECT_FALSE(levels.At(L::kLow).optical_flow);
+  EXPECT_TRUE(levels.At(L::kLow).optical_flow);
   EXPECT_GT(levels.At(L::kLow).min_keyframe_interval_s, 0.1);
   EXPECT_EQ(levels.At(L::kMedium).min_keyframe_interval_s, 0.0);
   std::string why;
