@@ -3,6 +3,10 @@
 //
 //   bench_masks [--models FILE,FILE,...] [--threads 1,2] [--frames A:B] [--sequence DIR]
 //               [--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8]
+//               [--crop-top]
+//
+// --crop-top runs the added models with YoloOptions::crop_top_to_fill_width (a wide export, e.g.
+// 128x512, takes the frame at full width and cuts its top rows); the reference as always.
 //
 // --int8 adds the reference quantised to int8 by OpenCV DNN itself (cv::dnn::Net::quantize,
 // OpenCV 4.6's int8 path, calibrated on the reference's blob of the sequence's first frame: it
@@ -76,8 +80,9 @@ struct Args {
   std::string labels = SharedDir() + "/data/kitti_tracking/training/label_02/0000.txt";
   std::string image = SharedDir() + "/models/test_images/kitti_000008.png";
   int runs = 15;
-  bool detail = false;  // per-instance matches on the test image
-  bool int8 = false;    // also the reference quantised to int8 by OpenCV DNN
+  bool detail = false;    // per-instance matches on the test image
+  bool int8 = false;      // also the reference quantised to int8 by OpenCV DNN
+  bool crop_top = false;  // the added models fill the width and cut the frame's top rows
 };
 
 // OpenCV DNN's own int8 network (Net::quantize) as the segmenter's engine.
@@ -111,7 +116,7 @@ class QuantizedEngine final : public pcr::InferenceEngine {
 
 constexpr const char* kUsage =
     "bench_masks [--models FILE,FILE,...] [--threads 1,2] [--frames A:B] [--sequence DIR] "
-    "[--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8]\n";
+    "[--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8] [--crop-top]\n";
 
 Args ParseArgs(int argc, char** argv) {
   Args a;
@@ -145,6 +150,8 @@ Args ParseArgs(int argc, char** argv) {
       a.detail = true;
     } else if (arg == "--int8") {
       a.int8 = true;
+    } else if (arg == "--crop-top") {
+      a.crop_top = true;
     } else if (arg == "-h" || arg == "--help") {
       std::printf("%s", kUsage);
       std::exit(0);
@@ -398,12 +405,21 @@ int main(int argc, char** argv) {
       pcr::YoloOptions options;
       options.model_path = path;
       options.allow_cuda = false;
+      options.crop_top_to_fill_width = args.crop_top && path != args.reference;
       models.push_back({path, Basename(path), std::make_unique<pcr::YoloSegmenter>(options)});
     }
     const cv::Mat image = cv::imread(args.image, cv::IMREAD_COLOR);
     if (image.empty()) {
       std::fprintf(stderr, "bench_masks: cannot read the test image %s\n", args.image.c_str());
       return 1;
+    }
+    if (args.crop_top) {
+      for (Model& m : models) {
+        if (m.path == args.reference) continue;
+        const int cut =
+            pcr::ComputeLetterbox(image.size(), m.segmenter->input_size(), true).crop_top_px;
+        if (cut > 0) m.name += " (top " + std::to_string(cut) + " rows cut)";
+      }
     }
     const pcr::Dataset dataset = pcr::OpenDataset(args.sequence);
     const pcr::driver::FrameRange range =

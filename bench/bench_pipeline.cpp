@@ -9,7 +9,10 @@
 //                  [--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]
 //                  [--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS]
 //                  [--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS]
-//                  [--labels FILE|none] [--every N]
+//                  [--labels FILE|none] [--every N] [--crop-top]
+//
+// --crop-top: every network fills the frame's width and cuts its top rows when its input is wider
+// than the frame (YoloOptions::crop_top_to_fill_width; e.g. a 128x512 --model-low).
 //
 // --every N adds two sequential rows that segment every N-th frame only, the frames between
 // carrying the newest mask along by its objects' motion (propagated) or using it where it was
@@ -117,6 +120,7 @@ struct BenchArgs {
   double mask_deadline_ms = 10;    // realtime: how long tracking waits for a frame's mask
   std::string labels;              // tracking labels for the filter's confusion ("none": off)
   int every = 0;                   // > 1: the two rows segmenting every n-th frame
+  bool crop_top = false;           // YoloOptions::crop_top_to_fill_width for every network
 };
 
 BenchArgs ParseArgs(int argc, char** argv) {
@@ -152,6 +156,8 @@ BenchArgs ParseArgs(int argc, char** argv) {
     } else if (arg == "--every") {
       a.every = std::stoi(value());
       if (a.every < 2 || a.every > 100) throw std::invalid_argument("--every must be in 2..100");
+    } else if (arg == "--crop-top") {
+      a.crop_top = true;
     } else if (arg == "--filter") {
       const std::string v = value();
       if (v != "on" && v != "off") throw std::invalid_argument("--filter must be on or off");
@@ -180,7 +186,7 @@ BenchArgs ParseArgs(int argc, char** argv) {
           "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR] "
           "[--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS] "
           "[--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS] [--labels FILE|none] "
-          "[--every N]\n");
+          "[--every N] [--crop-top]\n");
       std::exit(0);
     } else if (!arg.empty() && arg[0] != '-') {
       a.sequence = arg;
@@ -468,6 +474,7 @@ int main(int argc, char** argv) {
       auto load = [&](const std::string& path) {
         pcr::YoloOptions options;
         options.model_path = path;
+        options.crop_top_to_fill_width = args.crop_top;
         pcr::driver::ApplyInference(args.inference, &options);
         if (args.device_ms > 0) {
           options.engine_factory = [&](const std::vector<uint8_t>& bytes, cv::Size size) {

@@ -33,6 +33,7 @@ Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
       throw ConfigError("--segmenter yolo needs --model FILE (a YOLOv8-seg ONNX export)");
     YoloOptions yolo;
     yolo.model_path = o.model_path;
+    yolo.crop_top_to_fill_width = o.crop_top_to_fill_width;
     ApplyInference(o.inference, &yolo);
     s.owned.push_back(std::make_unique<YoloSegmenter>(yolo));
     s.set.fast = s.owned.back().get();

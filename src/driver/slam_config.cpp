@@ -105,6 +105,9 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
         "second global BA solve without the first one's outlier observations");
   s.Add("loop", "skip_keyframes_after_loop", &l.skip_keyframes_after_loop);
 
+  s.Add("segmenter", "crop_top_to_fill_width", &c.dynamic.crop_top_to_fill_width,
+        "a YOLO input wider than the frame takes it at full width, its top rows cut");
+
   DynamicFilterOptions& f = c.dynamic.options;
   s.Add("filter", "exclude_below", &f.scoring.exclude_below, "Eq. 2 scores below this: excluded");
   s.Add("filter", "weight_mask", &f.scoring.weights.mask, "Eq. 2 weights (sum 1)");

@@ -27,7 +27,10 @@ struct DynamicRunOptions {
   bool dump = false;                 // write per-keypoint decisions (filter_decisions.txt)
   double truth_miss_rate = 0.0;      // --segmenter truth: emulated detector misses
   std::string truth_labels;          // KITTI tracking label_02 file: score decisions against it
-  DynamicFilterOptions options;      // the filter's configuration (config section "filter")
+  // YOLO networks wider than the frame fill its width and cut its top rows (config
+  // segmenter.crop_top_to_fill_width; YoloOptions::crop_top_to_fill_width).
+  bool crop_top_to_fill_width = false;
+  DynamicFilterOptions options;  // the filter's configuration (config section "filter")
 };
 
 struct RunConfig {

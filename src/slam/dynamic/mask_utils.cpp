@@ -16,7 +16,8 @@ cv::Rect2f LetterboxInfo::ImageFromInput(const cv::Rect2f& box_input_px) const {
                     static_cast<float>(br.x - tl.x), static_cast<float>(br.y - tl.y));
 }
 
-LetterboxInfo ComputeLetterbox(cv::Size image_size, cv::Size input_size) {
+LetterboxInfo ComputeLetterbox(cv::Size image_size, cv::Size input_size,
+                               bool crop_top_to_fill_width) {
   if (image_size.width <= 0 || image_size.height <= 0 || input_size.width <= 0 ||
       input_size.height <= 0) {
     throw std::invalid_argument("ComputeLetterbox: empty image or input size");
@@ -24,6 +25,17 @@ LetterboxInfo ComputeLetterbox(cv::Size image_size, cv::Size input_size) {
   LetterboxInfo info;
   info.image_size = image_size;
   info.input_size = input_size;
+  if (crop_top_to_fill_width) {
+    const double gain = static_cast<double>(input_size.width) / image_size.width;
+    const int kept = static_cast<int>(std::lround(input_size.height / gain));
+    if (kept >= 1 && kept < image_size.height) {
+      info.crop_top_px = image_size.height - kept;
+      info.resized_size = input_size;
+      info.scale_x = gain;
+      info.scale_y = static_cast<double>(input_size.height) / kept;
+      return info;
+    }
+  }
   const double gain = std::min(static_cast<double>(input_size.height) / image_size.height,
                                static_cast<double>(input_size.width) / image_size.width);
   info.resized_size.width =
@@ -45,11 +57,15 @@ cv::Mat LetterboxImage(const cv::Mat& image, const LetterboxInfo& info, int pad_
   if (image.size() != info.image_size) {
     throw std::invalid_argument("LetterboxImage: image size differs from the letterbox info");
   }
+  if (info.crop_top_px < 0 || info.crop_top_px >= image.rows) {
+    throw std::invalid_argument("LetterboxImage: crop_top_px outside the image");
+  }
+  const cv::Mat seen = image.rowRange(info.crop_top_px, image.rows);
   cv::Mat resized;
-  if (image.size() == info.resized_size) {
-    resized = image;
+  if (seen.size() == info.resized_size) {
+    resized = seen;
   } else {
-    cv::resize(image, resized, info.resized_size, 0, 0, cv::INTER_LINEAR);
+    cv::resize(seen, resized, info.resized_size, 0, 0, cv::INTER_LINEAR);
   }
   cv::Mat out(info.input_size, CV_8UC3, cv::Scalar::all(pad_value));
   cv::Mat inner = out(cv::Rect(cv::Point(info.pad_left_px, info.pad_top_px), info.resized_size));
@@ -128,14 +144,16 @@ cv::Mat ProtoMaskToImage(const cv::Mat& probabilities, const cv::Rect& proto_roi
   cv::Mat mask(info.image_size, CV_8U, cv::Scalar(0));
   const cv::Rect pixels = PixelsInBox(box_image_px, info.image_size);
   if (pixels.empty() || probabilities.empty()) return mask;
-  // Image edge coordinate x maps to proto edge coordinate (x * scale_x + pad_left) / ipp.x;
+  // Image edge coordinate x maps to proto edge coordinate (x * scale_x + pad_left) / ipp.x (and y
+  // to ((y - crop_top) * scale_y + pad_top) / ipp.y);
   // in pixel indices (centre = index + 0.5) relative to both rois this is an affine map
   // src = a * dst + b that warpAffine samples with WARP_INVERSE_MAP.
   const double ax = info.scale_x / input_per_proto.x;
   const double ay = info.scale_y / input_per_proto.y;
   const double bx =
       (pixels.x + 0.5) * ax + info.pad_left_px / input_per_proto.x - 0.5 - proto_roi.x;
-  const double by = (pixels.y + 0.5) * ay + info.pad_top_px / input_per_proto.y - 0.5 - proto_roi.y;
+  const double by = (pixels.y + 0.5 - info.crop_top_px) * ay + info.pad_top_px / input_per_proto.y -
+                    0.5 - proto_roi.y;
   const cv::Matx23d dst_to_src(ax, 0, bx, 0, ay, by);
   cv::Mat resampled;
   cv::warpAffine(probabilities, resampled, dst_to_src, pixels.size(),

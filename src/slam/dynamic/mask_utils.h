@@ -18,15 +18,20 @@ struct LetterboxInfo {
   cv::Size input_size;    // network input size
   cv::Size resized_size;  // frame after the aspect-kept resize, before padding
   double scale_x = 1.0;   // resized_size.width / image_size.width
-  double scale_y = 1.0;   // resized_size.height / image_size.height
+  double scale_y = 1.0;   // resized_size.height / (image_size.height - crop_top_px)
   int pad_left_px = 0;    // columns of padding left of the resized frame
   int pad_top_px = 0;     // rows of padding above the resized frame
+  // Rows at the top of the frame that the network does not see (ComputeLetterbox with
+  // crop_top_to_fill_width); the resize starts below them.
+  int crop_top_px = 0;
 
   cv::Point2d InputFromImage(const cv::Point2d& p_image_px) const {
-    return {p_image_px.x * scale_x + pad_left_px, p_image_px.y * scale_y + pad_top_px};
+    return {p_image_px.x * scale_x + pad_left_px,
+            (p_image_px.y - crop_top_px) * scale_y + pad_top_px};
   }
   cv::Point2d ImageFromInput(const cv::Point2d& p_input_px) const {
-    return {(p_input_px.x - pad_left_px) / scale_x, (p_input_px.y - pad_top_px) / scale_y};
+    return {(p_input_px.x - pad_left_px) / scale_x,
+            (p_input_px.y - pad_top_px) / scale_y + crop_top_px};
   }
   // Box corners mapped to image pixels (not clipped).
   cv::Rect2f ImageFromInput(const cv::Rect2f& box_input_px) const;
@@ -35,9 +40,15 @@ struct LetterboxInfo {
 // The Ultralytics letterbox of an image_size frame into input_size: one gain
 // r = min(input.h / image.h, input.w / image.w), resized size rounded, padding split evenly with
 // the odd pixel going right/bottom. Throws std::invalid_argument on empty sizes.
-LetterboxInfo ComputeLetterbox(cv::Size image_size, cv::Size input_size);
+// crop_top_to_fill_width: when the frame scaled to the input's width is taller than the input
+// (a wide input, e.g. 128x512 for KITTI's 375x1242), the frame fills the input's width and its
+// top rows (the sky of a road scene) are cut instead of shrinking it into padding; otherwise the
+// letterbox as above.
+LetterboxInfo ComputeLetterbox(cv::Size image_size, cv::Size input_size,
+                               bool crop_top_to_fill_width = false);
 
-// The letterboxed frame: CV_8UC3 BGR of info.input_size, bilinear resize, padding = pad_value.
+// The letterboxed frame: CV_8UC3 BGR of info.input_size, bilinear resize (of the rows below
+// info.crop_top_px), padding = pad_value.
 // image: CV_8UC1 (replicated to 3 channels) or CV_8UC3 of info.image_size; else
 // std::invalid_argument.
 cv::Mat LetterboxImage(const cv::Mat& image, const LetterboxInfo& info, int pad_value = 114);

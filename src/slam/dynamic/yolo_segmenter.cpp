@@ -514,14 +514,15 @@ YoloSegmenter::YoloSegmenter(const YoloOptions& options) : options_(options) {
 std::string YoloSegmenter::Name() const {
   return "yolov8-seg(" + std::filesystem::path(options_.model_path).filename().string() + ", " +
          std::to_string(input_size_.width) + "x" + std::to_string(input_size_.height) + ", " +
-         backend_ + ")";
+         backend_ + (options_.crop_top_to_fill_width ? ", top cut to fill the width" : "") + ")";
 }
 
 cv::Mat YoloSegmenter::Preprocess(const cv::Mat& image, LetterboxInfo* letterbox) const {
   if (image.empty() || (image.type() != CV_8UC1 && image.type() != CV_8UC3)) {
     throw std::invalid_argument("YoloSegmenter: expected a grey CV_8UC1 or BGR CV_8UC3 image");
   }
-  const LetterboxInfo info = ComputeLetterbox(image.size(), input_size_);
+  const LetterboxInfo info =
+      ComputeLetterbox(image.size(), input_size_, options_.crop_top_to_fill_width);
   if (letterbox) *letterbox = info;
   return BlobFromLetterboxed(LetterboxImage(image, info), options_.normalization);
 }

@@ -69,6 +69,11 @@ struct YoloOptions {
   // Used only when the model's input height/width are symbolic (a `dynamic=True` export).
   cv::Size dynamic_input_size{640, 640};
   bool allow_cuda = true;  // use the OpenCV DNN CUDA backend when OpenCV has it and a GPU exists
+  // A wide input (e.g. 128x512 for KITTI's 375x1242 frames) takes the frame at its full width and
+  // cuts the top rows that do not fit (ComputeLetterbox's crop_top_to_fill_width) instead of
+  // shrinking the frame into padding: the objects below keep the scale of a taller input at its
+  // cost per row. Nothing is detected in the cut rows.
+  bool crop_top_to_fill_width = false;
   InferenceEngineFactory engine_factory;  // empty: OpenCV DNN
   DynamicClassPolicy classes;
 

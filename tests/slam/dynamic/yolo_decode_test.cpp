@@ -218,6 +218,39 @@ TEST(YoloDecode, SyntheticSegmentationOutputsGiveKnownInstancesAndMasks) {
       1u);
 }
 
+// The same outputs with the frame cut at the top to fill the input's width: a 128x192 frame into
+// the 64x64 input at gain 0.5 keeps its lowest 128 rows (64 cut), so input y maps to image
+// 2 y + 64 and nothing lands in the cut rows.
+TEST(YoloDecode, CroppedTopShiftsBoxesAndMasksBelowTheCut) {
+  SyntheticOutputs s(true);
+  s.letterbox = ComputeLetterbox({128, 192}, {64, 64}, /*crop_top_to_fill_width=*/true);
+  ASSERT_EQ(s.letterbox.crop_top_px, 64);
+  ASSERT_EQ(s.letterbox.pad_top_px, 0);
+  const YoloOutputLayout layout =
+      InspectYoloOutputs({ShapeOf(s.detections), ShapeOf(s.prototypes)}, 3, "synthetic.onnx");
+  const std::vector<Instance> instances =
+      DecodeYoloOutputs(s.detections, s.prototypes, layout, s.letterbox, s.names, {});
+  // No padding now: the tree at input y 2..10 is in the frame (image rows 68..84).
+  ASSERT_EQ(instances.size(), 3u);
+  const Instance& tree = instances[0];
+  const Instance& car = instances[1];
+  const Instance& person = instances[2];
+  EXPECT_EQ(tree.class_name, "tree");
+  EXPECT_NEAR(tree.box_px.y, 68.0f, 1e-4f);
+  // Car: input [8, 40] x [24, 40] -> image [16, 80] x [112, 144]; mask left of image x = 48.
+  EXPECT_EQ(car.class_name, "car");
+  EXPECT_NEAR(car.box_px.x, 16.0f, 1e-4f);
+  EXPECT_NEAR(car.box_px.y, 112.0f, 1e-4f);
+  EXPECT_NEAR(car.box_px.height, 32.0f, 1e-4f);
+  ASSERT_EQ(car.mask.size(), cv::Size(128, 192));
+  EXPECT_EQ(cv::countNonZero(car.mask), 32 * 32);
+  EXPECT_EQ(CountNonZero(car.mask, cv::Rect(16, 112, 32, 32)), 32 * 32);
+  // Person: input [48, 56] x [24, 32] -> image [96, 112] x [112, 128], the whole box.
+  EXPECT_EQ(CountNonZero(person.mask, cv::Rect(96, 112, 16, 16)), 16 * 16);
+  EXPECT_EQ(cv::countNonZero(person.mask), 16 * 16);
+  for (const Instance& inst : instances) EXPECT_EQ(CountNonZero(inst.mask, {0, 0, 128, 64}), 0);
+}
+
 TEST(YoloDecode, DetectionOnlyOutputsFallBackToBoxMasks) {
   const SyntheticOutputs s(false);
   const YoloOutputLayout layout =

@@ -28,6 +28,49 @@ TEST(YoloLetterbox, KittiFrameIntoTheShippedInputSizes) {
   EXPECT_EQ(fast.pad_top_px, 15);
 }
 
+// A wide export fills KITTI's width and cuts the sky: 512 / 1242 keeps 128 / 0.41224 = 310.5 ->
+// 311 rows, so the top 64 are cut. A taller input, or the flag off, gives the letterbox.
+TEST(YoloLetterbox, CropTopToFillTheWidth) {
+  const cv::Size kitti(1242, 375);
+  const LetterboxInfo cut = ComputeLetterbox(kitti, {512, 128}, true);
+  EXPECT_EQ(cut.crop_top_px, 64);
+  EXPECT_EQ(cut.resized_size, cv::Size(512, 128));
+  EXPECT_EQ(cut.pad_left_px, 0);
+  EXPECT_EQ(cut.pad_top_px, 0);
+  EXPECT_NEAR(cut.scale_x, 512.0 / 1242, 1e-12);
+  EXPECT_NEAR(cut.scale_y, 128.0 / 311, 1e-12);
+  const cv::Point2d top_left = cut.InputFromImage({0, 64});
+  EXPECT_NEAR(top_left.x, 0, 1e-9);
+  EXPECT_NEAR(top_left.y, 0, 1e-9);
+  const cv::Point2d bottom_right = cut.InputFromImage({1242, 375});
+  EXPECT_NEAR(bottom_right.x, 512, 1e-9);
+  EXPECT_NEAR(bottom_right.y, 128, 1e-9);
+  const cv::Point2d back = cut.ImageFromInput(cut.InputFromImage({300.25, 200.5}));
+  EXPECT_NEAR(back.x, 300.25, 1e-9);
+  EXPECT_NEAR(back.y, 200.5, 1e-9);
+
+  const LetterboxInfo plain = ComputeLetterbox(kitti, {512, 128});
+  EXPECT_EQ(plain.crop_top_px, 0);
+  EXPECT_EQ(plain.resized_size, cv::Size(424, 128));
+  for (const cv::Size input : {cv::Size(640, 224), cv::Size(512, 160), cv::Size(640, 640)}) {
+    const LetterboxInfo a = ComputeLetterbox(kitti, input, true);
+    const LetterboxInfo b = ComputeLetterbox(kitti, input);
+    EXPECT_EQ(a.crop_top_px, 0) << input;
+    EXPECT_EQ(a.resized_size, b.resized_size) << input;
+    EXPECT_EQ(a.pad_top_px, b.pad_top_px) << input;
+  }
+
+  // The letterboxed image is the resize of the rows below the cut.
+  cv::Mat image(kitti, CV_8UC3);
+  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
+  image.rowRange(0, 64).setTo(cv::Scalar(0, 0, 255));  // the cut rows: must not show
+  cv::Mat expected;
+  cv::resize(image.rowRange(64, 375), expected, {512, 128}, 0, 0, cv::INTER_LINEAR);
+  const cv::Mat letterboxed = LetterboxImage(image, cut);
+  ASSERT_EQ(letterboxed.size(), cv::Size(512, 128));
+  EXPECT_EQ(cv::norm(letterboxed, expected, cv::NORM_INF), 0.0);
+}
+
 TEST(YoloLetterbox, RoundTripAndFramePropertiesOnRandomSizes) {
   std::mt19937 rng(20240607);
   std::uniform_int_distribution<int> image_dim(8, 2000);
