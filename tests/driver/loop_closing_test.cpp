@@ -91,15 +91,27 @@ TEST(LoopClosing, PipelinedRunsTheLoopLaneBesideTrackingAndLosesNoPose) {
   // mapped (it is applied by the mapping node as a delta), and the global BA after it is still
   // running when the last frame is done: the graph waits for it and its result is applied after
   // the last frame (frame_index -1), before the trajectory is read.
+  // The lane runs at a low priority: on a loaded machine it may fall so far behind that the
+  // frames end before the correction exists, so the third-last frame's tracking waits until the
+  // correction has been posted (the global BA starts right after that, at most two minutes).
   const size_t num_frames = OpenDataset(LoopStreet()).size();
   auto frames_done = std::make_shared<std::atomic<size_t>>(0);
+  auto ba_started = std::make_shared<std::atomic<bool>>(false);
   graph::PipelineOptions slow_lane;
-  slow_lane.stage_hook = [frames_done, num_frames](std::string_view stage, int64_t) {
-    if (stage == graph::kStageLoop) std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    // The global BA waits until every frame is done (at most a minute).
-    for (int i = 0; stage == graph::kStageGlobalBa && frames_done->load() < num_frames && i < 600;
+  slow_lane.stage_hook = [frames_done, ba_started, num_frames](std::string_view stage,
+                                                               int64_t frame) {
+    using std::chrono::milliseconds;
+    if (stage == graph::kStageLoop) std::this_thread::sleep_for(milliseconds(300));
+    for (int i = 0;
+         stage == graph::kStageTracking && frame == static_cast<int64_t>(num_frames) - 3 &&
+         !ba_started->load() && i < 1200;
          ++i)
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      std::this_thread::sleep_for(milliseconds(100));
+    if (stage != graph::kStageGlobalBa) return;
+    ba_started->store(true);
+    // The global BA waits until every frame is done (at most a minute).
+    for (int i = 0; frames_done->load() < num_frames && i < 600; ++i)
+      std::this_thread::sleep_for(milliseconds(100));
   };
   const LoopRun on = RunLoop(
       graph::Policy::kPipelined, true, slow_lane, {},
