@@ -47,9 +47,10 @@ struct QualitySettings {
 // The three levels, defaults as in the issue: High = YOLO 384x1280 every frame, 2000 features,
 // LK flow on; Medium = YOLO 224x640; Low = the light network (when there is one; on every frame,
 // see PipelineOptions::levels) or the fast one on every second frame, 1200 features, LK flow on
-// (with an 11 px window it costs ~30 ms a frame; without it the filter cannot tell parked from
-// moving cars in a mask), fewer BA iterations, at most 5 keyframes a second. Frames without a fresh
-// mask carry the newest one along by its objects' motion at every level.
+// (with an 11 px window the filter stage costs 25-50 ms a frame in the pipeline on 2 cores;
+// without it the filter cannot tell parked from moving cars in a mask), fewer BA iterations, at
+// most 5 keyframes a second. Frames without a fresh mask carry the newest one along by its
+// objects' motion at every level.
 struct QualityLevels {
   QualitySettings high{2000, SegmenterSlot::kAccurate, 1, true, 10};
   QualitySettings medium{2000, SegmenterSlot::kFast, 1, true, 10};

@@ -514,7 +514,11 @@ YoloSegmenter::YoloSegmenter(const YoloOptions& options) : options_(options) {
 std::string YoloSegmenter::Name() const {
   return "yolov8-seg(" + std::filesystem::path(options_.model_path).filename().string() + ", " +
          std::to_string(input_size_.width) + "x" + std::to_string(input_size_.height) + ", " +
-         backend_ + (options_.crop_top_to_fill_width ? ", top cut to fill the width" : "") + ")";
+         backend_ +
+         (options_.crop_top_to_fill_width
+              ? ", fills the width, top rows cut when the frame is taller"
+              : "") +
+         ")";
 }
 
 cv::Mat YoloSegmenter::Preprocess(const cv::Mat& image, LetterboxInfo* letterbox) const {
