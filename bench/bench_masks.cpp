@@ -400,26 +400,24 @@ int main(int argc, char** argv) {
     if (with_labels) Require(args.labels, "labels file");
 
     const pcr::DynamicClassPolicy policy;
+    const cv::Mat image = cv::imread(args.image, cv::IMREAD_COLOR);
+    if (image.empty()) {
+      std::fprintf(stderr, "bench_masks: cannot read the test image %s\n", args.image.c_str());
+      return 1;
+    }
     std::vector<Model> models;
     for (const std::string& path : args.models) {
       pcr::YoloOptions options;
       options.model_path = path;
       options.allow_cuda = false;
       options.crop_top_to_fill_width = args.crop_top && path != args.reference;
-      models.push_back({path, Basename(path), std::make_unique<pcr::YoloSegmenter>(options)});
-    }
-    const cv::Mat image = cv::imread(args.image, cv::IMREAD_COLOR);
-    if (image.empty()) {
-      std::fprintf(stderr, "bench_masks: cannot read the test image %s\n", args.image.c_str());
-      return 1;
-    }
-    if (args.crop_top) {
-      for (Model& m : models) {
-        if (m.path == args.reference) continue;
-        const int cut =
-            pcr::ComputeLetterbox(image.size(), m.segmenter->input_size(), true).crop_top_px;
-        if (cut > 0) m.name += " (top " + std::to_string(cut) + " rows cut)";
-      }
+      auto segmenter = std::make_unique<pcr::YoloSegmenter>(options);
+      std::string name = Basename(path);
+      const int cut = pcr::ComputeLetterbox(image.size(), segmenter->input_size(),
+                                            options.crop_top_to_fill_width)
+                          .crop_top_px;  // of the test image, for the tables
+      if (cut > 0) name += " (top " + std::to_string(cut) + " rows cut)";
+      models.push_back({path, name, std::move(segmenter)});
     }
     const pcr::Dataset dataset = pcr::OpenDataset(args.sequence);
     const pcr::driver::FrameRange range =

@@ -144,16 +144,14 @@ cv::Mat ProtoMaskToImage(const cv::Mat& probabilities, const cv::Rect& proto_roi
   cv::Mat mask(info.image_size, CV_8U, cv::Scalar(0));
   const cv::Rect pixels = PixelsInBox(box_image_px, info.image_size);
   if (pixels.empty() || probabilities.empty()) return mask;
-  // Image edge coordinate x maps to proto edge coordinate (x * scale_x + pad_left) / ipp.x (and y
-  // to ((y - crop_top) * scale_y + pad_top) / ipp.y);
-  // in pixel indices (centre = index + 0.5) relative to both rois this is an affine map
+  // An image edge coordinate maps to the proto edge coordinate info.InputFromImage(p) / ipp; in
+  // pixel indices (centre = index + 0.5) relative to both rois this is an affine map
   // src = a * dst + b that warpAffine samples with WARP_INVERSE_MAP.
   const double ax = info.scale_x / input_per_proto.x;
   const double ay = info.scale_y / input_per_proto.y;
-  const double bx =
-      (pixels.x + 0.5) * ax + info.pad_left_px / input_per_proto.x - 0.5 - proto_roi.x;
-  const double by = (pixels.y + 0.5 - info.crop_top_px) * ay + info.pad_top_px / input_per_proto.y -
-                    0.5 - proto_roi.y;
+  const cv::Point2d first = info.InputFromImage({pixels.x + 0.5, pixels.y + 0.5});
+  const double bx = first.x / input_per_proto.x - 0.5 - proto_roi.x;
+  const double by = first.y / input_per_proto.y - 0.5 - proto_roi.y;
   const cv::Matx23d dst_to_src(ax, 0, bx, 0, ay, by);
   cv::Mat resampled;
   cv::warpAffine(probabilities, resampled, dst_to_src, pixels.size(),
