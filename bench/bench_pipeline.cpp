@@ -9,8 +9,9 @@
 //                  [--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]
 //                  [--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS]
 //                  [--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS]
-//                  [--labels FILE|none] [--every N] [--crop-top]
+//                  [--labels FILE|none] [--every N] [--crop-top] [--mask-threshold T]
 //
+// --mask-threshold T: every network's YoloOptions::mask_threshold (default: the option's own).
 // --crop-top: every network fills the frame's width and cuts its top rows when its input is wider
 // than the frame (YoloOptions::crop_top_to_fill_width; e.g. a 128x512 --model-low).
 //
@@ -121,6 +122,7 @@ struct BenchArgs {
   std::string labels;              // tracking labels for the filter's confusion ("none": off)
   int every = 0;                   // > 1: the two rows segmenting every n-th frame
   bool crop_top = false;           // YoloOptions::crop_top_to_fill_width for every network
+  double mask_threshold = pcr::YoloOptions{}.mask_threshold;  // for every network
 };
 
 BenchArgs ParseArgs(int argc, char** argv) {
@@ -158,6 +160,10 @@ BenchArgs ParseArgs(int argc, char** argv) {
       if (a.every < 2 || a.every > 100) throw std::invalid_argument("--every must be in 2..100");
     } else if (arg == "--crop-top") {
       a.crop_top = true;
+    } else if (arg == "--mask-threshold") {
+      a.mask_threshold = std::stod(value());
+      if (!(a.mask_threshold > 0 && a.mask_threshold < 1))
+        throw std::invalid_argument("--mask-threshold must be in (0, 1)");
     } else if (arg == "--filter") {
       const std::string v = value();
       if (v != "on" && v != "off") throw std::invalid_argument("--filter must be on or off");
@@ -186,7 +192,7 @@ BenchArgs ParseArgs(int argc, char** argv) {
           "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR] "
           "[--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS] "
           "[--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS] [--labels FILE|none] "
-          "[--every N] [--crop-top]\n");
+          "[--every N] [--crop-top] [--mask-threshold T]\n");
       std::exit(0);
     } else if (!arg.empty() && arg[0] != '-') {
       a.sequence = arg;
@@ -475,6 +481,7 @@ int main(int argc, char** argv) {
         pcr::YoloOptions options;
         options.model_path = path;
         options.crop_top_to_fill_width = args.crop_top;
+        options.mask_threshold = static_cast<float>(args.mask_threshold);
         pcr::driver::ApplyInference(args.inference, &options);
         if (args.device_ms > 0) {
           options.engine_factory = [&](const std::vector<uint8_t>& bytes, cv::Size size) {

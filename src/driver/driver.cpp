@@ -34,6 +34,8 @@ Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
     YoloOptions yolo;
     yolo.model_path = o.model_path;
     yolo.crop_top_to_fill_width = o.crop_top_to_fill_width;
+    yolo.conf_threshold = static_cast<float>(o.conf_threshold);
+    yolo.mask_threshold = static_cast<float>(o.mask_threshold);
     ApplyInference(o.inference, &yolo);
     s.owned.push_back(std::make_unique<YoloSegmenter>(yolo));
     s.set.fast = s.owned.back().get();
@@ -44,6 +46,8 @@ Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
     }
     if (!model_low.empty()) {
       yolo.model_path = model_low;
+      if (o.light_mask_threshold >= 0)
+        yolo.mask_threshold = static_cast<float>(o.light_mask_threshold);
       s.owned.push_back(std::make_unique<YoloSegmenter>(yolo));
       s.set.light = s.owned.back().get();
     }

@@ -107,6 +107,13 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
 
   s.Add("segmenter", "crop_top_to_fill_width", &c.dynamic.crop_top_to_fill_width,
         "a YOLO input wider than the frame takes it at full width, its top rows cut");
+  s.Add("segmenter", "conf_threshold", &c.dynamic.conf_threshold,
+        "YOLO: an instance's best class score must exceed this (0..1)");
+  s.Add("segmenter", "mask_threshold", &c.dynamic.mask_threshold,
+        "YOLO: a pixel is in an instance's mask where sigmoid(coefficients . prototypes) exceeds "
+        "this (0..1)");
+  s.Add("segmenter", "light_mask_threshold", &c.dynamic.light_mask_threshold,
+        "the same for the adaptive light network (--model-low; < 0: mask_threshold)");
 
   DynamicFilterOptions& f = c.dynamic.options;
   s.Add("filter", "exclude_below", &f.scoring.exclude_below, "Eq. 2 scores below this: excluded");
@@ -168,6 +175,14 @@ RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>&
   if (!config.camera.IsValid(&why)) throw ConfigError(source + ": invalid configuration: " + why);
   if (!config.dynamic.options.IsValid(&why)) {
     throw ConfigError(source + ": invalid configuration: filter: " + why);
+  }
+  const DynamicRunOptions& d = config.dynamic;
+  auto in_unit_interval = [](double v) { return v > 0.0 && v < 1.0; };
+  if (!in_unit_interval(d.conf_threshold) || !in_unit_interval(d.mask_threshold) ||
+      !(d.light_mask_threshold < 0 || in_unit_interval(d.light_mask_threshold))) {
+    throw ConfigError(source +
+                      ": invalid configuration: segmenter: conf_threshold and mask_threshold must "
+                      "lie in (0, 1), light_mask_threshold too or be negative (the same)");
   }
   if (effective_yaml) *effective_yaml = schema.Dump();
   return config;

@@ -5,6 +5,7 @@
 
 #include "driver/config_schema.h"
 #include "slam/dynamic/dynamic_filter.h"
+#include "slam/dynamic/yolo_segmenter.h"
 #include "slam/system/slam_system.h"
 
 namespace pcr::driver {
@@ -30,6 +31,13 @@ struct DynamicRunOptions {
   // YOLO networks wider than the frame fill its width and cut its top rows (config
   // segmenter.crop_top_to_fill_width; YoloOptions::crop_top_to_fill_width).
   bool crop_top_to_fill_width = false;
+  // YOLO class-score threshold of every network (segmenter.conf_threshold;
+  // YoloOptions::conf_threshold).
+  double conf_threshold = YoloOptions{}.conf_threshold;
+  // Mask threshold on sigmoid(coefficients . prototypes) (segmenter.mask_threshold, and
+  // segmenter.light_mask_threshold for the light network, < 0: the same).
+  double mask_threshold = YoloOptions{}.mask_threshold;
+  double light_mask_threshold = -1.0;
   DynamicFilterOptions options;  // the filter's configuration (config section "filter")
 };
 

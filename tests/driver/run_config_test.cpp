@@ -90,6 +90,29 @@ TEST(RunConfig, FilterSectionConfiguresTheDynamicFilter) {
   EXPECT_THROW(LoadRunConfig("", {"filter.long_baseline_frames=99"}, nullptr), ConfigError);
 }
 
+TEST(RunConfig, SegmenterThresholdsAreConfiguredAndChecked) {
+  const RunConfig defaults = LoadRunConfig("", {}, nullptr);
+  EXPECT_FLOAT_EQ(static_cast<float>(defaults.dynamic.mask_threshold),
+                  YoloOptions{}.mask_threshold);
+  EXPECT_LT(defaults.dynamic.light_mask_threshold, 0.0);  // the light network: the same
+  const RunConfig c = LoadRunConfig("",
+                                    {"segmenter.conf_threshold=0.3", "segmenter.mask_threshold=0.4",
+                                     "segmenter.light_mask_threshold=0.2"},
+                                    nullptr);
+  EXPECT_DOUBLE_EQ(c.dynamic.conf_threshold, 0.3);
+  EXPECT_DOUBLE_EQ(c.dynamic.mask_threshold, 0.4);
+  EXPECT_DOUBLE_EQ(c.dynamic.light_mask_threshold, 0.2);
+  for (const char* bad : {"segmenter.conf_threshold=0", "segmenter.mask_threshold=1",
+                          "segmenter.light_mask_threshold=1.5"}) {
+    try {
+      LoadRunConfig("", {bad}, nullptr);
+      FAIL() << "accepted " << bad;
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("segmenter"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(FrameRange, Parses) {
   EXPECT_EQ(FrameRange::Parse("", 51).first, 0u);
   EXPECT_EQ(FrameRange::Parse("", 51).end, 51u);
