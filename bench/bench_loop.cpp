@@ -30,7 +30,9 @@
 //              covisible keyframes: the minimum score is the lowest against its window, word
 //              and group filters as KeyframeDatabase::DetectLoopCandidates, consistency over 3
 //              queries), counted by verdict, with precision and recall against the queries that
-//              have a frame of their database within 10 m.
+//              have a frame of their database within 10 m; those with the loop closer's word
+//              matches, then through a two-view geometric check (an essential matrix by RANSAC on
+//              those matches, each frame through its own camera, min_ransac_inliers inliers).
 //
 //  --cross     place recognition through the whole system: each clip is mapped alone (mono,
 //              sequential), then every clip runs in that map in localisation mode, where each
@@ -76,6 +78,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
@@ -602,6 +605,27 @@ int RunSequences(const Args& args, const std::shared_ptr<const pcr::Vocabulary>&
 
 // --- Place recognition alone ------------------------------------------------------------------
 
+// Inliers of an essential matrix (RANSAC, 1 px at the cameras' mean focal length) fitted to
+// matched keypoints of two images, each through its own camera: the two-view geometric check of
+// a place match between frames without a map (as DBoW2's loop detector checks with a fundamental
+// matrix). 0 for fewer than 5 matches or no model.
+int TwoViewInliers(const std::vector<cv::KeyPoint>& keypoints_a, const pcr::PinholeCamera& a,
+                   const std::vector<cv::KeyPoint>& keypoints_b, const pcr::PinholeCamera& b,
+                   const std::vector<std::pair<int, int>>& pairs) {
+  if (pairs.size() < 5) return 0;
+  std::vector<cv::Point2d> pa, pb;
+  for (const auto& [i, j] : pairs) {
+    const cv::Point2f& u = keypoints_a[static_cast<size_t>(i)].pt;
+    const cv::Point2f& v = keypoints_b[static_cast<size_t>(j)].pt;
+    pa.emplace_back((u.x - a.cx) / a.fx, (u.y - a.cy) / a.fy);
+    pb.emplace_back((v.x - b.cx) / b.fx, (v.y - b.cy) / b.fy);
+  }
+  cv::Mat inliers;
+  const cv::Mat e = cv::findEssentialMat(pa, pb, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.999,
+                                         2.0 / (a.fx + b.fx), inliers);
+  return e.empty() ? 0 : cv::countNonZero(inliers);
+}
+
 int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   struct Image {
     int clip = 0;
@@ -609,6 +633,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     Eigen::Vector3d position = Eigen::Vector3d::Zero();
     pcr::BowVector bow;
     pcr::FeatureVector direct;  // the direct index the loop closer keeps (2 levels up)
+    pcr::PinholeCamera camera;  // its clip's rectified left camera
     std::vector<cv::KeyPoint> keypoints;
     cv::Mat descriptors;
   };
@@ -625,6 +650,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       image.clip = static_cast<int>(names.size()) - 1;
       image.frame = static_cast<int64_t>(i);
       image.position = (*d.ground_truth)[i].world_from_cam.translation();
+      image.camera = d.rig.left;
       const auto t0 = std::chrono::steady_clock::now();
       const pcr::OrbFeatures features = orb.Extract(d.LoadLeft(i));
       const auto t1 = std::chrono::steady_clock::now();
@@ -709,7 +735,8 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     size_t query = 0, frame = 0;
     Verdict verdict = Verdict::kOtherClip;
   };
-  std::vector<Candidate> raw, consistent, plausible;
+  std::vector<Candidate> raw, consistent, plausible, verified;
+  int max_other_inliers = 0, max_correct_inliers = 0;
   struct Group {
     std::vector<size_t> frames;
     int consistency = 0;
@@ -780,8 +807,13 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       const auto pairs = pcr::MatchFeaturesByWords(
           a.keypoints, a.descriptors, a.direct, nullptr, b.keypoints, b.descriptors, b.direct,
           nullptr, loop_options.bow_max_distance, loop_options.bow_ratio);
-      if (static_cast<int>(pairs.size()) >= loop_options.min_bow_matches)
-        plausible.push_back({q, c, verdict(q, c)});
+      if (static_cast<int>(pairs.size()) < loop_options.min_bow_matches) continue;
+      plausible.push_back({q, c, verdict(q, c)});
+      const int inliers = TwoViewInliers(a.keypoints, a.camera, b.keypoints, b.camera, pairs);
+      int& max_inliers =
+          verdict(q, c) == Verdict::kOtherClip ? max_other_inliers : max_correct_inliers;
+      if (verdict(q, c) != Verdict::kSameClipFar) max_inliers = std::max(max_inliers, inliers);
+      if (inliers >= loop_options.min_ransac_inliers) verified.push_back({q, c, verdict(q, c)});
     }
     groups = std::move(current);
   }
@@ -849,6 +881,42 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       "that would reach geometric verification; before the consistency check the detector "
       "returned %zu candidates to %d queries, %d of another clip)\n",
       kPlaceRadiusM, raw.size(), queried, raw_other);
+  // The candidates that passed the word-match precheck, through a two-view geometric check.
+  std::printf(
+      "\ntwo-view check of those (essential matrix by RANSAC, 1 px, >= %d inliers, "
+      "the loop closer's min_ransac_inliers):\n%-28s %8s %7s %8s %5s %5s %6s\n",
+      loop_options.min_ransac_inliers, "clip", "verified", "correct", "same far", "other", "prec",
+      "recall");
+  auto print_verified = [&](const std::string& name, int clip) {
+    int near = 0;
+    std::array<int, 3> by_verdict{};
+    std::vector<bool> found(n, false);
+    for (size_t q = 0; q < n; ++q)
+      if (clip < 0 || images[q].clip == clip) near += has_near[q];
+    for (const Candidate& c : verified) {
+      if (clip >= 0 && images[c.query].clip != clip) continue;
+      ++by_verdict[static_cast<int>(c.verdict)];
+      if (c.verdict == Verdict::kCorrect) found[c.query] = true;
+    }
+    const int total = by_verdict[0] + by_verdict[1] + by_verdict[2];
+    std::printf(
+        "%-28s %8d %7d %8d %5d %5.2f %6.3f\n", name.c_str(), total, by_verdict[0], by_verdict[1],
+        by_verdict[2], total > 0 ? static_cast<double>(by_verdict[0]) / total : kNaN,
+        near > 0 ? static_cast<double>(std::count(found.begin(), found.end(), true)) / near : kNaN);
+  };
+  for (size_t c = 0; c < names.size(); ++c) print_verified(names[c], static_cast<int>(c));
+  print_verified("all", -1);
+  double far_min = kNaN, far_max = kNaN;
+  for (const Candidate& c : verified) {
+    if (c.verdict != Verdict::kSameClipFar) continue;
+    const double d = (images[c.query].position - images[c.frame].position).norm();
+    far_min = std::isnan(far_min) ? d : std::min(far_min, d);
+    far_max = std::isnan(far_max) ? d : std::max(far_max, d);
+  }
+  std::printf(
+      "(most inliers of a candidate of another clip: %d; of a correct one: %d; the verified ones "
+      "of the same clip further than %.0f m lie %.1f-%.1f m from the query)\n",
+      max_other_inliers, max_correct_inliers, kPlaceRadiusM, far_min, far_max);
 
   int revisits = 0;
   for (size_t q = 0; q < n; ++q) revisits += has_near[q];
