@@ -808,12 +808,12 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
           a.keypoints, a.descriptors, a.direct, nullptr, b.keypoints, b.descriptors, b.direct,
           nullptr, loop_options.bow_max_distance, loop_options.bow_ratio);
       if (static_cast<int>(pairs.size()) < loop_options.min_bow_matches) continue;
-      plausible.push_back({q, c, verdict(q, c)});
+      const Verdict v = verdict(q, c);
+      plausible.push_back({q, c, v});
       const int inliers = TwoViewInliers(a.keypoints, a.camera, b.keypoints, b.camera, pairs);
-      int& max_inliers =
-          verdict(q, c) == Verdict::kOtherClip ? max_other_inliers : max_correct_inliers;
-      if (verdict(q, c) != Verdict::kSameClipFar) max_inliers = std::max(max_inliers, inliers);
-      if (inliers >= loop_options.min_ransac_inliers) verified.push_back({q, c, verdict(q, c)});
+      if (v == Verdict::kOtherClip) max_other_inliers = std::max(max_other_inliers, inliers);
+      if (v == Verdict::kCorrect) max_correct_inliers = std::max(max_correct_inliers, inliers);
+      if (inliers >= loop_options.min_ransac_inliers) verified.push_back({q, c, v});
     }
     groups = std::move(current);
   }
@@ -832,6 +832,32 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       "clip", "queries", "revisits", "correct", "same far", "other", "prec", "cands", "correct",
       "same far", "other", "prec", "recall", "cands", "correct", "same far", "other", "prec",
       "recall");
+  // A list's candidates of the queries of `clip` (< 0: all) by verdict, and the recall against
+  // those queries that have a frame of their database within kPlaceRadiusM.
+  struct Counts {
+    int cands = 0;
+    std::array<int, 3> by_verdict{};
+    double recall = kNaN;
+    double precision() const {
+      return cands > 0 ? static_cast<double>(by_verdict[0]) / cands : kNaN;
+    }
+  };
+  auto count = [&](const std::vector<Candidate>& list, int clip) {
+    Counts counts;
+    int near = 0;
+    for (size_t q = 0; q < n; ++q)
+      if (clip < 0 || images[q].clip == clip) near += has_near[q];
+    std::vector<bool> found(n, false);
+    for (const Candidate& c : list) {
+      if (clip >= 0 && images[c.query].clip != clip) continue;
+      ++counts.cands;
+      ++counts.by_verdict[static_cast<int>(c.verdict)];
+      if (c.verdict == Verdict::kCorrect) found[c.query] = true;
+    }
+    if (near > 0)
+      counts.recall = static_cast<double>(std::count(found.begin(), found.end(), true)) / near;
+    return counts;
+  };
   auto print_clip = [&](const std::string& name, int clip) {
     int queries = 0, near = 0;
     for (size_t q = 0; q < n; ++q)
@@ -839,37 +865,16 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     std::array<int, 3> best_counts{};
     for (const Best& b : bests)
       if (clip < 0 || images[b.query].clip == clip) ++best_counts[static_cast<int>(b.verdict)];
-    struct Counts {
-      int cands = 0;
-      std::array<int, 3> by_verdict{};
-      double recall = kNaN;
-    };
-    auto count = [&](const std::vector<Candidate>& list) {
-      Counts counts;
-      std::vector<bool> found(n, false);
-      for (const Candidate& c : list) {
-        if (clip >= 0 && images[c.query].clip != clip) continue;
-        ++counts.cands;
-        ++counts.by_verdict[static_cast<int>(c.verdict)];
-        if (c.verdict == Verdict::kCorrect) found[c.query] = true;
-      }
-      if (near > 0)
-        counts.recall = static_cast<double>(std::count(found.begin(), found.end(), true)) / near;
-      return counts;
-    };
-    const Counts detector = count(consistent), checked = count(plausible);
-    auto precision = [](const Counts& c) {
-      return c.cands > 0 ? static_cast<double>(c.by_verdict[0]) / c.cands : kNaN;
-    };
+    const Counts detector = count(consistent, clip), checked = count(plausible, clip);
     const int best_total = best_counts[0] + best_counts[1] + best_counts[2];
     std::printf(
         "%-28s %7d %8d | %7d %8d %5d %5.2f | %5d %7d %8d %5d %5.2f %6.3f | %5d %7d %8d %5d %5.2f "
         "%6.3f\n",
         name.c_str(), queries, near, best_counts[0], best_counts[1], best_counts[2],
         best_total > 0 ? static_cast<double>(best_counts[0]) / best_total : kNaN, detector.cands,
-        detector.by_verdict[0], detector.by_verdict[1], detector.by_verdict[2], precision(detector),
-        detector.recall, checked.cands, checked.by_verdict[0], checked.by_verdict[1],
-        checked.by_verdict[2], precision(checked), checked.recall);
+        detector.by_verdict[0], detector.by_verdict[1], detector.by_verdict[2],
+        detector.precision(), detector.recall, checked.cands, checked.by_verdict[0],
+        checked.by_verdict[1], checked.by_verdict[2], checked.precision(), checked.recall);
   };
   for (size_t c = 0; c < names.size(); ++c) print_clip(names[c], static_cast<int>(c));
   print_clip("all", -1);
@@ -888,21 +893,9 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       loop_options.min_ransac_inliers, "clip", "verified", "correct", "same far", "other", "prec",
       "recall");
   auto print_verified = [&](const std::string& name, int clip) {
-    int near = 0;
-    std::array<int, 3> by_verdict{};
-    std::vector<bool> found(n, false);
-    for (size_t q = 0; q < n; ++q)
-      if (clip < 0 || images[q].clip == clip) near += has_near[q];
-    for (const Candidate& c : verified) {
-      if (clip >= 0 && images[c.query].clip != clip) continue;
-      ++by_verdict[static_cast<int>(c.verdict)];
-      if (c.verdict == Verdict::kCorrect) found[c.query] = true;
-    }
-    const int total = by_verdict[0] + by_verdict[1] + by_verdict[2];
-    std::printf(
-        "%-28s %8d %7d %8d %5d %5.2f %6.3f\n", name.c_str(), total, by_verdict[0], by_verdict[1],
-        by_verdict[2], total > 0 ? static_cast<double>(by_verdict[0]) / total : kNaN,
-        near > 0 ? static_cast<double>(std::count(found.begin(), found.end(), true)) / near : kNaN);
+    const Counts c = count(verified, clip);
+    std::printf("%-28s %8d %7d %8d %5d %5.2f %6.3f\n", name.c_str(), c.cands, c.by_verdict[0],
+                c.by_verdict[1], c.by_verdict[2], c.precision(), c.recall);
   };
   for (size_t c = 0; c < names.size(); ++c) print_verified(names[c], static_cast<int>(c));
   print_verified("all", -1);

@@ -67,9 +67,10 @@ struct YoloOptions {
   double smooth_sigma_px = 2.0;  // Gaussian smoothing of the dynamic map (0 = none)
   // On sigmoid(coeffs . protos). 0.3 rather than the usual 0.5: the prototypes are a quarter of
   // the input's resolution, so an object's edge (where ORB puts its keypoints) falls in the soft
-  // part of the sigmoid. Drive 0005, 224x640 (bench/filter_quality.sh's raw0005-yolo, 3 feature
-  // counts): filter recall 0.672 against 0.628, precision 0.959-0.962 against 0.958-0.963, ATE
-  // 0.555 against 0.560 m; KITTI 06 ATE 0.0627 against 0.0625 m.
+  // part of the sigmoid. Drive 0005, 224x640 (`pcr_orb run --filter on --segmenter yolo
+  // --truth-labels` at 1990, 2000 and 2010 features): filter recall 0.672 against 0.628,
+  // precision 0.959-0.962 against 0.958-0.963, mean ATE 0.555 against 0.560 m; KITTI 06 mean ATE
+  // 0.0627 against 0.0625 m.
   float mask_threshold = 0.3f;
   // Used only when the model's input height/width are symbolic (a `dynamic=True` export).
   cv::Size dynamic_input_size{640, 640};
