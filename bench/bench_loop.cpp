@@ -24,7 +24,7 @@
 //              left frame of each clip, all clips in one pool. A query's database: the frames of
 //              the other clips (as if mapped before) and its own clip's earlier frames outside its
 //              window (|i - j| <= --window). Correct: same clip and within 10 m (ground truth).
-//              Two answers per query: (1) its best-scoring database frame (precision, and that
+//              Three answers per query: (1) its best-scoring database frame (precision, and that
 //              precision at --thresholds minimum scores); (2) the loop detector's consistent
 //              candidates (LoopCloser::Detect's rules with the frame's window standing in for its
 //              covisible keyframes: the minimum score is the lowest against its window, word
@@ -32,7 +32,8 @@
 //              queries), counted by verdict, with precision and recall against the queries that
 //              have a frame of their database within 10 m; those with the loop closer's word
 //              matches, then through a two-view geometric check (an essential matrix by RANSAC on
-//              those matches, each frame through its own camera, min_ransac_inliers inliers).
+//              those matches, each frame through its own camera, min_ransac_inliers inliers);
+//              (3) its best database frame that passes that check among its 10 best-scoring.
 //
 //  --cross     place recognition through the whole system: each clip is mapped alone (mono,
 //              sequential), then every clip runs in that map in localisation mode, where each
@@ -58,7 +59,7 @@
 // Runtime (2 cores shared with other work, load average 2-3, 600 frames, seed 1): stereo
 // sequential ~160 s ON / ~130 s OFF, so the default 3 seeds take ~15 minutes (plus rendering of
 // missing loops); mono ~100 s / ~55 s; --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7
-// minutes); --sequence 10-40 s a KITTI clip; --place ~6 s on the four shipped clips; --cross ~8
+// minutes); --sequence 10-40 s a KITTI clip; --place ~1 min on the four shipped clips; --cross ~8
 // minutes on them (16 runs, most frames of the cross pairs try 10-20 keyframes).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -107,8 +108,9 @@ namespace {
 
 namespace fs = std::filesystem;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr double kPlaceRadiusM = 10.0;  // --place: a correct match lies within this of the query
-constexpr size_t kScaleWindow = 100;    // mono end-of-route figures: tracked frames at each end
+constexpr double kPlaceRadiusM = 10.0;   // --place: a correct match lies within this of the query
+constexpr size_t kPlaceVerifyTopK = 10;  // --place: best-scoring frames tried by the two-view check
+constexpr size_t kScaleWindow = 100;     // mono end-of-route figures: tracked frames at each end
 
 struct Args {
   std::string seeds = "1,2,3";
@@ -731,6 +733,17 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   // group of the previous queries 3 times in a row.
   const pcr::LoopQueryOptions query_options;
   const pcr::LoopClosingOptions loop_options;
+  // The loop closer's word matches between query q and frame j, then the two-view check's
+  // inliers on them; -1 when the matches are fewer than min_bow_matches.
+  auto two_view = [&](size_t q, size_t j) {
+    const Image& a = images[q];
+    const Image& b = images[j];
+    const auto pairs = pcr::MatchFeaturesByWords(
+        a.keypoints, a.descriptors, a.direct, nullptr, b.keypoints, b.descriptors, b.direct,
+        nullptr, loop_options.bow_max_distance, loop_options.bow_ratio);
+    if (static_cast<int>(pairs.size()) < loop_options.min_bow_matches) return -1;
+    return TwoViewInliers(a.keypoints, a.camera, b.keypoints, b.camera, pairs);
+  };
   struct Candidate {
     size_t query = 0, frame = 0;
     Verdict verdict = Verdict::kOtherClip;
@@ -802,15 +815,10 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       if (!extended_any) current.push_back({members, 0});
       if (!enough) continue;
       consistent.push_back({q, c, verdict(q, c)});
-      const Image& a = images[q];
-      const Image& b = images[c];
-      const auto pairs = pcr::MatchFeaturesByWords(
-          a.keypoints, a.descriptors, a.direct, nullptr, b.keypoints, b.descriptors, b.direct,
-          nullptr, loop_options.bow_max_distance, loop_options.bow_ratio);
-      if (static_cast<int>(pairs.size()) < loop_options.min_bow_matches) continue;
+      const int inliers = two_view(q, c);
+      if (inliers < 0) continue;
       const Verdict v = verdict(q, c);
       plausible.push_back({q, c, v});
-      const int inliers = TwoViewInliers(a.keypoints, a.camera, b.keypoints, b.camera, pairs);
       if (v == Verdict::kOtherClip) max_other_inliers = std::max(max_other_inliers, inliers);
       if (v == Verdict::kCorrect) max_correct_inliers = std::max(max_correct_inliers, inliers);
       if (inliers >= loop_options.min_ransac_inliers) verified.push_back({q, c, v});
@@ -899,13 +907,19 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   };
   for (size_t c = 0; c < names.size(); ++c) print_verified(names[c], static_cast<int>(c));
   print_verified("all", -1);
-  double far_min = kNaN, far_max = kNaN;
-  for (const Candidate& c : verified) {
-    if (c.verdict != Verdict::kSameClipFar) continue;
-    const double d = (images[c.query].position - images[c.frame].position).norm();
-    far_min = std::isnan(far_min) ? d : std::min(far_min, d);
-    far_max = std::isnan(far_max) ? d : std::max(far_max, d);
-  }
+  // The distances from their queries of a list's same-clip candidates further than
+  // kPlaceRadiusM: (min, max), NaN for none.
+  auto far_range = [&](const std::vector<Candidate>& list) {
+    double lo = kNaN, hi = kNaN;
+    for (const Candidate& c : list) {
+      if (c.verdict != Verdict::kSameClipFar) continue;
+      const double d = (images[c.query].position - images[c.frame].position).norm();
+      lo = std::isnan(lo) ? d : std::min(lo, d);
+      hi = std::isnan(hi) ? d : std::max(hi, d);
+    }
+    return std::pair{lo, hi};
+  };
+  const auto [far_min, far_max] = far_range(verified);
   std::printf(
       "(most inliers of a candidate of another clip: %d; of a correct one: %d; the verified ones "
       "of the same clip further than %.0f m lie %.1f-%.1f m from the query)\n",
@@ -927,6 +941,43 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
                 accepted > 0 ? static_cast<double>(correct) / accepted : kNaN,
                 revisits > 0 ? static_cast<double>(correct) / revisits : kNaN);
   }
+
+  // (3) Each query's best database frame that passes the two-view check, among its
+  // kPlaceVerifyTopK best-scoring ones (none when none of those passes).
+  std::vector<Candidate> verified_best;
+  for (size_t q = 0; q < n; ++q) {
+    std::vector<size_t> database;
+    for (size_t j = 0; j < n; ++j)
+      if (in_database(q, j)) database.push_back(j);
+    const size_t top = std::min(database.size(), kPlaceVerifyTopK);
+    std::partial_sort(database.begin(), database.begin() + static_cast<std::ptrdiff_t>(top),
+                      database.end(),
+                      [&](size_t x, size_t y) { return score[q * n + x] > score[q * n + y]; });
+    for (size_t k = 0; k < top; ++k) {
+      if (two_view(q, database[k]) < loop_options.min_ransac_inliers) continue;
+      verified_best.push_back({q, database[k], verdict(q, database[k])});
+      break;
+    }
+  }
+  std::printf(
+      "\nbest database frame that passes the two-view check, among a query's %zu best-scoring "
+      "ones:\n%-28s %8s %8s %7s %8s %5s %5s %6s\n",
+      kPlaceVerifyTopK, "clip", "queries", "answered", "correct", "same far", "other", "prec",
+      "recall");
+  auto print_best_verified = [&](const std::string& name, int clip) {
+    int queries = 0;
+    for (size_t q = 0; q < n; ++q) queries += clip < 0 || images[q].clip == clip;
+    const Counts c = count(verified_best, clip);
+    std::printf("%-28s %8d %8d %7d %8d %5d %5.2f %6.3f\n", name.c_str(), queries, c.cands,
+                c.by_verdict[0], c.by_verdict[1], c.by_verdict[2], c.precision(), c.recall);
+  };
+  for (size_t c = 0; c < names.size(); ++c) print_best_verified(names[c], static_cast<int>(c));
+  print_best_verified("all", -1);
+  const auto [best_far_min, best_far_max] = far_range(verified_best);
+  std::printf(
+      "(answered: queries with such a frame; the same clip's ones further than %.0f m lie "
+      "%.1f-%.1f m from the query)\n",
+      kPlaceRadiusM, best_far_min, best_far_max);
   return 0;
 }
 
