@@ -840,6 +840,17 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       "clip", "queries", "revisits", "correct", "same far", "other", "prec", "cands", "correct",
       "same far", "other", "prec", "recall", "cands", "correct", "same far", "other", "prec",
       "recall");
+  // The queries of `clip` (< 0: all): how many, and how many have a frame of their database
+  // within kPlaceRadiusM (the revisits).
+  struct ClipQueries {
+    int queries = 0, revisits = 0;
+  };
+  auto clip_queries = [&](int clip) {
+    ClipQueries out;
+    for (size_t q = 0; q < n; ++q)
+      if (clip < 0 || images[q].clip == clip) ++out.queries, out.revisits += has_near[q];
+    return out;
+  };
   // A list's candidates of the queries of `clip` (< 0: all) by verdict, and the recall against
   // those queries that have a frame of their database within kPlaceRadiusM.
   struct Counts {
@@ -852,9 +863,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   };
   auto count = [&](const std::vector<Candidate>& list, int clip) {
     Counts counts;
-    int near = 0;
-    for (size_t q = 0; q < n; ++q)
-      if (clip < 0 || images[q].clip == clip) near += has_near[q];
+    const int near = clip_queries(clip).revisits;
     std::vector<bool> found(n, false);
     for (const Candidate& c : list) {
       if (clip >= 0 && images[c.query].clip != clip) continue;
@@ -867,9 +876,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     return counts;
   };
   auto print_clip = [&](const std::string& name, int clip) {
-    int queries = 0, near = 0;
-    for (size_t q = 0; q < n; ++q)
-      if (clip < 0 || images[q].clip == clip) ++queries, near += has_near[q];
+    const auto [queries, near] = clip_queries(clip);
     std::array<int, 3> best_counts{};
     for (const Best& b : bests)
       if (clip < 0 || images[b.query].clip == clip) ++best_counts[static_cast<int>(b.verdict)];
@@ -925,8 +932,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       "of the same clip further than %.0f m lie %.1f-%.1f m from the query)\n",
       max_other_inliers, max_correct_inliers, kPlaceRadiusM, far_min, far_max);
 
-  int revisits = 0;
-  for (size_t q = 0; q < n; ++q) revisits += has_near[q];
+  const int revisits = clip_queries(-1).revisits;
   std::printf("\nbest database frame with a minimum score:\n%9s %8s %7s %5s %9s %7s\n", "min score",
               "accepted", "correct", "other", "precision", "recall");
   for (double t : ParseList(args.thresholds)) {
@@ -965,11 +971,10 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       kPlaceVerifyTopK, "clip", "queries", "answered", "correct", "same far", "other", "prec",
       "recall");
   auto print_best_verified = [&](const std::string& name, int clip) {
-    int queries = 0;
-    for (size_t q = 0; q < n; ++q) queries += clip < 0 || images[q].clip == clip;
     const Counts c = count(verified_best, clip);
-    std::printf("%-28s %8d %8d %7d %8d %5d %5.2f %6.3f\n", name.c_str(), queries, c.cands,
-                c.by_verdict[0], c.by_verdict[1], c.by_verdict[2], c.precision(), c.recall);
+    std::printf("%-28s %8d %8d %7d %8d %5d %5.2f %6.3f\n", name.c_str(), clip_queries(clip).queries,
+                c.cands, c.by_verdict[0], c.by_verdict[1], c.by_verdict[2], c.precision(),
+                c.recall);
   };
   for (size_t c = 0; c < names.size(); ++c) print_best_verified(names[c], static_cast<int>(c));
   print_best_verified("all", -1);
