@@ -91,6 +91,10 @@ struct Source {
   std::string path;
   int64_t first = 0;  // frames [first, end)
   int64_t end = 0;    // 0: to the end of the sequence
+  // Raw drives: where the ground truth's positions come from. "ins": the OXTS velocities
+  // integrated (locally accurate: a short clip's error is the estimate's); "gps": the OXTS
+  // latitude/longitude/altitude (the KITTI devkit's poses; 0.3-0.5 m accurate on drive 0005).
+  std::string raw_truth = "ins";
   static Source Dataset(std::string path, int64_t first = 0, int64_t end = 0) {
     return Source{std::move(path), first, end};
   }

@@ -16,8 +16,9 @@
 namespace pcr::app {
 namespace {
 
-void PrintInfo(const std::string& path, bool color) {
-  const Dataset dataset = OpenDataset(path, color ? KittiCameras::kColor : KittiCameras::kGray);
+void PrintInfo(const std::string& path, bool color, const std::string& raw_truth) {
+  const Dataset dataset = OpenDataset(path, color ? KittiCameras::kColor : KittiCameras::kGray,
+                                      raw_truth == "gps" ? RawTruth::kGps : RawTruth::kIns);
   const PinholeCamera& cam = dataset.rig.left;
   const double duration_s = dataset.DurationSeconds();
   fmt::print("name:          {}\n", dataset.name);
@@ -116,17 +117,23 @@ void AddInfoCommand(CLI::App& app) {
   auto path = std::make_shared<std::string>();
   auto model = std::make_shared<std::string>();
   auto color = std::make_shared<bool>(false);
+  auto raw_truth = std::make_shared<std::string>("ins");
   auto* sequence = cmd->add_option(
       "--sequence,-s", *path,
       "Odometry sequence dir (sequences/NN) or raw drive dir (DATE/DATE_drive_NNNN_sync)");
   auto* model_option = cmd->add_option("--model", *model, "a YOLOv8(-seg) ONNX export");
   sequence->excludes(model_option);
   cmd->add_flag("--color", *color, "Use the colour cameras (2/3) instead of the grey ones (0/1)");
-  cmd->callback([path, model, color] {
+  cmd->add_option("--raw-truth", *raw_truth,
+                  "raw drives' ground-truth positions: ins (OXTS velocities integrated) or gps "
+                  "(OXTS latitude/longitude/altitude, as the KITTI devkit)")
+      ->check(CLI::IsMember({"ins", "gps"}))
+      ->capture_default_str();
+  cmd->callback([path, model, color, raw_truth] {
     if (!model->empty()) {
       PrintModelInfo(*model);
     } else if (!path->empty()) {
-      PrintInfo(*path, *color);
+      PrintInfo(*path, *color, *raw_truth);
     } else {
       throw ConfigError("info needs --sequence DIR or --model FILE.onnx");
     }

@@ -20,7 +20,7 @@ namespace {
 
 struct FrameArgs {
   api::Config config;
-  std::string sequence, frames, mode = "stereo", policy = "sequential";
+  std::string sequence, frames, mode = "stereo", policy = "sequential", raw_truth = "ins";
 };
 
 // An "on|off" option for a bool; the help text gets ": on or off (default ...)".
@@ -41,6 +41,11 @@ void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
       ->check(CLI::IsMember({"stereo", "mono"}))
       ->capture_default_str();
   cmd->add_option("--frames", a->frames, "frame range A:B (B exclusive)");
+  cmd->add_option("--raw-truth", a->raw_truth,
+                  "raw drives' ground-truth positions: ins (OXTS velocities integrated) or gps "
+                  "(OXTS latitude/longitude/altitude, as the KITTI devkit)")
+      ->check(CLI::IsMember({"ins", "gps"}))
+      ->capture_default_str();
   cmd->add_option("--config", c.config_file, "YAML configuration (see config/*.yaml)");
   cmd->add_option("--set", c.overrides, "override one key: section.key=value (repeatable)");
   cmd->add_option("--threads", c.threads, "threads for TBB, OpenCV and Ceres")
@@ -129,7 +134,8 @@ void RunFrames(const std::string& name, FrameArgs& a) {
   api::Config& c = a.config;
   c.mode = a.mode == "mono" ? api::Mode::kMono : api::Mode::kStereo;
   c.policy = ParsePolicy(a.policy);
-  const api::Source source = api::Source::Dataset(a.sequence, a.frames);
+  api::Source source = api::Source::Dataset(a.sequence, a.frames);
+  source.raw_truth = a.raw_truth;
   std::unique_ptr<Progress> progress;
   const api::Result result =
       api::Run(c, source, [&](const api::FrameResult& f, size_t done, size_t total) {

@@ -84,7 +84,10 @@ driver::DriverOptions ToDriverOptions(const Config& c) {
 }
 
 Result RunChecked(const Config& config, const Source& source, const FrameCallback& on_frame) {
-  const Dataset dataset = OpenDataset(source.path);
+  if (source.raw_truth != "ins" && source.raw_truth != "gps")
+    throw ConfigError("Source: raw_truth must be ins or gps, not '" + source.raw_truth + "'");
+  const Dataset dataset = OpenDataset(source.path, KittiCameras::kGray,
+                                      source.raw_truth == "gps" ? RawTruth::kGps : RawTruth::kIns);
   std::string config_yaml;
   driver::RunConfig run_config =
       driver::LoadRunConfig(config.config_file, config.overrides, &config_yaml);

@@ -131,13 +131,15 @@ cv::Mat Dataset::LoadLeftColor(size_t i) const {
   return LoadImageChecked(PathAt(left_color_paths, i, "colour"), cv::IMREAD_COLOR);
 }
 
-Dataset OpenDataset(const std::string& path, KittiCameras cams) {
+const char* ToString(RawTruth truth) { return truth == RawTruth::kIns ? "ins" : "gps"; }
+
+Dataset OpenDataset(const std::string& path, KittiCameras cams, RawTruth raw_truth) {
   std::error_code ec;
   if (!fs::is_directory(path, ec)) throw InputError(path, 0, "dataset directory not found");
   const fs::path dir(path);
   if (fs::is_directory(dir / "image_00" / "data", ec) ||
       fs::is_directory(dir / "image_02" / "data", ec))
-    return OpenKittiRaw(path, cams);
+    return OpenKittiRaw(path, cams, raw_truth);
   if (fs::exists(dir / "calib.txt", ec)) return OpenKittiOdometry(path, cams);
   throw InputError(path, 0,
                    "not a KITTI odometry sequence (calib.txt, image_0/) nor a raw drive "

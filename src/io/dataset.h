@@ -17,6 +17,15 @@ namespace pcr {
 // Which KITTI camera pair to read: cameras 0/1 (grey) or 2/3 (colour).
 enum class KittiCameras { kGray, kColor };
 
+// Where a raw drive's ground-truth positions come from; orientations are always the OXTS roll,
+// pitch and yaw. kIns: integrated from the OXTS north/east/up velocities (the GPS/INS's fused
+// velocity, vel_accuracy 0.03-0.07 m/s on drive 0005): locally consistent, drifting slowly.
+// kGps: the OXTS latitude, longitude and altitude, as the KITTI devkit's poses (pos_accuracy
+// 0.3-0.5 m on drive 0005): no drift, but a short clip sees that error as a trajectory error (on
+// drive 0005 the positions' path is 33.6 m, 4% shorter than the velocities' 34.9 m).
+enum class RawTruth { kIns, kGps };
+const char* ToString(RawTruth truth);  // "ins", "gps"
+
 struct Dataset {
   std::string name;  // "06", "2011_09_26_drive_0005_sync"
   std::string root;  // the directory that was opened
@@ -25,7 +34,8 @@ struct Dataset {
   // world_from_cam0 (rectified camera 0) per frame, t_ns and frame_index set; frame 0 is the
   // identity for raw drives (OXTS), as in the KITTI odometry pose files.
   std::optional<Trajectory> ground_truth;
-  std::string ground_truth_source;  // poses/NN.txt or the OXTS folder; empty without ground truth
+  // poses/NN.txt, or the OXTS folder and what the positions came from; empty without ground truth
+  std::string ground_truth_source;
   std::vector<std::string> left_paths;
   std::vector<std::string> right_paths;       // empty for a monocular sequence
   std::vector<std::string> left_color_paths;  // camera 2 colour images when present, else empty
@@ -66,7 +76,8 @@ void SetRigFromProjections(const Eigen::Matrix<double, 3, 4>& p_left,
 std::vector<std::string> ListFiles(const std::string& dir, const std::string& extension);
 
 // Opens a KITTI odometry sequence directory or a KITTI raw drive directory, decided by the
-// layout (calib.txt + image_0/image_2 vs image_00/data).
-Dataset OpenDataset(const std::string& path, KittiCameras cams = KittiCameras::kGray);
+// layout (calib.txt + image_0/image_2 vs image_00/data). raw_truth: a raw drive's ground truth.
+Dataset OpenDataset(const std::string& path, KittiCameras cams = KittiCameras::kGray,
+                    RawTruth raw_truth = RawTruth::kIns);
 
 }  // namespace pcr

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <numbers>
+#include <stdexcept>
 
 #include "io/kitti_calib.h"
 #include "io/text_parse.h"
@@ -94,7 +95,10 @@ OxtsPacket ParseOxtsPacket(std::istream& in, const std::string& name) {
   packet.roll_rad = v[3];
   packet.pitch_rad = v[4];
   packet.yaw_rad = v[5];
+  packet.north_mps = v[6];
+  packet.east_mps = v[7];
   packet.forward_speed_mps = v[8];
+  packet.up_mps = v[10];
   if (std::abs(packet.lat_deg) >= 89.0 || std::abs(packet.lon_deg) > 180.0)
     throw InputError(name, data_line, "latitude/longitude out of range");
   return packet;
@@ -158,32 +162,51 @@ SE3 ReadCam0FromImu(const std::string& calib_dir) {
 }
 
 Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE3& cam0_from_imu,
-                                const std::vector<int64_t>& t_ns) {
+                                const std::vector<int64_t>& t_ns, RawTruth truth,
+                                const std::vector<int64_t>& packet_t_ns) {
   Trajectory trajectory;
   if (packets.empty()) return trajectory;
+  const std::vector<int64_t>& times = packet_t_ns.empty() ? t_ns : packet_t_ns;
+  if (truth == RawTruth::kIns && times.size() < packets.size())
+    throw std::invalid_argument("OxtsToCam0Trajectory: " + std::to_string(times.size()) +
+                                " times for " + std::to_string(packets.size()) + " packets");
   const double mercator_scale = std::cos(packets.front().lat_deg * kDegToRad);
   const SE3 imu_from_cam0 = cam0_from_imu.inverse();
   // Positions are taken relative to the first packet's before composing, so that frame 0 is
   // exactly the identity and no precision is lost to Mercator coordinates of ~1e6 m.
   const Eigen::Vector3d origin_m = WorldFromImu(packets.front(), mercator_scale).translation();
-  const auto local_world_from_cam0 = [&](const OxtsPacket& packet) {
-    SE3 world_from_imu = WorldFromImu(packet, mercator_scale);
-    world_from_imu.translation() -= origin_m;
-    return world_from_imu * imu_from_cam0;
+  Eigen::Vector3d integrated_m = Eigen::Vector3d::Zero();  // kIns: east, north, up from packet 0
+  const auto velocity = [](const OxtsPacket& p) {
+    return Eigen::Vector3d(p.east_mps, p.north_mps, p.up_mps);
   };
-  const SE3 origin_from_world = local_world_from_cam0(packets.front()).inverse();
+  std::vector<SE3> local_world_from_cam0;
+  for (size_t i = 0; i < packets.size(); ++i) {
+    SE3 world_from_imu = WorldFromImu(packets[i], mercator_scale);
+    if (truth == RawTruth::kGps) {
+      world_from_imu.translation() -= origin_m;
+    } else {
+      if (i > 0) {
+        if (times[i] <= times[i - 1])
+          throw std::invalid_argument("OxtsToCam0Trajectory: packet times must increase");
+        integrated_m += 0.5 * (velocity(packets[i - 1]) + velocity(packets[i])) *
+                        NsToSeconds(times[i] - times[i - 1]);
+      }
+      world_from_imu.translation() = integrated_m;
+    }
+    local_world_from_cam0.push_back(world_from_imu * imu_from_cam0);
+  }
+  const SE3 origin_from_world = local_world_from_cam0.front().inverse();
   for (size_t i = 0; i < packets.size(); ++i) {
     StampedPose pose;
     pose.t_ns = i < t_ns.size() ? t_ns[i] : 0;
     pose.frame_index = static_cast<int64_t>(i);
-    pose.world_from_cam =
-        i == 0 ? SE3::Identity() : origin_from_world * local_world_from_cam0(packets[i]);
+    pose.world_from_cam = i == 0 ? SE3::Identity() : origin_from_world * local_world_from_cam0[i];
     trajectory.push_back(pose);
   }
   return trajectory;
 }
 
-Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams) {
+Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth truth) {
   std::error_code ec;
   if (!fs::is_directory(drive_dir, ec)) throw InputError(drive_dir, 0, "drive directory not found");
   fs::path dir(drive_dir);
@@ -234,9 +257,25 @@ Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams) {
                            std::to_string(dataset.size()) + " images");
     std::vector<OxtsPacket> packets;
     for (size_t i = 0; i < dataset.size(); ++i) packets.push_back(ReadOxtsPacket(oxts_paths[i]));
-    dataset.ground_truth =
-        OxtsToCam0Trajectory(packets, ReadCam0FromImu(calib_dir.string()), dataset.t_ns);
-    dataset.ground_truth_source = oxts_dir.string();
+    std::vector<int64_t> packet_t_ns;
+    std::string times_note = "oxts/timestamps.txt";
+    const fs::path oxts_times = dir / "oxts" / "timestamps.txt";
+    if (truth == RawTruth::kIns && fs::exists(oxts_times, ec)) {
+      packet_t_ns = ReadRawTimestamps(oxts_times.string());
+      if (packet_t_ns.size() < dataset.size())
+        throw InputError(oxts_times.string(), 0,
+                         std::to_string(packet_t_ns.size()) + " timestamps but " +
+                             std::to_string(dataset.size()) + " images");
+    } else if (truth == RawTruth::kIns) {
+      times_note = "the image times";
+    }
+    dataset.ground_truth = OxtsToCam0Trajectory(packets, ReadCam0FromImu(calib_dir.string()),
+                                                dataset.t_ns, truth, packet_t_ns);
+    dataset.ground_truth_source =
+        oxts_dir.string() +
+        (truth == RawTruth::kIns
+             ? " (positions: OXTS velocities integrated over " + times_note + ")"
+             : std::string(" (positions: OXTS GPS latitude/longitude/altitude)"));
   }
   return dataset;
 }

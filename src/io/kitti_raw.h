@@ -15,7 +15,9 @@ namespace pcr {
 struct OxtsPacket {
   double lat_deg = 0, lon_deg = 0, alt_m = 0;
   double roll_rad = 0, pitch_rad = 0, yaw_rad = 0;  // yaw 0 = east, counter-clockwise positive
-  double forward_speed_mps = 0;                     // vf, column 9 of the record
+  double north_mps = 0, east_mps = 0;               // vn, ve: columns 7 and 8 of the record
+  double forward_speed_mps = 0;                     // vf, column 9
+  double up_mps = 0;                                // vu, column 11
 };
 
 OxtsPacket ReadOxtsPacket(const std::string& path);
@@ -35,15 +37,22 @@ SE3 WorldFromImu(const OxtsPacket& packet, double mercator_scale);
 SE3 ReadCam0FromImu(const std::string& calib_dir);
 
 // world_from_cam0 per packet relative to the first (pose 0 = identity):
-// inv(W_0) * W_i with W_i = WorldFromImu(p_i) * inv(cam0_from_imu). t_ns[i] and frame_index = i
-// are set (t_ns may be empty: times 0).
+// inv(W_0) * W_i with W_i = world_from_imu_i * inv(cam0_from_imu). world_from_imu_i has the
+// rotation of WorldFromImu(p_i) and, for kGps, its translation; for kIns, the integral of the
+// packets' east/north/up velocities (trapezoid rule over packet_t_ns) from the first packet's
+// WorldFromImu translation. t_ns[i] and frame_index = i are set (t_ns may be empty: times 0).
+// packet_t_ns: the packets' times (kIns; empty: t_ns); throws std::invalid_argument when kIns
+// has fewer times than packets or times that do not increase.
 Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE3& cam0_from_imu,
-                                const std::vector<int64_t>& t_ns);
+                                const std::vector<int64_t>& t_ns, RawTruth truth = RawTruth::kGps,
+                                const std::vector<int64_t>& packet_t_ns = {});
 
 // Rig from P_rect_00/P_rect_01 (kGray) or P_rect_02/P_rect_03 (kColor), baseline
 // (P_left[0][3] - P_right[0][3]) / fx. timestamps.txt may hold more lines than there are images
 // (the first N are used) but not fewer. Ground truth from oxts/data when present (OXTS files
-// must then cover every frame). image_02 fills left_color_paths when present.
-Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams = KittiCameras::kGray);
+// must then cover every frame) by `truth`; kIns integrates over oxts/timestamps.txt (the image
+// timestamps when it is missing). image_02 fills left_color_paths when present.
+Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams = KittiCameras::kGray,
+                     RawTruth truth = RawTruth::kIns);
 
 }  // namespace pcr

@@ -49,7 +49,10 @@ TEST(Oxts, ParsesRecordAndRejectsWrongCount) {
   const OxtsPacket p = ParseOxtsPacket(in, "oxts");
   EXPECT_EQ(p.lat_deg, 1);
   EXPECT_EQ(p.yaw_rad, 6);
+  EXPECT_EQ(p.north_mps, 7);
+  EXPECT_EQ(p.east_mps, 8);
   EXPECT_EQ(p.forward_speed_mps, 9);
+  EXPECT_EQ(p.up_mps, 11);
   std::istringstream short_in("1 2 3\n");
   ExpectInputError([&] { ParseOxtsPacket(short_in, "oxts"); }, "oxts", 1, "expected 30 numbers");
   std::istringstream empty_in("\n");
@@ -102,6 +105,39 @@ TEST(Oxts, MercatorConversionAndCameraFrame) {
   const Eigen::AngleAxisd aa(turn[1].world_from_cam.rotation());
   EXPECT_NEAR(aa.angle(), 1.0, 1e-12);
   EXPECT_NEAR(aa.axis().y(), -1.0, 1e-12);
+}
+
+TEST(Oxts, InsTruthIntegratesTheVelocities) {
+  // Facing east at a fixed GPS position while the velocities say the car drives east at 10 m/s
+  // and then 20 m/s: the INS truth follows the velocities, the GPS truth stands still.
+  std::vector<OxtsPacket> packets(3, Packet(49.0, 8.0, 0));
+  packets[0].east_mps = 10;
+  packets[1].east_mps = 20;
+  packets[2].east_mps = 20;
+  packets[2].up_mps = 4;  // climbing: camera y points down
+  const std::vector<int64_t> image_ns = {0, 100'000'000, 300'000'000};
+  const Trajectory ins =
+      OxtsToCam0Trajectory(packets, CameraLookingForward(), image_ns, RawTruth::kIns);
+  ASSERT_EQ(ins.size(), 3u);
+  EXPECT_TRUE(ins[0].world_from_cam.isApprox(SE3::Identity(), 1e-12));
+  EXPECT_NEAR(ins[1].world_from_cam.translation().z(), 1.5,
+              1e-9);  // trapezoid: (10 + 20) / 2 * 0.1
+  EXPECT_NEAR(ins[2].world_from_cam.translation().z(), 1.5 + 4.0, 1e-9);
+  EXPECT_NEAR(ins[2].world_from_cam.translation().y(), -0.4, 1e-9);  // (0 + 4) / 2 * 0.2 up
+  EXPECT_NEAR(ins[2].world_from_cam.translation().x(), 0, 1e-9);
+  EXPECT_EQ(ins[2].t_ns, 300'000'000);
+  const Trajectory gps =
+      OxtsToCam0Trajectory(packets, CameraLookingForward(), image_ns, RawTruth::kGps);
+  EXPECT_NEAR(PathLength(gps), 0.0, 1e-9);
+  // The packets' own times win over the image times.
+  const Trajectory own_times = OxtsToCam0Trajectory(packets, CameraLookingForward(), image_ns,
+                                                    RawTruth::kIns, {0, 200'000'000, 400'000'000});
+  EXPECT_NEAR(own_times[1].world_from_cam.translation().z(), 3.0, 1e-9);
+  EXPECT_EQ(own_times[1].t_ns, 100'000'000);
+  EXPECT_THROW(OxtsToCam0Trajectory(packets, CameraLookingForward(), {0, 1}, RawTruth::kIns),
+               std::invalid_argument);
+  EXPECT_THROW(OxtsToCam0Trajectory(packets, CameraLookingForward(), {0, 1, 1}, RawTruth::kIns),
+               std::invalid_argument);
 }
 
 // A raw drive folder built from the real calibration with tiny synthetic images.
@@ -167,6 +203,12 @@ TEST_F(SyntheticRaw, OxtsMustCoverEveryFrame) {
   const Dataset d = OpenKittiRaw(drive_);
   ASSERT_TRUE(d.ground_truth.has_value());
   EXPECT_NEAR(PathLength(*d.ground_truth), 0.0, 1e-9);  // never moved
+  EXPECT_NE(d.ground_truth_source.find("integrated over the image times"), std::string::npos);
+  // The OXTS times, when present, must cover every frame.
+  WriteText(drive_ + "/oxts/timestamps.txt", "2011-09-26 13:04:32.0\n2011-09-26 13:04:32.1\n");
+  ExpectInputError([&] { OpenKittiRaw(drive_); }, "oxts/timestamps.txt", 0,
+                   "2 timestamps but 3 images");
+  EXPECT_NO_THROW(OpenKittiRaw(drive_, KittiCameras::kGray, RawTruth::kGps));  // not needed
 }
 
 TEST(RealRaw, Drive0005RigAndTimes) {
@@ -216,8 +258,19 @@ TEST(RealRaw, Drive0005OxtsGroundTruth) {
   }
   const double length_m = PathLength(gt);
   EXPECT_NEAR(speed_integral_m, 34.876, 0.01);
-  EXPECT_NEAR(length_m / speed_integral_m, 1.0, 0.05);
-  EXPECT_NEAR(length_m, 33.598, 0.005);  // measured (GPS positions run ~4% short of vf here)
+  // The default truth integrates the north/east/up velocities over the OXTS times.
+  EXPECT_NE(d.ground_truth_source.find("oxts/timestamps.txt"), std::string::npos);
+  EXPECT_NEAR(length_m / speed_integral_m, 1.0, 0.01);
+  EXPECT_NEAR(length_m, 35.016, 0.005);  // measured
+  // The GPS positions (the KITTI devkit's poses) run ~4% short of the velocities here, with the
+  // same orientations.
+  const Dataset gps = OpenKittiRaw(test::SharedPath(kDrive), KittiCameras::kGray, RawTruth::kGps);
+  ASSERT_TRUE(gps.ground_truth.has_value());
+  EXPECT_NEAR(PathLength(*gps.ground_truth), 33.598, 0.005);  // measured
+  EXPECT_NEAR(PathLength(*gps.ground_truth) / speed_integral_m, 0.963, 0.005);
+  for (size_t i = 0; i < gt.size(); ++i)
+    EXPECT_TRUE(gps.ground_truth->at(i).world_from_cam.linear().isApprox(
+        gt[i].world_from_cam.linear(), 1e-12));
 }
 
 }  // namespace
