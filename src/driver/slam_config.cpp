@@ -1,6 +1,7 @@
 #include "driver/slam_config.h"
 
 #include "slam/common/error.h"
+#include "slam/dynamic/yolo_segmenter.h"
 
 namespace pcr::driver {
 
@@ -177,9 +178,11 @@ RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>&
     throw ConfigError(source + ": invalid configuration: filter: " + why);
   }
   const DynamicRunOptions& d = config.dynamic;
-  auto in_unit_interval = [](double v) { return v > 0.0 && v < 1.0; };
-  if (!in_unit_interval(d.conf_threshold) || !in_unit_interval(d.mask_threshold) ||
-      !(d.light_mask_threshold < 0 || in_unit_interval(d.light_mask_threshold))) {
+  // The segmenter's model path is not known here, so only its thresholds are checked (the same
+  // range as YoloOptions::IsValid; a negative light_mask_threshold means mask_threshold).
+  if (!YoloOptions::IsThresholdInRange(d.conf_threshold) ||
+      !YoloOptions::IsThresholdInRange(d.mask_threshold) ||
+      !(d.light_mask_threshold < 0 || YoloOptions::IsThresholdInRange(d.light_mask_threshold))) {
     throw ConfigError(source +
                       ": invalid configuration: segmenter: conf_threshold and mask_threshold must "
                       "lie in (0, 1), light_mask_threshold too or be negative (the same)");

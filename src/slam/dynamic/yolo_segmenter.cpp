@@ -108,14 +108,14 @@ bool YoloOptions::IsValid(std::string* why) const {
     return false;
   };
   if (model_path.empty()) return fail("model_path is empty");
-  if (!(conf_threshold > 0.0f && conf_threshold < 1.0f)) return fail("conf_threshold not in (0,1)");
+  if (!IsThresholdInRange(conf_threshold)) return fail("conf_threshold not in (0,1)");
   if (!(nms_iou > 0.0f && nms_iou <= 1.0f)) return fail("nms_iou not in (0,1]");
   if (max_detections < 1) return fail("max_detections < 1");
   if (dilation_px < 0 || dilation_px > 100) return fail("dilation_px not in [0,100]");
   if (!std::isfinite(smooth_sigma_px) || smooth_sigma_px < 0 || smooth_sigma_px > 50) {
     return fail("smooth_sigma_px not in [0,50]");
   }
-  if (!(mask_threshold > 0.0f && mask_threshold < 1.0f)) return fail("mask_threshold not in (0,1)");
+  if (!IsThresholdInRange(mask_threshold)) return fail("mask_threshold not in (0,1)");
   if (dynamic_input_size.width <= 0 || dynamic_input_size.height <= 0 ||
       dynamic_input_size.width % 32 != 0 || dynamic_input_size.height % 32 != 0) {
     return fail("dynamic_input_size must be positive multiples of 32");

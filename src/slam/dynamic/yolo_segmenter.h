@@ -69,8 +69,8 @@ struct YoloOptions {
   // the input's resolution, so an object's edge (where ORB puts its keypoints) falls in the soft
   // part of the sigmoid. Drive 0005, 224x640 (`pcr_orb run --filter on --segmenter yolo
   // --truth-labels` at 1990, 2000 and 2010 features): filter recall 0.672 against 0.628,
-  // precision 0.959-0.962 against 0.958-0.963, mean ATE 0.555 against 0.560 m; KITTI 06 mean ATE
-  // 0.0627 against 0.0625 m.
+  // precision 0.959-0.962 against 0.958-0.963, mean ATE 0.555 against 0.560 m (GPS truth); KITTI 06
+  // mean ATE 0.0627 against 0.0625 m.
   float mask_threshold = 0.3f;
   // Used only when the model's input height/width are symbolic (a `dynamic=True` export).
   cv::Size dynamic_input_size{640, 640};
@@ -84,6 +84,8 @@ struct YoloOptions {
   DynamicClassPolicy classes;
 
   bool IsValid(std::string* why) const;
+  // The range of conf_threshold and mask_threshold, (0, 1); IsValid checks both with it.
+  static bool IsThresholdInRange(double value) { return value > 0.0 && value < 1.0; }
 };
 
 // The 80 COCO class names in Ultralytics order (index = class id).
