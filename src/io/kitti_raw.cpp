@@ -192,6 +192,8 @@ Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE
                         NsToSeconds(times[i] - times[i - 1]);
       }
       world_from_imu.translation() = integrated_m;
+      if (i < t_ns.size())  // at the image's time (nothing when the times are the same)
+        world_from_imu.translation() += velocity(packets[i]) * NsToSeconds(t_ns[i] - times[i]);
     }
     local_world_from_cam0.push_back(world_from_imu * imu_from_cam0);
   }
