@@ -150,7 +150,8 @@ void RunFrames(const std::string& name, FrameArgs& a) {
       "outputs: %s/{trajectory.txt,trajectory_tum.txt,stats.json,config.yaml,trace.json,map.ply,"
       "map_removed.ply,keyframes.txt,map.png,"
       "timing.png%s}\n",
-      c.out_dir.c_str(), result.stats.ate_rmse_m ? ",evaluation.json,trajectory.png" : "");
+      c.out_dir.c_str(),
+      result.stats.ate_rmse_m ? ",ground_truth.txt,evaluation.json,trajectory.png" : "");
   if (!result.error.empty()) throw std::runtime_error(result.error);
 }
 

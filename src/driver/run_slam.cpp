@@ -107,6 +107,7 @@ void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool mo
     s->per_frame.push_back(p);
     if (dataset.ground_truth) gt.push_back((*dataset.ground_truth)[static_cast<size_t>(i)]);
   }
+  s->ground_truth = gt;
   if (!dataset.ground_truth || s->tracked.size() < 3) return;
   s->eval_options.alignment.mode = monocular ? eval::AlignMode::kSim3 : eval::AlignMode::kSe3;
   s->eval_options.kitti.lengths_m = {5, 10, 20, 40, 80, 100, 200, 400, 800};
@@ -128,6 +129,8 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   CreateOutputDirectory(out_dir);
   WriteKittiTrajectory(out_dir + "/trajectory.txt", s.per_frame);
   WriteTumTrajectory(out_dir + "/trajectory_tum.txt", s.tracked);
+  // Beside trajectory.txt, line for line: `evo_ape kitti ground_truth.txt trajectory.txt -a`.
+  if (!s.ground_truth.empty()) WriteKittiTrajectory(out_dir + "/ground_truth.txt", s.ground_truth);
   {
     std::ofstream cfg(out_dir + "/config.yaml");
     cfg << config_yaml;

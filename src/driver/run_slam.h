@@ -38,7 +38,8 @@ struct RunSummary {
   Trajectory per_frame;
   Trajectory tracked;  // tracked frames only
   std::vector<bool> frame_tracked;
-  StageTimings stages;  // per-stage milliseconds, "total" for the whole frame
+  Trajectory ground_truth;  // the dataset's ground truth of the per_frame frames (empty: none)
+  StageTimings stages;      // per-stage milliseconds, "total" for the whole frame
   std::optional<eval::EvalResult> evaluation;
   eval::EvalOptions eval_options;
   // Dynamic filter (when on): per-reason counts, stage times, and on synthetic sequences the

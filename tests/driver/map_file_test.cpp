@@ -15,6 +15,7 @@
 
 #include "driver/binary_file.h"
 #include "io/dataset.h"
+#include "io/trajectory_io.h"
 #include "loop_street.h"
 #include "pcr/api.h"
 #include "slam/common/error.h"
@@ -118,9 +119,19 @@ TEST(Api, RawDriveTruthIsTheIntegratedVelocitiesOrTheGpsPositions) {
   api::Config c;
   c.threads = 1;
   c.loop_closing = false;
-  api::Source source = api::Source::Dataset(
-      test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"), 0, 20);
+  const std::string drive =
+      test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync");
+  api::Source source = api::Source::Dataset(drive, 0, 20);
+  c.out_dir = test::MakeTempDir("pcr_raw_truth");
   const api::Result ins = api::Run(c, source);
+  // The ground truth of the run's frames is written beside trajectory.txt, line for line.
+  const Trajectory written = ReadKittiTrajectory(c.out_dir + "/ground_truth.txt");
+  const Trajectory truth = *OpenDataset(drive).ground_truth;
+  ASSERT_EQ(written.size(), 20u);
+  for (size_t i = 0; i < written.size(); ++i)
+    EXPECT_TRUE(written[i].world_from_cam.isApprox(truth[i].world_from_cam, 1e-9)) << i;
+  std::filesystem::remove_all(c.out_dir);
+  c.out_dir.clear();
   source.raw_truth = "gps";
   const api::Result gps = api::Run(c, source);
   ASSERT_TRUE(ins.stats.ate_rmse_m.has_value());
