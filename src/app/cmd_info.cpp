@@ -18,7 +18,7 @@ namespace {
 
 void PrintInfo(const std::string& path, bool color, const std::string& raw_truth) {
   const Dataset dataset = OpenDataset(path, color ? KittiCameras::kColor : KittiCameras::kGray,
-                                      raw_truth == "gps" ? RawTruth::kGps : RawTruth::kIns);
+                                      ParseRawTruth(raw_truth));
   const PinholeCamera& cam = dataset.rig.left;
   const double duration_s = dataset.DurationSeconds();
   fmt::print("name:          {}\n", dataset.name);
@@ -109,6 +109,14 @@ void PrintModelInfo(const std::string& path) {
 
 }  // namespace
 
+void AddRawTruthOption(CLI::App* cmd, std::string* raw_truth) {
+  cmd->add_option("--raw-truth", *raw_truth,
+                  "raw drives' ground-truth positions: ins (OXTS velocities integrated) or gps "
+                  "(OXTS latitude/longitude/altitude, as the KITTI devkit)")
+      ->check(CLI::IsMember({"ins", "gps"}))
+      ->capture_default_str();
+}
+
 void AddInfoCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "info",
@@ -124,11 +132,7 @@ void AddInfoCommand(CLI::App& app) {
   auto* model_option = cmd->add_option("--model", *model, "a YOLOv8(-seg) ONNX export");
   sequence->excludes(model_option);
   cmd->add_flag("--color", *color, "Use the colour cameras (2/3) instead of the grey ones (0/1)");
-  cmd->add_option("--raw-truth", *raw_truth,
-                  "raw drives' ground-truth positions: ins (OXTS velocities integrated) or gps "
-                  "(OXTS latitude/longitude/altitude, as the KITTI devkit)")
-      ->check(CLI::IsMember({"ins", "gps"}))
-      ->capture_default_str();
+  AddRawTruthOption(cmd, raw_truth.get());
   cmd->callback([path, model, color, raw_truth] {
     if (!model->empty()) {
       PrintModelInfo(*model);

@@ -41,11 +41,7 @@ void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
       ->check(CLI::IsMember({"stereo", "mono"}))
       ->capture_default_str();
   cmd->add_option("--frames", a->frames, "frame range A:B (B exclusive)");
-  cmd->add_option("--raw-truth", a->raw_truth,
-                  "raw drives' ground-truth positions: ins (OXTS velocities integrated) or gps "
-                  "(OXTS latitude/longitude/altitude, as the KITTI devkit)")
-      ->check(CLI::IsMember({"ins", "gps"}))
-      ->capture_default_str();
+  AddRawTruthOption(cmd, &a->raw_truth);
   cmd->add_option("--config", c.config_file, "YAML configuration (see config/*.yaml)");
   cmd->add_option("--set", c.overrides, "override one key: section.key=value (repeatable)");
   cmd->add_option("--threads", c.threads, "threads for TBB, OpenCV and Ceres")

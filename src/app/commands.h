@@ -3,6 +3,7 @@
 // callback does the work; errors are thrown (pcr::InputError, pcr::ConfigError, std::exception)
 // and reported once by Main().
 #include <CLI/CLI.hpp>
+#include <string>
 
 namespace pcr::app {
 
@@ -12,6 +13,10 @@ void AddSynthCommand(CLI::App& app);     // cmd_synth.cpp: write a synthetic KIT
 void AddRunCommand(CLI::App& app);       // cmd_run.cpp: SLAM on a dataset
 void AddPipelineCommand(CLI::App& app);  // cmd_pipeline.cpp: the TBB flow-graph pipeline
 void AddVocabCommand(CLI::App& app);     // cmd_vocab.cpp: train the place-recognition vocabulary
+
+// --raw-truth (run, pipeline, info): a raw drive's ground-truth positions, "ins" or "gps"
+// (pcr::ParseRawTruth); *raw_truth holds the default.
+void AddRawTruthOption(CLI::App* cmd, std::string* raw_truth);
 
 // Runs the command line; returns the process exit code.
 int Main(int argc, char** argv);

@@ -84,10 +84,13 @@ driver::DriverOptions ToDriverOptions(const Config& c) {
 }
 
 Result RunChecked(const Config& config, const Source& source, const FrameCallback& on_frame) {
-  if (source.raw_truth != "ins" && source.raw_truth != "gps")
-    throw ConfigError("Source: raw_truth must be ins or gps, not '" + source.raw_truth + "'");
-  const Dataset dataset = OpenDataset(source.path, KittiCameras::kGray,
-                                      source.raw_truth == "gps" ? RawTruth::kGps : RawTruth::kIns);
+  RawTruth raw_truth = RawTruth::kIns;
+  try {
+    raw_truth = ParseRawTruth(source.raw_truth);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("Source: ") + e.what());
+  }
+  const Dataset dataset = OpenDataset(source.path, KittiCameras::kGray, raw_truth);
   std::string config_yaml;
   driver::RunConfig run_config =
       driver::LoadRunConfig(config.config_file, config.overrides, &config_yaml);

@@ -133,6 +133,12 @@ cv::Mat Dataset::LoadLeftColor(size_t i) const {
 
 const char* ToString(RawTruth truth) { return truth == RawTruth::kIns ? "ins" : "gps"; }
 
+RawTruth ParseRawTruth(const std::string& text) {
+  if (text == "ins") return RawTruth::kIns;
+  if (text == "gps") return RawTruth::kGps;
+  throw std::invalid_argument("raw truth must be ins or gps, not '" + text + "'");
+}
+
 Dataset OpenDataset(const std::string& path, KittiCameras cams, RawTruth raw_truth) {
   std::error_code ec;
   if (!fs::is_directory(path, ec)) throw InputError(path, 0, "dataset directory not found");

@@ -25,6 +25,8 @@ enum class KittiCameras { kGray, kColor };
 // drive 0005 the positions' path is 33.6 m, 4% shorter than the velocities' 34.9 m).
 enum class RawTruth { kIns, kGps };
 const char* ToString(RawTruth truth);  // "ins", "gps"
+// "ins" or "gps"; throws std::invalid_argument for anything else.
+RawTruth ParseRawTruth(const std::string& text);
 
 struct Dataset {
   std::string name;  // "06", "2011_09_26_drive_0005_sync"

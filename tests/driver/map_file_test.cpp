@@ -138,7 +138,7 @@ TEST(Api, RawDriveTruthIsTheIntegratedVelocitiesOrTheGpsPositions) {
   ASSERT_TRUE(gps.stats.ate_rmse_m.has_value());
   EXPECT_LT(*ins.stats.ate_rmse_m, 0.75 * *gps.stats.ate_rmse_m);
   source.raw_truth = "rtk";
-  EXPECT_NE(RunError(c, source).find("raw_truth must be ins or gps"), std::string::npos);
+  EXPECT_NE(RunError(c, source).find("raw truth must be ins or gps, not 'rtk'"), std::string::npos);
 }
 
 }  // namespace
