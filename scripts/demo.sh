@@ -25,7 +25,7 @@ fi
 echo
 echo "demo outputs in $out/:"
 for f in trace.json timing.png trajectory.png map.png map.ply map_removed.ply keyframes.txt \
-  trajectory.txt trajectory_tum.txt stats.json evaluation.json config.yaml; do
+  trajectory.txt ground_truth.txt trajectory_tum.txt stats.json evaluation.json config.yaml; do
   if [ -f "$out/$f" ]; then
     case $f in
       trace.json) what="Chrome trace of every stage call (open in https://ui.perfetto.dev)" ;;
@@ -36,6 +36,7 @@ for f in trace.json timing.png trajectory.png map.png map.ply map_removed.ply ke
       map_removed.ply) what="the points the filter refined away (binary PLY, with the reason)" ;;
       keyframes.txt) what="keyframe poses, TUM format" ;;
       trajectory.txt) what="KITTI format, one pose per input frame" ;;
+      ground_truth.txt) what="the same frames' ground truth, line for line (for evo)" ;;
       trajectory_tum.txt) what="tracked frames, TUM format" ;;
       stats.json) what="frames, stage times, pipeline statistics, ATE" ;;
       evaluation.json) what="APE/RPE and KITTI devkit metrics" ;;
