@@ -11,45 +11,32 @@
 namespace pcr {
 namespace {
 
-FilterInput SceneInput(const test::FilterSceneFrame& f) {
-  FilterInput in;
-  in.frame_index = f.index;
-  in.t_ns = f.index * 100'000'000LL;
-  in.left_image = f.image;
-  in.keypoints = f.keypoints;
-  in.depth_m = f.depth_m;
-  in.point_ids = f.ids;
-  in.previous_uv_px = f.prev_uv_px;
-  in.rig = test::KittiRig();
-  in.segmentation = &f.segmentation;
-  if (f.index > 0) in.cur_from_prev = f.cur_from_prev;
-  return in;
-}
+using test::SceneFilterInput;
 
 TEST(FilterApi, RejectsInconsistentInput) {
   const auto frames = test::BuildFilterScene({});
   DynamicFilter filter;
-  FilterInput in = SceneInput(frames[0]);
+  FilterInput in = SceneFilterInput(frames[0]);
   const std::vector<float> short_depth(3, 1.0f);
   in.depth_m = short_depth;
   EXPECT_THROW(filter.Process(in), std::invalid_argument);
-  in = SceneInput(frames[0]);
+  in = SceneFilterInput(frames[0]);
   in.left_image = cv::Mat(376, 1241, CV_8UC3, cv::Scalar(0, 0, 0));
   EXPECT_THROW(filter.Process(in), std::invalid_argument);
-  in = SceneInput(frames[0]);
+  in = SceneFilterInput(frames[0]);
   Segmentation bad = frames[0].segmentation;
   bad.dynamic_confidence = cv::Mat(10, 10, CV_32F, cv::Scalar(0));
   in.segmentation = &bad;
   EXPECT_THROW(filter.Process(in), std::invalid_argument);
-  in = SceneInput(frames[0]);
+  in = SceneFilterInput(frames[0]);
   in.scale_factor = 0.5;
   EXPECT_THROW(filter.Process(in), std::invalid_argument);
   // Frame indices must increase; Reset starts over.
-  EXPECT_NO_THROW(filter.Process(SceneInput(frames[1])));
-  EXPECT_THROW(filter.Process(SceneInput(frames[1])), std::invalid_argument);
-  EXPECT_THROW(filter.Process(SceneInput(frames[0])), std::invalid_argument);
+  EXPECT_NO_THROW(filter.Process(SceneFilterInput(frames[1])));
+  EXPECT_THROW(filter.Process(SceneFilterInput(frames[1])), std::invalid_argument);
+  EXPECT_THROW(filter.Process(SceneFilterInput(frames[0])), std::invalid_argument);
   filter.Reset();
-  EXPECT_NO_THROW(filter.Process(SceneInput(frames[0])));
+  EXPECT_NO_THROW(filter.Process(SceneFilterInput(frames[0])));
 }
 
 TEST(FilterApi, InvalidOptionsNameTheirStage) {
@@ -70,7 +57,7 @@ TEST(FilterApi, OutputShapesAndCounts) {
   const auto frames = test::BuildFilterScene({});
   DynamicFilter filter;
   for (const auto& f : frames) {
-    const FilterOutput out = filter.Process(SceneInput(f));
+    const FilterOutput out = filter.Process(SceneFilterInput(f));
     ASSERT_EQ(out.points.size(), f.keypoints.size());
     int excluded = 0, counted = 0;
     for (size_t i = 0; i < out.points.size(); ++i) {
@@ -92,7 +79,7 @@ TEST(FilterApi, MonocularRigUsesEpipolarTestsAndThePriorHorizon) {
   DynamicFilter filter;
   FilterOutput out;
   for (const auto& f : frames) {
-    FilterInput in = SceneInput(f);
+    FilterInput in = SceneFilterInput(f);
     in.rig.baseline_m = 0.0;  // monocular: depths are ignored
     out = filter.Process(in);
   }
@@ -121,7 +108,7 @@ TEST(FilterApi, StaleAndNonDynamicSegmentations) {
   // A stale mask counts for less: confidence 0.9 x 0.5.
   Segmentation stale = f.segmentation;
   stale.stale = true;
-  FilterInput in = SceneInput(f);
+  FilterInput in = SceneFilterInput(f);
   in.segmentation = &stale;
   DynamicFilter filter;
   const FilterOutput out = filter.Process(in);

@@ -49,16 +49,10 @@ RunResult RunScene(const std::vector<test::FilterSceneFrame>& frames, const RunO
   DynamicFilter filter(opts);
   RunResult result;
   for (const test::FilterSceneFrame& f : frames) {
-    FilterInput in;
-    in.frame_index = f.index;
-    in.t_ns = f.index * 100'000'000LL;
-    in.left_image = f.image;
-    in.keypoints = f.keypoints;
-    in.depth_m = f.depth_m;
-    in.point_ids = f.ids;
-    if (run.matched_positions) in.previous_uv_px = f.prev_uv_px;
-    in.rig = test::KittiRig();
-    in.segmentation = run.with_segmentation ? &f.segmentation : nullptr;
+    FilterInput in = test::SceneFilterInput(f);
+    if (!run.matched_positions) in.previous_uv_px = {};
+    if (!run.with_segmentation) in.segmentation = nullptr;
+    in.cur_from_prev.reset();
     if (run.with_prior && f.index > 0) in.cur_from_prev = run.prior_error * f.cur_from_prev;
     FilterOutput out = filter.Process(in);
     EXPECT_EQ(out.filter.weight.size(), f.keypoints.size());
@@ -371,15 +365,7 @@ TEST(FilterScene, DefaultPolicyRefinesARoughPriorByPnp) {
   DynamicFilter filter;  // default options
   KindStats stats;
   for (const auto& f : frames) {
-    FilterInput in;
-    in.frame_index = f.index;
-    in.left_image = f.image;
-    in.keypoints = f.keypoints;
-    in.depth_m = f.depth_m;
-    in.point_ids = f.ids;
-    in.previous_uv_px = f.prev_uv_px;
-    in.rig = test::KittiRig();
-    in.segmentation = &f.segmentation;
+    FilterInput in = test::SceneFilterInput(f);
     if (f.index > 0) in.cur_from_prev = error * f.cur_from_prev;
     const FilterOutput out = filter.Process(in);
     if (f.index == 0) continue;
@@ -417,16 +403,7 @@ TEST(FilterScene, DefaultPolicyRefinesARoughPriorByPnp) {
 FilterOutput RunFirstFrame(const std::vector<test::FilterSceneFrame>& frames,
                            const DynamicFilterOptions& options) {
   DynamicFilter filter(options);
-  FilterInput in;
-  in.frame_index = 0;
-  in.left_image = frames[0].image;
-  in.keypoints = frames[0].keypoints;
-  in.depth_m = frames[0].depth_m;
-  in.point_ids = frames[0].ids;
-  in.previous_uv_px = frames[0].prev_uv_px;
-  in.rig = test::KittiRig();
-  in.segmentation = &frames[0].segmentation;
-  return filter.Process(in);
+  return filter.Process(test::SceneFilterInput(frames[0]));
 }
 
 TEST(FilterScene, FirstFrameHasNoMotionEvidenceAndKeepsMaskedPointsAtReducedWeight) {

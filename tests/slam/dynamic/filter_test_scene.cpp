@@ -242,4 +242,19 @@ std::vector<FilterSceneFrame> BuildFilterScene(const FilterSceneOptions& o) {
   return frames;
 }
 
+FilterInput SceneFilterInput(const FilterSceneFrame& f) {
+  FilterInput in;
+  in.frame_index = f.index;
+  in.t_ns = f.index * 100'000'000LL;
+  in.left_image = f.image;
+  in.keypoints = f.keypoints;
+  in.depth_m = f.depth_m;
+  in.point_ids = f.ids;
+  in.previous_uv_px = f.prev_uv_px;
+  in.rig = KittiRig();
+  in.segmentation = &f.segmentation;
+  if (f.index > 0) in.cur_from_prev = f.cur_from_prev;
+  return in;
+}
+
 }  // namespace pcr::test

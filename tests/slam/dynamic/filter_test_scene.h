@@ -14,6 +14,7 @@
 
 #include "slam/common/camera.h"
 #include "slam/common/pose.h"
+#include "slam/dynamic/dynamic_filter.h"
 #include "slam/dynamic/segmenter.h"
 
 namespace pcr::test {
@@ -50,6 +51,11 @@ struct FilterSceneFrame {
 
 StereoRig KittiRig();
 std::vector<FilterSceneFrame> BuildFilterScene(const FilterSceneOptions& options);
+
+// The filter's input for frame f as the tracker would give it: the frame's keypoints, depths,
+// map-point ids, matched previous positions, segmentation and true motion (none in frame 0).
+// It points into f, which must outlive it.
+FilterInput SceneFilterInput(const FilterSceneFrame& f);
 
 // Sky patch of the images (flat, bright), in pixels.
 cv::Rect SkyPatch();
