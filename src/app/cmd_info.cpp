@@ -1,5 +1,8 @@
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <map>
@@ -9,12 +12,39 @@
 #include "gpu/executor.h"
 #include "gpu/net_plan.h"
 #include "io/dataset.h"
+#include "io/kitti_raw.h"
 #include "slam/common/error.h"
 #include "slam/dynamic/onnx_model.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
 namespace pcr::app {
 namespace {
+
+namespace fs = std::filesystem;
+
+// A raw drive's OXTS accuracy fields and the path length by the other ground truth, so that the
+// two can be compared (nothing for other datasets).
+void PrintOxtsAccuracy(const Dataset& dataset, const std::string& raw_truth) {
+  const fs::path oxts_dir = fs::path(dataset.root) / "oxts" / "data";
+  std::error_code ec;
+  if (!fs::is_directory(oxts_dir, ec)) return;
+  const std::vector<std::string> paths = ListFiles(oxts_dir.string(), ".txt");
+  double pos_lo = INFINITY, pos_hi = -INFINITY, vel_lo = INFINITY, vel_hi = -INFINITY;
+  for (size_t i = 0; i < dataset.size() && i < paths.size(); ++i) {
+    const OxtsPacket p = ReadOxtsPacket(paths[i]);
+    pos_lo = std::min(pos_lo, p.pos_accuracy_m);
+    pos_hi = std::max(pos_hi, p.pos_accuracy_m);
+    vel_lo = std::min(vel_lo, p.vel_accuracy_mps);
+    vel_hi = std::max(vel_hi, p.vel_accuracy_mps);
+  }
+  fmt::print("OXTS accuracy: position {:.2f}-{:.2f} m, velocity {:.3f}-{:.3f} m/s\n", pos_lo,
+             pos_hi, vel_lo, vel_hi);
+  const std::string other = raw_truth == "gps" ? "ins" : "gps";
+  const Dataset alternative = OpenDataset(dataset.root, KittiCameras::kGray, ParseRawTruth(other));
+  if (alternative.ground_truth)
+    fmt::print("path length:   {:.3f} m by --raw-truth {}\n", PathLength(*alternative.ground_truth),
+               other);
+}
 
 void PrintInfo(const std::string& path, bool color, const std::string& raw_truth) {
   const Dataset dataset = OpenDataset(path, color ? KittiCameras::kColor : KittiCameras::kGray,
@@ -38,6 +68,7 @@ void PrintInfo(const std::string& path, bool color, const std::string& raw_truth
   if (dataset.ground_truth) {
     fmt::print("ground truth:  yes ({})\n", dataset.ground_truth_source);
     fmt::print("path length:   {:.3f} m\n", PathLength(*dataset.ground_truth));
+    PrintOxtsAccuracy(dataset, raw_truth);
   } else {
     fmt::print("ground truth:  no\n");
   }

@@ -99,6 +99,8 @@ OxtsPacket ParseOxtsPacket(std::istream& in, const std::string& name) {
   packet.east_mps = v[7];
   packet.forward_speed_mps = v[8];
   packet.up_mps = v[10];
+  packet.pos_accuracy_m = v[23];
+  packet.vel_accuracy_mps = v[24];
   if (std::abs(packet.lat_deg) >= 89.0 || std::abs(packet.lon_deg) > 180.0)
     throw InputError(name, data_line, "latitude/longitude out of range");
   return packet;

@@ -18,6 +18,8 @@ struct OxtsPacket {
   double north_mps = 0, east_mps = 0;               // vn, ve: columns 7 and 8 of the record
   double forward_speed_mps = 0;                     // vf, column 9
   double up_mps = 0;                                // vu, column 11
+  double pos_accuracy_m = 0;                        // column 24 (north/east)
+  double vel_accuracy_mps = 0;                      // column 25 (north/east)
 };
 
 OxtsPacket ReadOxtsPacket(const std::string& path);

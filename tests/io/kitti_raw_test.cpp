@@ -53,6 +53,8 @@ TEST(Oxts, ParsesRecordAndRejectsWrongCount) {
   EXPECT_EQ(p.east_mps, 8);
   EXPECT_EQ(p.forward_speed_mps, 9);
   EXPECT_EQ(p.up_mps, 11);
+  EXPECT_EQ(p.pos_accuracy_m, 24);
+  EXPECT_EQ(p.vel_accuracy_mps, 25);
   std::istringstream short_in("1 2 3\n");
   ExpectInputError([&] { ParseOxtsPacket(short_in, "oxts"); }, "oxts", 1, "expected 30 numbers");
   std::istringstream empty_in("\n");
