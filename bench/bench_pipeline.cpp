@@ -412,6 +412,7 @@ struct Row {
   double cpu_s = 0;
   double other_cores = -1;  // cores busy with other work while the row ran; -1 unknown
   std::optional<pcr::eval::ConfusionMatrix> confusion;  // the filter against the labels
+  std::map<std::string, pcr::eval::ConfusionMatrix> confusion_by_mask;  // by the frames' mask
 };
 
 // Throughput of row `num` over row `den` within one round (0 when `den` completed nothing).
@@ -615,8 +616,11 @@ int main(int argc, char** argv) {
         if (audit) {
           pcr::driver::RunSummary summary;
           for (const pcr::graph::FrameRecord& f : r.frames)
-            if (f.filter_report) audit->Add(f.frame_index, *f.filter_report, &summary);
+            if (f.filter_report)
+              audit->Add(f.frame_index, *f.filter_report, &summary, nullptr,
+                         pcr::nodes::ToString(f.mask));
           row.confusion = summary.filter_confusion;
+          row.confusion_by_mask = summary.filter_confusion_by_mask;
         }
         if (!args.out.empty() && round == args.repeat - 1) {
           std::string dir_name = row.name;
@@ -717,6 +721,16 @@ int main(int argc, char** argv) {
                   Fixed(c ? row.confusion->Precision() : 0, 3, c).c_str(),
                   Fixed(c ? row.confusion->Recall() : 0, 3, c).c_str(),
                   c ? std::to_string(row.confusion->Total()).c_str() : "-");
+    }
+    // Where the realtime rows' recall goes: the same confusion by the mask each frame had.
+    std::printf("by mask (precision / recall / keypoints):\n");
+    for (const Row& row : rows) {
+      if (row.confusion_by_mask.size() < 2) continue;  // one kind of mask: the row above
+      std::printf("%-19s", row.name.c_str());
+      for (const auto& [mask, c] : row.confusion_by_mask)
+        std::printf("  %s %s / %s / %zu", mask.c_str(), Fixed(c.Precision(), 3, true).c_str(),
+                    Fixed(c.Recall(), 3, true).c_str(), static_cast<size_t>(c.Total()));
+      std::printf("\n");
     }
     {
       const pcr::graph::PipelineStats& s = live.stats;

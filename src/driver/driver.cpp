@@ -154,7 +154,8 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
     AddFrameToSummary(record.output, stereo, &summary);
     if (audit && record.filter_report) {
       std::vector<char> truth;
-      audit->Add(record.frame_index, *record.filter_report, &summary, &truth);
+      audit->Add(record.frame_index, *record.filter_report, &summary, &truth,
+                 nodes::ToString(record.mask));
       if (record.output.status == TrackingStatus::kOk)
         AddRemovedPoints(*record.filter_report, truth, rig.left, record.output.world_from_cam,
                          &summary);

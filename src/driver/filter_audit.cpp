@@ -41,7 +41,7 @@ std::string FilterAudit::Describe() const {
 }
 
 void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report, RunSummary* summary,
-                      std::vector<char>* truth_out) const {
+                      std::vector<char>* truth_out, const char* mask) const {
   const FilterOutput& out = *report.output;
   const std::vector<cv::KeyPoint>& keypoints = report.keypoints;
   const size_t i = static_cast<size_t>(frame_index);
@@ -94,6 +94,7 @@ void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report, Ru
       const bool predicted =
           excluded && (IsMovingReason(d.reason) || d.reason == FilterReason::kMask);
       summary->filter_confusion->Add(predicted, truth.moving);
+      if (mask) summary->filter_confusion_by_mask[mask].Add(predicted, truth.moving);
       if (truth.parked) {
         ++summary->parked_points;
         summary->parked_points_kept += excluded ? 0 : 1;

@@ -26,9 +26,11 @@ class FilterAudit {
   std::string Describe() const;
   // One frame's decisions into the summary (filtered, reasons, filter stage times, confusion,
   // parked-object counts, dump lines). truth (optional): per keypoint 'm' (moving object), 'p'
-  // (parked object), 's' (static scene) or '-' (no ground truth).
+  // (parked object), 's' (static scene) or '-' (no ground truth). mask (optional): the frame's
+  // mask status (nodes::ToString(MaskStatus)); the confusion also goes to
+  // summary->filter_confusion_by_mask[mask].
   void Add(int64_t frame_index, const nodes::FilterReport& report, RunSummary* summary,
-           std::vector<char>* truth = nullptr) const;
+           std::vector<char>* truth = nullptr, const char* mask = nullptr) const;
 
  private:
   const Dataset& dataset_;

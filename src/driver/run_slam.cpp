@@ -151,6 +151,8 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   if (s.filtered) {
     j["filter"]["reasons"] = s.filter_reasons;
     if (s.filter_confusion) j["filter"]["confusion"] = eval::ToJson(*s.filter_confusion);
+    for (const auto& [mask, confusion] : s.filter_confusion_by_mask)
+      j["filter"]["confusion_by_mask"][mask] = eval::ToJson(confusion);
     if (s.parked_points > 0)
       j["filter"]["parked_points"] = {{"total", s.parked_points}, {"kept", s.parked_points_kept}};
   }

@@ -47,6 +47,9 @@ struct RunSummary {
   bool filtered = false;
   std::map<std::string, int64_t> filter_reasons;
   std::optional<eval::ConfusionMatrix> filter_confusion;
+  // The same by the mask the frames were filtered with ("fresh", "propagated", "stale",
+  // "skipped"; FilterAudit::Add's mask argument).
+  std::map<std::string, eval::ConfusionMatrix> filter_confusion_by_mask;
   int64_t parked_points = 0, parked_points_kept = 0;  // keypoints on parked objects
   std::vector<std::string> filter_dump;               // "frame keypoint x y excluded reason score"
   // Keypoints the filter kept out of the map that had stereo depth, placed in the world by their

@@ -47,12 +47,17 @@ TEST(FilterAudit, FilterExcludesMovingObjectPointsFarMoreThanStaticOnes) {
   EXPECT_GT(s.parked_points, 0);
   EXPECT_GT(s.stages.count("filter"), 0u);
   EXPECT_EQ(s.filter_dump.size(), static_cast<size_t>(c.Total()));
+  // Sequential: every frame waits for its own mask, so every decision is under a fresh one.
+  ASSERT_EQ(s.filter_confusion_by_mask.size(), 1u);
+  EXPECT_EQ(s.filter_confusion_by_mask.at("fresh").Total(), c.Total());
+  EXPECT_EQ(s.filter_confusion_by_mask.at("fresh").true_positive, c.true_positive);
 
   const std::string out = test::MakeTempDir("pcr_dynrun_out");
   WriteRunOutputs(out, s, "");
   std::ifstream stats(out + "/stats.json");
   const nlohmann::json j = nlohmann::json::parse(stats);
   EXPECT_TRUE(j["filter"].contains("confusion"));
+  EXPECT_EQ(j["filter"]["confusion_by_mask"]["fresh"], j["filter"]["confusion"]);
   EXPECT_TRUE(std::filesystem::exists(out + "/filter_decisions.txt"));
 }
 
