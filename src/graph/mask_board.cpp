@@ -12,8 +12,11 @@ constexpr size_t kRecentResults = 8;
 
 }  // namespace
 
-MaskBoard::MaskBoard(double deadline_ms, Emit emit, std::function<void()> wake)
-    : deadline_ms_(deadline_ms), emit_(std::move(emit)), wake_(std::move(wake)) {}
+MaskBoard::MaskBoard(double deadline_ms, Emit emit, std::function<void()> wake, bool wait_for_first)
+    : deadline_ms_(deadline_ms),
+      wait_for_first_(wait_for_first),
+      emit_(std::move(emit)),
+      wake_(std::move(wake)) {}
 
 nodes::SegmentationPtr MaskBoard::WithFallback(const nodes::SegmentationMsg& msg) const {
   auto out = std::make_shared<nodes::SegmentationMsg>(msg);
@@ -32,7 +35,8 @@ void MaskBoard::EraseIfDone(std::map<int64_t, Entry>::iterator it) {
 }
 
 void MaskBoard::OnSegmentation(const nodes::SegmentationPtr& msg) {
-  nodes::SegmentationPtr out;
+  std::vector<nodes::SegmentationPtr> out;
+  bool new_deadline = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const int64_t seq = msg->ticket.seq;
@@ -49,12 +53,35 @@ void MaskBoard::OnSegmentation(const nodes::SegmentationPtr& msg) {
     if (it->second.emitted) {
       if (fresh) ++late_results_;
     } else {
-      out = fresh ? msg : WithFallback(*msg);
+      out.push_back(fresh ? msg : WithFallback(*msg));
       it->second.emitted = true;
     }
     EraseIfDone(it);
+    if (fresh && !any_fresh_) {
+      any_fresh_ = true;
+      // The frames that waited for a first mask get their deadlines now.
+      for (auto e = entries_.begin(); e != entries_.end();) {
+        auto next = std::next(e);
+        Entry& entry = e->second;
+        if (entry.awaiting_first && !entry.emitted) {
+          entry.awaiting_first = false;
+          if (entry.wait_ms == 0) {
+            out.push_back(WithFallback(
+                *nodes::SegmentNode::NotRun(entry.ticket, nodes::SegmentationOutcome::kLate)));
+            entry.emitted = true;
+            ++late_;
+            EraseIfDone(e);
+          } else {
+            entry.deadline_ns = entry.features_ns + std::llround(entry.wait_ms * 1e6);
+            new_deadline = true;
+          }
+        }
+        e = next;
+      }
+    }
   }
-  if (out) emit_(out);
+  for (const auto& m : out) emit_(m);
+  if (new_deadline && wake_) wake_();
 }
 
 void MaskBoard::OnFeaturesReady(const nodes::FrameTicket& ticket, int64_t now_ns) {
@@ -68,7 +95,11 @@ void MaskBoard::OnFeaturesReady(const nodes::FrameTicket& ticket, int64_t now_ns
     const double wait_ms = deadline_ms_ >= 0 && ticket.settings.mask_wait_ms >= 0
                                ? ticket.settings.mask_wait_ms
                                : deadline_ms_;
-    if (!it->second.emitted && wait_ms >= 0) {
+    if (!it->second.emitted && wait_ms >= 0 && wait_for_first_ && !any_fresh_) {
+      it->second.awaiting_first = true;  // nothing to carry to it yet: wait for its own result
+      it->second.features_ns = now_ns;
+      it->second.wait_ms = wait_ms;
+    } else if (!it->second.emitted && wait_ms >= 0) {
       if (wait_ms == 0) {
         out = WithFallback(*nodes::SegmentNode::NotRun(ticket, nodes::SegmentationOutcome::kLate));
         it->second.emitted = true;

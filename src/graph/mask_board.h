@@ -5,7 +5,11 @@
 //   frame's mask was already emitted late;
 // - with a deadline (realtime), once a frame's features are ready the board waits at most
 //   deadline_ms for its result; then it emits kLate carrying the newest earlier fresh result
-//   as the fallback. A result finishing after that only refreshes the fallback.
+//   as the fallback. A result finishing after that only refreshes the fallback;
+// - with wait_for_first, frames whose features are ready before any fresh result exists wait
+//   for their own result (there is no mask to carry to them yet; the first frame makes the
+//   map); when the first fresh result arrives, the others still waiting get their deadline,
+//   counted from when their features were ready.
 // Thread-safe: called from node bodies and the clock. Emission happens outside the lock.
 #include <cstdint>
 #include <deque>
@@ -24,7 +28,7 @@ class MaskBoard {
   // deadline_ms < 0: no deadline (always wait for the frame's own result); else a frame whose
   // quality settings have mask_wait_ms >= 0 waits that long instead. wake is called when a
   // new deadline is registered, so the clock can recompute its sleep.
-  MaskBoard(double deadline_ms, Emit emit, std::function<void()> wake);
+  MaskBoard(double deadline_ms, Emit emit, std::function<void()> wake, bool wait_for_first = false);
 
   void OnSegmentation(const nodes::SegmentationPtr& msg);
   void OnFeaturesReady(const nodes::FrameTicket& ticket, int64_t now_ns);
@@ -42,12 +46,17 @@ class MaskBoard {
     bool result_done = false;
     bool emitted = false;
     int64_t deadline_ns = -1;
+    bool awaiting_first = false;  // waits for the first fresh result (wait_for_first)
+    int64_t features_ns = 0;      // when its features were ready
+    double wait_ms = -1;          // its deadline, once it has one
   };
   // Under mutex_: a copy of msg with the newest fresh result older than its frame as fallback.
   nodes::SegmentationPtr WithFallback(const nodes::SegmentationMsg& msg) const;
   void EraseIfDone(std::map<int64_t, Entry>::iterator it);
 
   const double deadline_ms_;
+  const bool wait_for_first_;
+  bool any_fresh_ = false;  // a fresh result has arrived
   Emit emit_;
   std::function<void()> wake_;
   mutable std::mutex mutex_;

@@ -477,7 +477,8 @@ PipelineResult GraphRun::Run() {
   tf::graph& g = *graph_;
   const double deadline_ms = realtime_ ? options_.mask_deadline_ms : -1.0;
   board_ = std::make_unique<MaskBoard>(
-      deadline_ms, [this](const SegmentationPtr& m) { EmitMask(m); }, [this] { Wake(); });
+      deadline_ms, [this](const SegmentationPtr& m) { EmitMask(m); }, [this] { Wake(); },
+      options_.wait_for_first_mask);
 
   auto key_of = [](const auto& msg) { return msg->ticket.seq; };
   limiter_ = std::make_unique<tf::limiter_node<FrameTicket>>(g, max_in_flight_);

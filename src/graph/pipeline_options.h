@@ -64,6 +64,10 @@ struct PipelineOptions {
   double rate = 1.0;
   int waiting_capacity = 1;      // realtime: released frames waiting for a slot
   double mask_deadline_ms = 10;  // realtime: wait for a late mask at most this long
+  // Realtime: frames before the first fresh mask wait for their own, however long (nothing can
+  // be carried to them, and the first frame makes the map); the deadline applies from then on.
+  // Drive 0005: without it the first two frames (the map's first keyframe) went unfiltered.
+  bool wait_for_first_mask = true;
   // Adaptive quality control (Eq. 9). Off: every frame uses the run configuration (ORB count of
   // the SLAM options, the fast segmenter slot on every frame).
   bool adaptive = false;

@@ -32,10 +32,10 @@ nodes::SegmentationPtr Fresh(int64_t seq) {
 struct Recorder {
   std::vector<nodes::SegmentationPtr> emitted;
   int wakes = 0;
-  MaskBoard Board(double deadline_ms) {
+  MaskBoard Board(double deadline_ms, bool wait_for_first = false) {
     return MaskBoard(
         deadline_ms, [this](const nodes::SegmentationPtr& m) { emitted.push_back(m); },
-        [this] { ++wakes; });
+        [this] { ++wakes; }, wait_for_first);
   }
 };
 
@@ -115,6 +115,45 @@ TEST(MaskBoardTest, ZeroDeadlineAndNotRunResultsCarryTheFallbackAtOnce) {
   board.OnSegmentation(nodes::SegmentNode::NotRun(Ticket(4), SegmentationOutcome::kBusy));
   board.OnFeaturesReady(Ticket(5), 0);
   EXPECT_EQ(r.emitted.size(), 3u);  // one message per frame, never two
+}
+
+// Before any fresh result there is nothing to carry: frames wait for their own result, and get
+// their deadlines (from when their features were ready) once the first one arrives.
+TEST(MaskBoardTest, FramesBeforeTheFirstMaskWaitForTheirOwn) {
+  Recorder r;
+  MaskBoard board = r.Board(10, /*wait_for_first=*/true);
+  board.OnFeaturesReady(Ticket(0), 0);
+  board.OnFeaturesReady(Ticket(1), 1'000'000);
+  EXPECT_FALSE(board.NextDeadlineNs().has_value());
+  board.ExpireDue(500'000'000);  // far past a 10 ms deadline: still waiting
+  EXPECT_TRUE(r.emitted.empty());
+  board.OnSegmentation(Fresh(0));  // the first mask, 500 ms late
+  ASSERT_EQ(r.emitted.size(), 1u);
+  EXPECT_EQ(r.emitted[0]->outcome, SegmentationOutcome::kFresh);
+  EXPECT_EQ(board.NextDeadlineNs(), 11'000'000);  // frame 1: its features at 1 ms + 10 ms
+  EXPECT_EQ(r.wakes, 1);
+  board.ExpireDue(500'000'001);
+  ASSERT_EQ(r.emitted.size(), 2u);
+  EXPECT_EQ(r.emitted[1]->ticket.seq, 1);
+  EXPECT_EQ(r.emitted[1]->outcome, SegmentationOutcome::kLate);
+  EXPECT_EQ(r.emitted[1]->fallback_seq, 0);
+  // From then on the deadline applies as before.
+  board.OnFeaturesReady(Ticket(2), 600'000'000);
+  EXPECT_EQ(board.NextDeadlineNs(), 610'000'000);
+  EXPECT_EQ(board.late(), 1u);
+
+  // A zero deadline: the frames that waited go on with the first mask as soon as it exists.
+  Recorder z;
+  MaskBoard zero = z.Board(0, /*wait_for_first=*/true);
+  zero.OnFeaturesReady(Ticket(0), 0);
+  zero.OnFeaturesReady(Ticket(1), 0);
+  EXPECT_TRUE(z.emitted.empty());
+  zero.OnSegmentation(Fresh(0));
+  ASSERT_EQ(z.emitted.size(), 2u);
+  EXPECT_EQ(z.emitted[1]->outcome, SegmentationOutcome::kLate);
+  EXPECT_EQ(z.emitted[1]->fallback_seq, 0);
+  zero.OnFeaturesReady(Ticket(2), 0);  // after the first mask: emitted at once
+  EXPECT_EQ(z.emitted.size(), 3u);
 }
 
 TEST(ProfilerTest, MaxQueueDepthCountsOverlappingWaits) {

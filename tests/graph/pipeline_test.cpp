@@ -337,6 +337,7 @@ TEST(PipelineTest, RealtimeCarriesMasksForwardWhenInferenceIsLate) {
   options.waiting_capacity = 4;
   options.mask_deadline_ms = 0;
   options.carry.max_age_frames = 16;
+  options.carry.propagation.confidence_decay = 1.0f;  // a mask carried 9 frames still excludes
   const PipelineResult r = RunPipeline(clip, SlamOptions{}, options, segmenters);
   EXPECT_TRUE(r.error.empty()) << r.error;
   EXPECT_EQ(r.stats.frames_completed + r.stats.frames_dropped, 16u);
