@@ -9,6 +9,7 @@
 //                  [--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]
 //                  [--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS]
 //                  [--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS]
+//                  [--no-first-mask-wait] [--initial-level high|medium|low]
 //                  [--labels FILE|none] [--every N] [--crop-top] [--mask-threshold T]
 //
 // --mask-threshold T: every network's YoloOptions::mask_threshold (default: the option's own).
@@ -113,15 +114,18 @@ struct BenchArgs {
   bool filter = true;
   int threads = 2, max_in_flight = 4;
   double rate = 1.0;
-  double device_ms = 0;            // > 0: emulated device (see the top of the file)
-  std::string flow = "opencv";     // where the filter's LK runs (`pcr_orb pipeline --flow`)
-  double flow_device_ms = 0;       // > 0: the LK passes on an emulated device
-  int repeat = 1;                  // rounds of all rows
-  std::string model_low = "none";  // the light network of the adaptive low level
-  double mask_deadline_ms = 10;    // realtime: how long tracking waits for a frame's mask
-  std::string labels;              // tracking labels for the filter's confusion ("none": off)
-  int every = 0;                   // > 1: the two rows segmenting every n-th frame
-  bool crop_top = false;           // YoloOptions::crop_top_to_fill_width for every network
+  double device_ms = 0;             // > 0: emulated device (see the top of the file)
+  std::string flow = "opencv";      // where the filter's LK runs (`pcr_orb pipeline --flow`)
+  double flow_device_ms = 0;        // > 0: the LK passes on an emulated device
+  int repeat = 1;                   // rounds of all rows
+  std::string model_low = "none";   // the light network of the adaptive low level
+  double mask_deadline_ms = 10;     // realtime: how long tracking waits for a frame's mask
+  bool wait_for_first_mask = true;  // realtime: frames before the first mask wait for their own
+  // adaptive rows: the controller's first level
+  pcr::nodes::QualityLevel initial_level = pcr::nodes::QualityControllerOptions{}.initial;
+  std::string labels;     // tracking labels for the filter's confusion ("none": off)
+  int every = 0;          // > 1: the two rows segmenting every n-th frame
+  bool crop_top = false;  // YoloOptions::crop_top_to_fill_width for every network
   double mask_threshold = pcr::YoloOptions{}.mask_threshold;  // for every network
 };
 
@@ -153,6 +157,12 @@ BenchArgs ParseArgs(int argc, char** argv) {
       a.model_low = value();
     } else if (arg == "--mask-deadline-ms") {
       a.mask_deadline_ms = std::stod(value());
+    } else if (arg == "--no-first-mask-wait") {
+      a.wait_for_first_mask = false;
+    } else if (arg == "--initial-level") {
+      const std::string level = value();
+      if (!pcr::nodes::ParseQualityLevel(level, &a.initial_level))
+        throw std::invalid_argument("--initial-level: high, medium or low, not " + level);
     } else if (arg == "--labels") {
       a.labels = value();
     } else if (arg == "--every") {
@@ -192,7 +202,8 @@ BenchArgs ParseArgs(int argc, char** argv) {
           "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR] "
           "[--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS] "
           "[--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS] [--labels FILE|none] "
-          "[--every N] [--crop-top] [--mask-threshold T]\n");
+          "[--every N] [--crop-top] [--mask-threshold T] [--no-first-mask-wait] "
+          "[--initial-level high|medium|low]\n");
       std::exit(0);
     } else if (!arg.empty() && arg[0] != '-') {
       a.sequence = arg;
@@ -595,6 +606,8 @@ int main(int argc, char** argv) {
         options.adaptive = row.adaptive;
         options.device_overlap = row.device_overlap;
         options.mask_deadline_ms = args.mask_deadline_ms;
+        options.wait_for_first_mask = args.wait_for_first_mask;
+        options.controller.initial = args.initial_level;
         options.inference_every = row.inference_every;
         options.carry.propagate = row.propagate;
         options.keep_filter_reports = audit.has_value();
