@@ -30,6 +30,19 @@ nodes::SegmentationPtr MaskBoard::WithFallback(const nodes::SegmentationMsg& msg
   return out;
 }
 
+nodes::SegmentationPtr MaskBoard::EmitLate(Entry& e) {
+  e.emitted = true;
+  ++late_;
+  return WithFallback(*nodes::SegmentNode::NotRun(e.ticket, nodes::SegmentationOutcome::kLate));
+}
+
+nodes::SegmentationPtr MaskBoard::StartWait(Entry& e, bool* new_deadline) {
+  if (e.wait_ms == 0) return EmitLate(e);
+  e.deadline_ns = e.features_ns + std::llround(e.wait_ms * 1e6);
+  *new_deadline = true;
+  return nullptr;
+}
+
 void MaskBoard::EraseIfDone(std::map<int64_t, Entry>::iterator it) {
   if (it->second.emitted && it->second.features_ready && it->second.result_done) entries_.erase(it);
 }
@@ -65,15 +78,9 @@ void MaskBoard::OnSegmentation(const nodes::SegmentationPtr& msg) {
         Entry& entry = e->second;
         if (entry.awaiting_first && !entry.emitted) {
           entry.awaiting_first = false;
-          if (entry.wait_ms == 0) {
-            out.push_back(WithFallback(
-                *nodes::SegmentNode::NotRun(entry.ticket, nodes::SegmentationOutcome::kLate)));
-            entry.emitted = true;
-            ++late_;
+          if (nodes::SegmentationPtr late = StartWait(entry, &new_deadline)) {
+            out.push_back(std::move(late));
             EraseIfDone(e);
-          } else {
-            entry.deadline_ns = entry.features_ns + std::llround(entry.wait_ms * 1e6);
-            new_deadline = true;
           }
         }
         e = next;
@@ -95,18 +102,13 @@ void MaskBoard::OnFeaturesReady(const nodes::FrameTicket& ticket, int64_t now_ns
     const double wait_ms = deadline_ms_ >= 0 && ticket.settings.mask_wait_ms >= 0
                                ? ticket.settings.mask_wait_ms
                                : deadline_ms_;
-    if (!it->second.emitted && wait_ms >= 0 && wait_for_first_ && !any_fresh_) {
-      it->second.awaiting_first = true;  // nothing to carry to it yet: wait for its own result
-      it->second.features_ns = now_ns;
-      it->second.wait_ms = wait_ms;
-    } else if (!it->second.emitted && wait_ms >= 0) {
-      if (wait_ms == 0) {
-        out = WithFallback(*nodes::SegmentNode::NotRun(ticket, nodes::SegmentationOutcome::kLate));
-        it->second.emitted = true;
-        ++late_;
+    it->second.features_ns = now_ns;
+    it->second.wait_ms = wait_ms;
+    if (!it->second.emitted && wait_ms >= 0) {
+      if (wait_for_first_ && !any_fresh_) {
+        it->second.awaiting_first = true;  // nothing to carry to it yet: wait for its own result
       } else {
-        it->second.deadline_ns = now_ns + std::llround(wait_ms * 1e6);
-        new_deadline = true;
+        out = StartWait(it->second, &new_deadline);
       }
     }
     EraseIfDone(it);
@@ -123,10 +125,7 @@ void MaskBoard::ExpireDue(int64_t now_ns) {
       auto next = std::next(it);
       Entry& e = it->second;
       if (!e.emitted && e.features_ready && e.deadline_ns >= 0 && e.deadline_ns <= now_ns) {
-        out.push_back(
-            WithFallback(*nodes::SegmentNode::NotRun(e.ticket, nodes::SegmentationOutcome::kLate)));
-        e.emitted = true;
-        ++late_;
+        out.push_back(EmitLate(e));
         EraseIfDone(it);
       }
       it = next;

@@ -48,10 +48,15 @@ class MaskBoard {
     int64_t deadline_ns = -1;
     bool awaiting_first = false;  // waits for the first fresh result (wait_for_first)
     int64_t features_ns = 0;      // when its features were ready
-    double wait_ms = -1;          // its deadline, once it has one
+    double wait_ms = -1;          // how long it waits for its result from then (< 0: no limit)
   };
   // Under mutex_: a copy of msg with the newest fresh result older than its frame as fallback.
   nodes::SegmentationPtr WithFallback(const nodes::SegmentationMsg& msg) const;
+  // Under mutex_: marks e emitted as kLate and returns its message (with the fallback).
+  nodes::SegmentationPtr EmitLate(Entry& e);
+  // Under mutex_: e waits wait_ms from features_ns: with no wait, its kLate message at once
+  // (returned); else a deadline (null returned, *new_deadline set).
+  nodes::SegmentationPtr StartWait(Entry& e, bool* new_deadline);
   void EraseIfDone(std::map<int64_t, Entry>::iterator it);
 
   const double deadline_ms_;
