@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <map>
@@ -20,18 +19,13 @@
 namespace pcr::app {
 namespace {
 
-namespace fs = std::filesystem;
-
 // A raw drive's OXTS accuracy fields and the path length by the other ground truth, so that the
 // two can be compared (nothing for other datasets).
-void PrintOxtsAccuracy(const Dataset& dataset, const std::string& raw_truth) {
-  const fs::path oxts_dir = fs::path(dataset.root) / "oxts" / "data";
-  std::error_code ec;
-  if (!fs::is_directory(oxts_dir, ec)) return;
-  const std::vector<std::string> paths = ListFiles(oxts_dir.string(), ".txt");
+void PrintOxtsAccuracy(const Dataset& dataset, RawTruth truth) {
+  const std::vector<OxtsPacket> packets = ReadOxtsPackets(dataset.root, dataset.size());
+  if (packets.empty()) return;
   double pos_lo = INFINITY, pos_hi = -INFINITY, vel_lo = INFINITY, vel_hi = -INFINITY;
-  for (size_t i = 0; i < dataset.size() && i < paths.size(); ++i) {
-    const OxtsPacket p = ReadOxtsPacket(paths[i]);
+  for (const OxtsPacket& p : packets) {
     pos_lo = std::min(pos_lo, p.pos_accuracy_m);
     pos_hi = std::max(pos_hi, p.pos_accuracy_m);
     vel_lo = std::min(vel_lo, p.vel_accuracy_mps);
@@ -39,16 +33,17 @@ void PrintOxtsAccuracy(const Dataset& dataset, const std::string& raw_truth) {
   }
   fmt::print("OXTS accuracy: position {:.2f}-{:.2f} m, velocity {:.3f}-{:.3f} m/s\n", pos_lo,
              pos_hi, vel_lo, vel_hi);
-  const std::string other = raw_truth == "gps" ? "ins" : "gps";
-  const Dataset alternative = OpenDataset(dataset.root, KittiCameras::kGray, ParseRawTruth(other));
+  const RawTruth other = truth == RawTruth::kGps ? RawTruth::kIns : RawTruth::kGps;
+  const Dataset alternative = OpenDataset(dataset.root, KittiCameras::kGray, other);
   if (alternative.ground_truth)
     fmt::print("path length:   {:.3f} m by --raw-truth {}\n", PathLength(*alternative.ground_truth),
-               other);
+               ToString(other));
 }
 
 void PrintInfo(const std::string& path, bool color, const std::string& raw_truth) {
-  const Dataset dataset = OpenDataset(path, color ? KittiCameras::kColor : KittiCameras::kGray,
-                                      ParseRawTruth(raw_truth));
+  const RawTruth truth = ParseRawTruth(raw_truth);
+  const Dataset dataset =
+      OpenDataset(path, color ? KittiCameras::kColor : KittiCameras::kGray, truth);
   const PinholeCamera& cam = dataset.rig.left;
   const double duration_s = dataset.DurationSeconds();
   fmt::print("name:          {}\n", dataset.name);
@@ -68,7 +63,7 @@ void PrintInfo(const std::string& path, bool color, const std::string& raw_truth
   if (dataset.ground_truth) {
     fmt::print("ground truth:  yes ({})\n", dataset.ground_truth_source);
     fmt::print("path length:   {:.3f} m\n", PathLength(*dataset.ground_truth));
-    PrintOxtsAccuracy(dataset, raw_truth);
+    PrintOxtsAccuracy(dataset, truth);
   } else {
     fmt::print("ground truth:  no\n");
   }

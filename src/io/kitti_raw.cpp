@@ -68,6 +68,17 @@ SE3 MakePose(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation
   return pose;
 }
 
+// The first `frames` times of a timestamps.txt, else InputError naming it.
+std::vector<int64_t> ReadTimestampsFor(const fs::path& path, size_t frames) {
+  std::vector<int64_t> t_ns = ReadRawTimestamps(path.string());
+  if (t_ns.size() < frames)
+    throw InputError(
+        path.string(), 0,
+        std::to_string(t_ns.size()) + " timestamps but " + std::to_string(frames) + " images");
+  t_ns.resize(frames);
+  return t_ns;
+}
+
 std::vector<std::string> CameraDataImages(const fs::path& camera_dir) {
   std::error_code ec;
   if (!fs::is_directory(camera_dir / "data", ec)) return {};
@@ -210,6 +221,20 @@ Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE
   return trajectory;
 }
 
+std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir, size_t frames) {
+  const fs::path oxts_dir = fs::path(drive_dir) / "oxts" / "data";
+  std::error_code ec;
+  if (!fs::is_directory(oxts_dir, ec)) return {};
+  const std::vector<std::string> paths = ListFiles(oxts_dir.string(), ".txt");
+  if (paths.size() < frames)
+    throw InputError(
+        oxts_dir.string(), 0,
+        std::to_string(paths.size()) + " OXTS records but " + std::to_string(frames) + " images");
+  std::vector<OxtsPacket> packets;
+  for (size_t i = 0; i < frames; ++i) packets.push_back(ReadOxtsPacket(paths[i]));
+  return packets;
+}
+
 Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth truth) {
   std::error_code ec;
   if (!fs::is_directory(drive_dir, ec)) throw InputError(drive_dir, 0, "drive directory not found");
@@ -239,44 +264,27 @@ Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth t
   if (dataset.left_color_paths.size() != dataset.left_paths.size())
     dataset.left_color_paths.clear();
 
-  const std::string times_path = (left_dir / "timestamps.txt").string();
-  dataset.t_ns = ReadRawTimestamps(times_path);
-  if (dataset.t_ns.size() < dataset.size())
-    throw InputError(times_path, 0,
-                     std::to_string(dataset.t_ns.size()) + " timestamps but " +
-                         std::to_string(dataset.size()) + " images");
-  dataset.t_ns.resize(dataset.size());
+  dataset.t_ns = ReadTimestampsFor(left_dir / "timestamps.txt", dataset.size());
 
   const CalibFile cam_to_cam = CalibFile::Read((calib_dir / "calib_cam_to_cam.txt").string());
   SetRigFromProjections(cam_to_cam.Matrix3x4(color ? "P_rect_02" : "P_rect_00"),
                         cam_to_cam.Matrix3x4(color ? "P_rect_03" : "P_rect_01"), cam_to_cam.name(),
                         &dataset);
 
-  const fs::path oxts_dir = dir / "oxts" / "data";
-  if (fs::is_directory(oxts_dir, ec)) {
-    const std::vector<std::string> oxts_paths = ListFiles(oxts_dir.string(), ".txt");
-    if (oxts_paths.size() < dataset.size())
-      throw InputError(oxts_dir.string(), 0,
-                       std::to_string(oxts_paths.size()) + " OXTS records but " +
-                           std::to_string(dataset.size()) + " images");
-    std::vector<OxtsPacket> packets;
-    for (size_t i = 0; i < dataset.size(); ++i) packets.push_back(ReadOxtsPacket(oxts_paths[i]));
+  const std::vector<OxtsPacket> packets = ReadOxtsPackets(dir.string(), dataset.size());
+  if (!packets.empty()) {
     std::vector<int64_t> packet_t_ns;
     std::string times_note = "oxts/timestamps.txt";
     const fs::path oxts_times = dir / "oxts" / "timestamps.txt";
     if (truth == RawTruth::kIns && fs::exists(oxts_times, ec)) {
-      packet_t_ns = ReadRawTimestamps(oxts_times.string());
-      if (packet_t_ns.size() < dataset.size())
-        throw InputError(oxts_times.string(), 0,
-                         std::to_string(packet_t_ns.size()) + " timestamps but " +
-                             std::to_string(dataset.size()) + " images");
+      packet_t_ns = ReadTimestampsFor(oxts_times, dataset.size());
     } else if (truth == RawTruth::kIns) {
       times_note = "the image times";
     }
     dataset.ground_truth = OxtsToCam0Trajectory(packets, ReadCam0FromImu(calib_dir.string()),
                                                 dataset.t_ns, truth, packet_t_ns);
     dataset.ground_truth_source =
-        oxts_dir.string() +
+        (dir / "oxts" / "data").string() +
         (truth == RawTruth::kIns
              ? " (positions: OXTS velocities integrated over " + times_note + ")"
              : std::string(" (positions: OXTS GPS latitude/longitude/altitude)"));

@@ -51,6 +51,11 @@ Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE
                                 const std::vector<int64_t>& t_ns, RawTruth truth = RawTruth::kGps,
                                 const std::vector<int64_t>& packet_t_ns = {});
 
+// The OXTS records of the first `frames` frames of a raw drive (DRIVE/oxts/data/*.txt in name
+// order); empty without an oxts/data folder. Throws InputError naming the folder when it holds
+// fewer records, or the file of a bad record.
+std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir, size_t frames);
+
 // Rig from P_rect_00/P_rect_01 (kGray) or P_rect_02/P_rect_03 (kColor), baseline
 // (P_left[0][3] - P_right[0][3]) / fx. timestamps.txt may hold more lines than there are images
 // (the first N are used) but not fewer. Ground truth from oxts/data when present (OXTS files
