@@ -34,9 +34,29 @@ class Executor {
   virtual std::string Name() const = 0;  // "cpu-twin", "cuda:0 (NVIDIA H200)", ...
 };
 
+// Runs a plan's convolutions (ConvStep: bias and activation included) in place of the twin's
+// im2col + Eigen GEMM. Built for one plan; called with the step's index in plan.steps and its
+// input and output buffers (dense NCHW, batch 1). Thread-compatible, like the executor.
+class ConvKernels {
+ public:
+  virtual ~ConvKernels() = default;
+  virtual void Conv(size_t step, const float* in, float* out) = 0;
+  virtual std::string Name() const = 0;
+};
+
 // The CPU twin: the same per-element functions (tensor_math.h) as the CUDA kernels, Eigen for
 // the GEMMs. For verifying the CUDA path on machines without a GPU; slower than OpenCV DNN.
-std::unique_ptr<Executor> MakeTwinExecutor(std::shared_ptr<const NetPlan> plan);
+// With `conv`, the convolutions run there instead (the oneDNN executor below).
+std::unique_ptr<Executor> MakeTwinExecutor(std::shared_ptr<const NetPlan> plan,
+                                           std::unique_ptr<ConvKernels> conv = nullptr);
+
+// Whether this build has oneDNN (libdnnl), for the CPU executor "onednn".
+bool OneDnnBuilt();
+
+// oneDNN's convolutions for `plan` (fp32, the library's blocked layouts inside each call, weights
+// reordered once), the bias and the SiLU or sigmoid fused. Each call runs on cv::getNumThreads()
+// OpenMP threads of the calling thread. Throws std::runtime_error when the build has no oneDNN.
+std::unique_ptr<ConvKernels> MakeOneDnnConvKernels(const NetPlan& plan);
 
 // The CUDA device index an engine's device string names (the engines of net_engine.h and
 // lk_flow.h): -1 for "twin" (the CPU twin), 0 for "cuda", N for "cuda:N" (1 to 3 digits). Throws
@@ -52,6 +72,9 @@ inline int EngineDeviceIndex(const std::string& device, const std::string& what)
   throw std::invalid_argument("unknown " + what + " device '" + device +
                               "' (expected twin, cuda or cuda:N)");
 }
+
+// The name of the CPU executor with oneDNN's convolutions (MakeOneDnnConvKernels).
+inline constexpr const char* kOneDnnDevice = "onednn";
 
 // Whether EngineDeviceIndex accepts `device`.
 inline bool IsEngineDevice(const std::string& device) {

@@ -13,8 +13,11 @@ namespace {
 
 class NetEngine final : public InferenceEngine {
  public:
-  NetEngine(std::shared_ptr<const NetPlan> plan, std::unique_ptr<Executor> executor)
-      : plan_(std::move(plan)), executor_(std::move(executor)) {}
+  // device_path: the executor takes the graph's device wait (CUDA, and the twin that checks
+  // that path); a CPU engine (onednn) is plain CPU work of the calling stage and ignores it.
+  NetEngine(std::shared_ptr<const NetPlan> plan, std::unique_ptr<Executor> executor,
+            bool device_path)
+      : plan_(std::move(plan)), executor_(std::move(executor)), device_path_(device_path) {}
 
   std::vector<std::vector<int>> OutputShapes() const override {
     std::vector<std::vector<int>> shapes;
@@ -46,37 +49,48 @@ class NetEngine final : public InferenceEngine {
     return mats;
   }
 
-  void SetDeviceWait(DeviceWait wait) override { wait_ = std::move(wait); }
+  void SetDeviceWait(DeviceWait wait) override {
+    if (device_path_) wait_ = std::move(wait);
+  }
 
   std::string Backend() const override { return "pcr-" + executor_->Name(); }
 
  private:
   std::shared_ptr<const NetPlan> plan_;
   std::unique_ptr<Executor> executor_;
+  bool device_path_ = true;
   DeviceWait wait_;  // empty: Finish() blocks
 };
 
 }  // namespace
 
-bool IsNetEngineDevice(const std::string& device) { return IsEngineDevice(device); }
+bool IsNetEngineDevice(const std::string& device) {
+  return device == kOneDnnDevice || IsEngineDevice(device);
+}
 
 std::unique_ptr<InferenceEngine> MakeNetEngine(const std::vector<uint8_t>& model_bytes,
                                                cv::Size input_size, const std::string& device) {
-  const int index = EngineDeviceIndex(device, "inference");
+  const bool onednn = device == kOneDnnDevice;
+  const int index = onednn ? -1 : EngineDeviceIndex(device, "inference");
   auto plan = std::make_shared<const NetPlan>(
       BuildNetPlan(model_bytes, input_size.height, input_size.width));
-  std::unique_ptr<Executor> executor =
-      index < 0 ? MakeTwinExecutor(plan) : MakeCudaExecutor(plan, index);
+  std::unique_ptr<Executor> executor = onednn ? MakeTwinExecutor(plan, MakeOneDnnConvKernels(*plan))
+                                       : index < 0 ? MakeTwinExecutor(plan)
+                                                   : MakeCudaExecutor(plan, index);
   spdlog::info(
       "NetEngine: {} steps ({} fused activations), {:.1f} MiB weights, {:.1f} MiB "
       "activations, on {}",
       plan->steps.size(), plan->fused_activations, ConstantFloats(*plan) * 4.0 / (1 << 20),
       ActivationFloats(*plan) * 4.0 / (1 << 20), executor->Name());
-  return std::make_unique<NetEngine>(plan, std::move(executor));
+  return std::make_unique<NetEngine>(plan, std::move(executor), /*device_path=*/!onednn);
 }
 
 InferenceEngineFactory NetEngineFactory(const std::string& device) {
-  EngineDeviceIndex(device, "inference");  // reject a bad name now, not at the first model
+  if (device == kOneDnnDevice) {
+    if (!OneDnnBuilt()) throw std::invalid_argument("inference onednn: this build has no oneDNN");
+  } else {
+    EngineDeviceIndex(device, "inference");  // reject a bad name now, not at the first model
+  }
   return [device](const std::vector<uint8_t>& model_bytes, cv::Size input_size) {
     return MakeNetEngine(model_bytes, input_size, device);
   };

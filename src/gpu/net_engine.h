@@ -9,7 +9,8 @@
 
 namespace pcr::gpu {
 
-// device: "twin" (the CPU twin), "cuda" (device 0) or "cuda:N".
+// device: "twin" (the CPU twin), "onednn" (the twin with oneDNN's convolutions: the fast CPU
+// path where the build has libdnnl), "cuda" (device 0) or "cuda:N".
 // Throws std::invalid_argument for an unknown device string or a model outside the executor's
 // op set (naming the node), std::runtime_error when the CUDA device cannot be used.
 std::unique_ptr<InferenceEngine> MakeNetEngine(const std::vector<uint8_t>& model_bytes,
@@ -17,7 +18,7 @@ std::unique_ptr<InferenceEngine> MakeNetEngine(const std::vector<uint8_t>& model
 
 InferenceEngineFactory NetEngineFactory(const std::string& device);
 
-// Whether `device` names something MakeNetEngine accepts ("twin", "cuda", "cuda:N").
+// Whether `device` names something MakeNetEngine accepts ("twin", "onednn", "cuda", "cuda:N").
 bool IsNetEngineDevice(const std::string& device);
 
 }  // namespace pcr::gpu

@@ -2,6 +2,7 @@
 // (tensor_math.h), Eigen for the GEMMs. Also Executor::Run, which both executors share.
 #include <Eigen/Core>
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <type_traits>
 #include <vector>
@@ -23,7 +24,8 @@ void Gemm(const float* a, const float* b, float* out, int64_t m, int64_t k, int6
 
 class TwinExecutor final : public Executor {
  public:
-  explicit TwinExecutor(std::shared_ptr<const NetPlan> plan) : plan_(std::move(plan)) {
+  TwinExecutor(std::shared_ptr<const NetPlan> plan, std::unique_ptr<ConvKernels> conv)
+      : plan_(std::move(plan)), conv_(std::move(conv)) {
     if (!plan_) throw std::invalid_argument("TwinExecutor: no plan");
     storage_.resize(plan_->buffers.size());
     for (size_t i = 0; i < plan_->buffers.size(); ++i) {
@@ -37,6 +39,12 @@ class TwinExecutor final : public Executor {
     float* in = Buffer(plan_->input.buffer);
     std::copy(input, input + plan_->buffers[plan_->input.buffer].size, in);
     for (size_t s = 0; s < plan_->steps.size(); ++s) {
+      if (conv_) {
+        if (const auto* c = std::get_if<ConvStep>(&plan_->steps[s])) {
+          conv_->Conv(s, Buffer(c->in), Buffer(c->out));
+          continue;
+        }
+      }
       std::visit([this](const auto& step) { Execute(step); }, plan_->steps[s]);
     }
     if (done) done();  // last: the caller may already be running Finish() on another thread
@@ -54,7 +62,7 @@ class TwinExecutor final : public Executor {
   }
 
   const NetPlan& plan() const override { return *plan_; }
-  std::string Name() const override { return "cpu-twin"; }
+  std::string Name() const override { return conv_ ? conv_->Name() : "cpu-twin"; }
 
  private:
   float* Buffer(int i) {
@@ -94,10 +102,26 @@ class TwinExecutor final : public Executor {
     const int64_t taps = static_cast<int64_t>(g.c_out) * g.kh * g.kw;
     const int64_t pixels = static_cast<int64_t>(g.h_in) * g.w_in;
     Gemm(Buffer(s.weight), Buffer(s.in), scratch_.data(), taps, g.c_in, pixels);
+    // ConvTransposeAt's scatter, row by row of the output (the same sums, without its index
+    // arithmetic per element).
     float* out = Buffer(s.out);
     const float* bias = Optional(s.bias);
-    const int64_t n = ConvTransposeOutCount(g);
-    for (int64_t i = 0; i < n; ++i) out[i] = ConvTransposeAt(scratch_.data(), bias, g, i);
+    const float* taps_data = scratch_.data();
+    const int64_t w_out = static_cast<int64_t>(g.w_in) * g.kw;
+    for (int m = 0; m < g.c_out; ++m) {
+      const float b = bias ? bias[m] : 0.0f;
+      for (int iy = 0; iy < g.h_in; ++iy) {
+        for (int ky = 0; ky < g.kh; ++ky) {
+          float* row = out + (static_cast<int64_t>(m) * g.h_in * g.kh + iy * g.kh + ky) * w_out;
+          for (int kx = 0; kx < g.kw; ++kx) {
+            const float* tap = taps_data +
+                               (static_cast<int64_t>(m * g.kh + ky) * g.kw + kx) * pixels +
+                               static_cast<int64_t>(iy) * g.w_in;
+            for (int ix = 0; ix < g.w_in; ++ix) row[ix * g.kw + kx] = tap[ix] + b;
+          }
+        }
+      }
+    }
   }
 
   void Execute(const UnaryStep& s) {
@@ -110,17 +134,36 @@ class TwinExecutor final : public Executor {
     const float* a = Buffer(s.a);
     const float* b = Buffer(s.b);
     float* out = Buffer(s.out);
-    for (int64_t i = 0; i < s.count; ++i) out[i] = BinaryAt(a, b, s.geometry, i);
+    // BinaryAt's broadcasting, row by row of the last axis: the operands' offsets of a row's
+    // first element from BinaryAt's decomposition, then their last-axis strides.
+    const BinaryGeometry& g = s.geometry;
+    const int64_t width = g.rank > 0 ? g.out_shape[g.rank - 1] : 1;
+    const int64_t sa = g.rank > 0 ? g.a_strides[g.rank - 1] : 0;
+    const int64_t sb = g.rank > 0 ? g.b_strides[g.rank - 1] : 0;
+    for (int64_t start = 0; start < s.count; start += width) {
+      int64_t rest = start / width, ia = 0, ib = 0;
+      for (int d = g.rank - 2; d >= 0; --d) {
+        const int64_t q = rest / g.out_shape[d];
+        const int64_t i = rest - q * g.out_shape[d];
+        rest = q;
+        ia += i * g.a_strides[d];
+        ib += i * g.b_strides[d];
+      }
+      float* o = out + start;
+      for (int64_t x = 0; x < width; ++x) o[x] = ApplyBinary(a[ia + x * sa], b[ib + x * sb], g.op);
+    }
   }
 
   void Execute(const CopyStep& s) {
     const float* in = Buffer(s.in);
     float* out = Buffer(s.out);
-    const int64_t n = CopyCount(s.geometry);
-    for (int64_t i = 0; i < n; ++i) {
-      int64_t ii = 0, oi = 0;
-      CopyIndices(s.geometry, i, &ii, &oi);
-      out[oi] = in[ii];
+    // CopyIndices' blocks: `inner` contiguous elements per (outer, axis position).
+    const CopyGeometry& g = s.geometry;
+    for (int64_t o = 0; o < g.outer; ++o) {
+      for (int64_t k = 0; k < g.count; ++k) {
+        const float* from = in + (o * g.in_axis + g.in_offset + k * g.in_step) * g.inner;
+        std::copy(from, from + g.inner, out + (o * g.out_axis + g.out_offset + k) * g.inner);
+      }
     }
   }
 
@@ -135,7 +178,23 @@ class TwinExecutor final : public Executor {
     const ResizeGeometry& g = s.geometry;
     const float* in = Buffer(s.in);
     float* out = Buffer(s.out);
-    for (int64_t i = 0; i < ResizeOutCount(g); ++i) out[i] = ResizeNearestAt(in, g, i);
+    // ResizeNearestAt with the source row and column of each output row and column computed
+    // once: element (c, oy, ox) reads the element ResizeNearestAt(c, oy, 0) and
+    // ResizeNearestAt(0, 0, ox) place in their row and column.
+    std::vector<int64_t> column(static_cast<size_t>(g.w_out));
+    for (int ox = 0; ox < g.w_out; ++ox) {
+      const int x = static_cast<int>(floorf(static_cast<float>(ox) / g.scale_w));
+      column[ox] = x < g.w_in - 1 ? x : g.w_in - 1;
+    }
+    for (int c = 0; c < g.channels; ++c) {
+      for (int oy = 0; oy < g.h_out; ++oy) {
+        int y = static_cast<int>(floorf(static_cast<float>(oy) / g.scale_h));
+        y = y < g.h_in - 1 ? y : g.h_in - 1;
+        const float* src = in + (static_cast<int64_t>(c) * g.h_in + y) * g.w_in;
+        float* row = out + (static_cast<int64_t>(c) * g.h_out + oy) * g.w_out;
+        for (int ox = 0; ox < g.w_out; ++ox) row[ox] = src[column[ox]];
+      }
+    }
   }
 
   void Execute(const TransposeStep& s) {
@@ -152,6 +211,7 @@ class TwinExecutor final : public Executor {
   }
 
   std::shared_ptr<const NetPlan> plan_;
+  std::unique_ptr<ConvKernels> conv_;  // null: the twin's own convolutions
   std::vector<std::vector<float>> storage_;
   std::vector<float> scratch_;
 };
@@ -170,8 +230,9 @@ std::vector<std::vector<float>> Executor::Run(const float* input) {
   return outputs;
 }
 
-std::unique_ptr<Executor> MakeTwinExecutor(std::shared_ptr<const NetPlan> plan) {
-  return std::make_unique<TwinExecutor>(std::move(plan));
+std::unique_ptr<Executor> MakeTwinExecutor(std::shared_ptr<const NetPlan> plan,
+                                           std::unique_ptr<ConvKernels> conv) {
+  return std::make_unique<TwinExecutor>(std::move(plan), std::move(conv));
 }
 
 }  // namespace pcr::gpu
