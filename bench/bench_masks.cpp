@@ -3,10 +3,14 @@
 //
 //   bench_masks [--models FILE,FILE,...] [--threads 1,2] [--frames A:B] [--sequence DIR]
 //               [--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8]
-//               [--crop-top]
+//               [--crop-top] [--engines opencv,onednn]
 //
 // --crop-top runs the added models with YoloOptions::crop_top_to_fill_width (a wide export, e.g.
 // 128x512, takes the frame at full width and cuts its top rows); the reference as always.
+//
+// --engines runs every model on each engine named (opencv: OpenCV DNN; onednn: the project's
+// executor with oneDNN's convolutions; twin), one table row per model and engine; the reference
+// itself stays OpenCV's.
 //
 // --int8 adds the reference quantised to int8 by OpenCV DNN itself (cv::dnn::Net::quantize,
 // OpenCV 4.6's int8 path, calibrated on the reference's blob of the sequence's first frame: it
@@ -58,6 +62,7 @@
 #include <vector>
 
 #include "bench_args.h"
+#include "driver/inference.h"
 #include "driver/run_slam.h"
 #include "io/dataset.h"
 #include "io/kitti_tracking.h"
@@ -83,6 +88,7 @@ struct Args {
   bool detail = false;    // per-instance matches on the test image
   bool int8 = false;      // also the reference quantised to int8 by OpenCV DNN
   bool crop_top = false;  // the added models fill the width and cut the frame's top rows
+  std::vector<std::string> engines{"opencv"};  // each model runs on each of these
 };
 
 // OpenCV DNN's own int8 network (Net::quantize) as the segmenter's engine.
@@ -116,7 +122,8 @@ class QuantizedEngine final : public pcr::InferenceEngine {
 
 constexpr const char* kUsage =
     "bench_masks [--models FILE,FILE,...] [--threads 1,2] [--frames A:B] [--sequence DIR] "
-    "[--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8] [--crop-top]\n";
+    "[--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8] [--crop-top] "
+    "[--engines opencv,onednn,twin]\n";
 
 Args ParseArgs(int argc, char** argv) {
   Args a;
@@ -152,6 +159,9 @@ Args ParseArgs(int argc, char** argv) {
       a.int8 = true;
     } else if (arg == "--crop-top") {
       a.crop_top = true;
+    } else if (arg == "--engines") {
+      a.engines = pcr::bench::SplitList(value());
+      if (a.engines.empty()) throw std::invalid_argument("--engines needs a name");
     } else if (arg == "-h" || arg == "--help") {
       std::printf("%s", kUsage);
       std::exit(0);
@@ -407,17 +417,29 @@ int main(int argc, char** argv) {
     }
     std::vector<Model> models;
     for (const std::string& path : args.models) {
-      pcr::YoloOptions options;
-      options.model_path = path;
-      options.allow_cuda = false;
-      options.crop_top_to_fill_width = args.crop_top && path != args.reference;
-      auto segmenter = std::make_unique<pcr::YoloSegmenter>(options);
-      std::string name = Basename(path);
-      const int cut = pcr::ComputeLetterbox(image.size(), segmenter->input_size(),
-                                            options.crop_top_to_fill_width)
-                          .crop_top_px;  // of the test image, for the tables
-      if (cut > 0) name += " (top " + std::to_string(cut) + " rows cut)";
-      models.push_back({path, name, std::move(segmenter)});
+      for (const std::string& engine : args.engines) {
+        const bool reference = path == args.reference;
+        if (reference && engine != "opencv" && models.empty()) {
+          // The reference on OpenCV first, whatever the engines.
+          pcr::YoloOptions options;
+          options.model_path = path;
+          options.allow_cuda = false;
+          models.push_back({path, Basename(path), std::make_unique<pcr::YoloSegmenter>(options)});
+        }
+        pcr::YoloOptions options;
+        options.model_path = path;
+        options.allow_cuda = false;
+        options.crop_top_to_fill_width = args.crop_top && !reference;
+        pcr::driver::ApplyInference(engine, &options);
+        auto segmenter = std::make_unique<pcr::YoloSegmenter>(options);
+        std::string name = Basename(path);
+        const int cut = pcr::ComputeLetterbox(image.size(), segmenter->input_size(),
+                                              options.crop_top_to_fill_width)
+                            .crop_top_px;  // of the test image, for the tables
+        if (cut > 0) name += " (top " + std::to_string(cut) + " rows cut)";
+        if (engine != "opencv") name += " on " + engine;
+        models.push_back({path, name, std::move(segmenter)});
+      }
     }
     const pcr::Dataset dataset = pcr::OpenDataset(args.sequence);
     const pcr::driver::FrameRange range =

@@ -5,6 +5,7 @@ PKGS=(build-essential cmake ninja-build pkg-config
       libopencv-dev libtbb-dev libeigen3-dev libceres-dev libspdlog-dev libfmt-dev
       libgtest-dev libgmock-dev libbenchmark-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
       libjemalloc-dev
+      libdnnl-dev  # oneDNN: the CPU inference executor (--inference onednn)
       python3-onnx python3-numpy)  # tools/yolo_resize.py and its test (ctest yolo_resize)
 missing=()
 for p in "${PKGS[@]}"; do

@@ -22,6 +22,18 @@ TEST(Inference, OpenCvIsTheDefaultEngineAndTwinPlugsInTheExecutor) {
   ApplyInference("twin", &yolo);
   ASSERT_TRUE(yolo.engine_factory);
   EXPECT_EQ(YoloSegmenter(yolo).backend(), "pcr-cpu-twin");
+  if (gpu::OneDnnBuilt()) {
+    ApplyInference("onednn", &yolo);
+    ASSERT_TRUE(yolo.engine_factory);
+    EXPECT_EQ(YoloSegmenter(yolo).backend(), "pcr-cpu-onednn");
+  } else {
+    try {
+      ApplyInference("onednn", &yolo);
+      FAIL() << "onednn accepted without oneDNN";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("libdnnl"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(Inference, UnknownValuesAndMissingDevicesAreConfigErrors) {
@@ -41,8 +53,12 @@ TEST(Inference, UnknownValuesAndMissingDevicesAreConfigErrors) {
     } catch (const ConfigError& e) {
       EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
     }
-    ApplyInference("auto", &yolo);  // falls back to OpenCV DNN
-    EXPECT_FALSE(yolo.engine_factory);
+    ApplyInference("auto", &yolo);  // falls back to oneDNN where built, else OpenCV DNN
+    EXPECT_EQ(static_cast<bool>(yolo.engine_factory), gpu::OneDnnBuilt());
+    yolo.model_path = test::SharedPath("models/yolov8n-seg_coco_224x640.onnx");
+    yolo.allow_cuda = false;
+    EXPECT_EQ(YoloSegmenter(yolo).backend(),
+              gpu::OneDnnBuilt() ? "pcr-cpu-onednn" : "opencv-dnn-cpu");
   } else {
     ApplyInference("auto", &yolo);
     EXPECT_TRUE(yolo.engine_factory);
