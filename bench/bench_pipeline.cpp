@@ -6,7 +6,7 @@
 //
 //   bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N]
 //                  [--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none]
-//                  [--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR]
+//                  [--filter on|off] [--inference auto|opencv|onednn|twin|cuda[:N]] [--out DIR]
 //                  [--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS]
 //                  [--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS]
 //                  [--no-first-mask-wait] [--initial-level high|medium|low]
@@ -92,6 +92,7 @@
 #include "eval/association.h"
 #include "eval/confusion.h"
 #include "eval/evaluation.h"
+#include "gpu/executor.h"
 #include "graph/heap.h"
 #include "graph/pipeline.h"
 #include "graph/pipeline_report.h"
@@ -110,7 +111,7 @@ std::string SharedDir() {
 
 struct BenchArgs {
   std::string sequence = SharedDir() + "/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";
-  std::string frames, segmenter = "yolo", model, model_high, out, inference = "opencv";
+  std::string frames, segmenter = "yolo", model, model_high, out, inference = "auto";
   bool filter = true;
   int threads = 2, max_in_flight = 4;
   double rate = 1.0;
@@ -199,7 +200,7 @@ BenchArgs ParseArgs(int argc, char** argv) {
       std::printf(
           "bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N] "
           "[--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none] "
-          "[--filter on|off] [--inference opencv|twin|cuda[:N]|auto] [--out DIR] "
+          "[--filter on|off] [--inference auto|opencv|onednn|twin|cuda[:N]] [--out DIR] "
           "[--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS] "
           "[--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS] [--labels FILE|none] "
           "[--every N] [--crop-top] [--mask-threshold T] [--no-first-mask-wait] "
@@ -213,8 +214,10 @@ BenchArgs ParseArgs(int argc, char** argv) {
   }
   if (a.segmenter != "yolo" && a.segmenter != "none")
     throw std::invalid_argument("--segmenter must be yolo or none");
-  if (a.device_ms > 0 && (a.segmenter != "yolo" || a.inference != "opencv"))
+  if (a.device_ms > 0 &&
+      (a.segmenter != "yolo" || (a.inference != "opencv" && a.inference != "auto")))
     throw std::invalid_argument("--device-ms needs --segmenter yolo and --inference opencv");
+  if (a.device_ms > 0) a.inference = "opencv";  // the emulated device wraps OpenCV DNN
   if (a.flow_device_ms > 0 && (!a.filter || a.flow != "opencv"))
     throw std::invalid_argument("--flow-device-ms needs --filter on and --flow opencv");
   return a;
@@ -582,8 +585,10 @@ int main(int argc, char** argv) {
     add_row("realtime+adaptive", Policy::kRealtime, true, args.threads);
     add_row("sequential 1-thread", Policy::kSequential, false, 1);
     // On a device (emulated or CUDA): what the device wait buys.
-    const bool on_device = args.device_ms > 0 || args.inference.rfind("cuda", 0) == 0 ||
-                           args.flow_device_ms > 0 || args.flow.rfind("cuda", 0) == 0;
+    const bool cuda_inference = args.inference.rfind("cuda", 0) == 0 ||
+                                (args.inference == "auto" && pcr::gpu::CudaDeviceCount() > 0);
+    const bool on_device = args.device_ms > 0 || cuda_inference || args.flow_device_ms > 0 ||
+                           args.flow.rfind("cuda", 0) == 0;
     if (on_device)
       add_row("pipelined, blocking", Policy::kPipelined, false, args.threads,
               /*device_overlap=*/false);

@@ -46,16 +46,17 @@ struct Config {
   std::vector<std::string> overrides;  // "section.key=value", applied after the file
 
   // Dynamic points.
-  bool filter = false;               // the multi-stage dynamic-point filter before tracking
-  std::string segmenter = "none";    // "yolo", "truth" (synthetic sequences) or "none"
-  std::string model;                 // YOLOv8-seg ONNX export for "yolo"
-  std::string model_high;            // adaptive: the accurate model (optional)
-  std::string model_low;             // adaptive: the light model of the low level (optional)
-  std::string inference = "opencv";  // network engine: opencv, twin, cuda, cuda:N, auto
-  std::string flow = "opencv";       // the filter's LK flow: the same choices
-  double truth_miss_rate = 0;        // "truth": probability that an instance is missed
-  std::string truth_labels;          // raw drives: KITTI tracking labels to score the filter
-  bool dump_filter = false;          // write every keypoint's decision (filter_decisions.txt)
+  bool filter = false;             // the multi-stage dynamic-point filter before tracking
+  std::string segmenter = "none";  // "yolo", "truth" (synthetic sequences) or "none"
+  std::string model;               // YOLOv8-seg ONNX export for "yolo"
+  std::string model_high;          // adaptive: the accurate model (optional)
+  std::string model_low;           // adaptive: the light model of the low level (optional)
+  std::string inference = "auto";  // network engine: auto (cuda, else onednn, else opencv), opencv,
+                                   // onednn, twin, cuda, cuda:N
+  std::string flow = "opencv";     // the filter's LK flow: the same choices
+  double truth_miss_rate = 0;      // "truth": probability that an instance is missed
+  std::string truth_labels;        // raw drives: KITTI tracking labels to score the filter
+  bool dump_filter = false;        // write every keypoint's decision (filter_decisions.txt)
 
   // Loop closing and place recognition (relocalisation in the whole map). The vocabulary file
   // (`pcr_orb vocab`); empty: the one shipped with PCR-ORB (vocabulary/pcr_orb_voc.bin; loop

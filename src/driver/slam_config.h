@@ -20,14 +20,14 @@ struct CameraOverride {
 
 // Dynamic-point filtering of a run (command-line options, not YAML).
 struct DynamicRunOptions {
-  std::string segmenter = "none";    // none | yolo | truth (synthetic sequences)
-  std::string model_path;            // YOLOv8-seg ONNX for --segmenter yolo
-  std::string inference = "opencv";  // --inference: opencv | twin | cuda[:N] | auto
-  std::string flow = "opencv";       // --flow: the filter's LK, the same choices
-  bool filter = false;               // run the multi-stage filter (Eq. 2) before tracking
-  bool dump = false;                 // write per-keypoint decisions (filter_decisions.txt)
-  double truth_miss_rate = 0.0;      // --segmenter truth: emulated detector misses
-  std::string truth_labels;          // KITTI tracking label_02 file: score decisions against it
+  std::string segmenter = "none";  // none | yolo | truth (synthetic sequences)
+  std::string model_path;          // YOLOv8-seg ONNX for --segmenter yolo
+  std::string inference = "auto";  // --inference: auto | opencv | onednn | twin | cuda[:N]
+  std::string flow = "opencv";     // --flow: the filter's LK, the same choices
+  bool filter = false;             // run the multi-stage filter (Eq. 2) before tracking
+  bool dump = false;               // write per-keypoint decisions (filter_decisions.txt)
+  double truth_miss_rate = 0.0;    // --segmenter truth: emulated detector misses
+  std::string truth_labels;        // KITTI tracking label_02 file: score decisions against it
   // YOLO networks wider than the frame fill its width and cut its top rows (config
   // segmenter.crop_top_to_fill_width; YoloOptions::crop_top_to_fill_width).
   bool crop_top_to_fill_width = false;
