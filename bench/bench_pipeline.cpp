@@ -120,7 +120,7 @@ struct BenchArgs {
   double flow_device_ms = 0;        // > 0: the LK passes on an emulated device
   int repeat = 1;                   // rounds of all rows
   std::string model_low = "none";   // the light network of the adaptive low level
-  double mask_deadline_ms = 10;     // realtime: how long tracking waits for a frame's mask
+  double mask_deadline_ms = 50;     // realtime: how long tracking waits for a frame's mask
   bool wait_for_first_mask = true;  // realtime: frames before the first mask wait for their own
   // adaptive rows: the controller's first level
   pcr::nodes::QualityLevel initial_level = pcr::nodes::QualityControllerOptions{}.initial;

@@ -37,7 +37,7 @@ struct Config {
   int max_in_flight = 4;         // pipelined/realtime: frames in the graph at once
   double rate = 1.0;             // realtime: 1 = the sequence's own clock, 0.5 = twice as fast
   int waiting = 1;               // realtime: released frames that wait for a slot
-  double mask_deadline_ms = 10;  // realtime: how long tracking waits for a late mask
+  double mask_deadline_ms = 50;  // realtime: how long tracking waits for a late mask
   int inference_every = 1;       // without adaptive quality: segment every n-th frame
   bool propagate_masks = true;   // frames without a fresh mask carry the newest one along
   bool adaptive = false;         // adaptive quality control (High/Medium/Low from the time budget)

@@ -62,8 +62,12 @@ struct PipelineOptions {
   // realtime: frame i is released (t_i - t_0) * rate after the start (1 = real time, 0.5 = twice
   // as fast, 0 = all at once).
   double rate = 1.0;
-  int waiting_capacity = 1;      // realtime: released frames waiting for a slot
-  double mask_deadline_ms = 10;  // realtime: wait for a late mask at most this long
+  int waiting_capacity = 1;  // realtime: released frames waiting for a slot
+  // Realtime: wait for a late mask at most this long. Half a 10 Hz period: with the onednn
+  // engine (~30-40 ms a 224x640 call in the graph) most frames then get their own mask (drive
+  // 0005, realtime on 2 cores: 91 of 91 fresh at 50 ms against 8 of 91 at 10 ms, p99 to the pose
+  // 140 ms).
+  double mask_deadline_ms = 50;
   // Realtime: frames before the first fresh mask wait for their own, however long (nothing can
   // be carried to them, and the first frame makes the map); the deadline applies from then on.
   // Drive 0005: without it the first two frames (the map's first keyframe) went unfiltered.
