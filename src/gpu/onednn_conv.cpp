@@ -49,7 +49,13 @@ class OneDnnConvKernels final : public ConvKernels {
     for (size_t s = 0; s < plan.steps.size(); ++s) {
       const auto* step = std::get_if<ConvStep>(&plan.steps[s]);
       if (!step) continue;
-      convs_[s] = std::make_unique<ConvPrimitive>(Build(plan, *step));
+      try {
+        convs_[s] = std::make_unique<ConvPrimitive>(Build(plan, *step));
+      } catch (const dnnl::error& e) {
+        throw std::invalid_argument("oneDNN cannot run convolution '" +
+                                    (s < plan.step_names.size() ? plan.step_names[s] : "?") +
+                                    "' (step " + std::to_string(s) + "): " + e.what());
+      }
     }
     LinkConvolutions(plan);
   }
