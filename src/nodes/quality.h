@@ -70,7 +70,12 @@ struct QualityControllerOptions {
   int min_dwell_frames = 5;
   // Weight of the newest sample in the exponential moving average of the busy time (1 = none).
   double smoothing = 0.3;
-  QualityLevel initial = QualityLevel::kHigh;
+  // The first frames' level. Medium (the fast network) rather than high: realtime frames before
+  // the first mask wait for their own, and on the high level's 384x1280 network that wait made
+  // a run's worst latencies (drive 0005, realtime+adaptive on 2 cores with onednn: p99 to the
+  // pose 173-362 ms starting high, 123 ms starting medium, both at 97-100% fresh masks). The
+  // controller still moves up when the budget allows.
+  QualityLevel initial = QualityLevel::kMedium;
   bool IsValid(std::string* why) const;
 };
 

@@ -541,6 +541,7 @@ TEST(PipelineTest, AdaptiveControllerLowersQualityWhenFramesTakeLongerThanThePer
   segmenters.fast = &seg;
   PipelineOptions options = Options(Policy::kPipelined, 2);
   options.adaptive = true;
+  options.controller.initial = nodes::QualityLevel::kHigh;
   options.tracking_delay_ms = 120;  // every frame costs more than the 100 ms camera period
   const PipelineResult r = RunPipeline(clip, SlamOptions{}, options, segmenters);
   EXPECT_TRUE(r.error.empty()) << r.error;

@@ -87,6 +87,7 @@ TEST(QualityControllerTest, SmoothingIgnoresOneSlowFrame) {
   QualityControllerOptions o;
   o.smoothing = 0.2;
   o.hysteresis_fraction = 0.1;
+  o.initial = L::kHigh;
   QualityController c(o);
   for (int i = 0; i < 10; ++i) EXPECT_EQ(c.Update(100, 40), L::kHigh);
   // One 120 ms frame: average 40 + 0.2 * 80 = 56 -> 44 available, still high.
@@ -100,8 +101,9 @@ TEST(QualityControllerTest, SmoothingIgnoresOneSlowFrame) {
 
 TEST(QualityControllerTest, IgnoresMeaninglessSamplesAndRejectsBadOptions) {
   QualityController c;
-  EXPECT_EQ(c.Update(0, 10), L::kHigh);  // no period (e.g. rate 0): no decision
-  EXPECT_EQ(c.Update(100, std::numeric_limits<double>::quiet_NaN()), L::kHigh);
+  EXPECT_EQ(c.level(), L::kMedium);        // the default first level: the fast network
+  EXPECT_EQ(c.Update(0, 10), L::kMedium);  // no period (e.g. rate 0): no decision
+  EXPECT_EQ(c.Update(100, std::numeric_limits<double>::quiet_NaN()), L::kMedium);
   EXPECT_EQ(c.changes(), 0);
   QualityControllerOptions bad;
   bad.smoothing = 0;
