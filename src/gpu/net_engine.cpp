@@ -74,9 +74,10 @@ std::unique_ptr<InferenceEngine> MakeNetEngine(const std::vector<uint8_t>& model
   const int index = onednn ? -1 : EngineDeviceIndex(device, "inference");
   auto plan = std::make_shared<const NetPlan>(
       BuildNetPlan(model_bytes, input_size.height, input_size.width));
-  std::unique_ptr<Executor> executor = onednn ? MakeTwinExecutor(plan, MakeOneDnnConvKernels(*plan))
-                                       : index < 0 ? MakeTwinExecutor(plan)
-                                                   : MakeCudaExecutor(plan, index);
+  std::unique_ptr<Executor> executor =
+      onednn      ? MakeTwinExecutor(plan, MakeOneDnnConvKernels(*plan), /*row_steps=*/true)
+      : index < 0 ? MakeTwinExecutor(plan)
+                  : MakeCudaExecutor(plan, index);
   spdlog::info(
       "NetEngine: {} steps ({} fused activations), {:.1f} MiB weights, {:.1f} MiB "
       "activations, on {}",

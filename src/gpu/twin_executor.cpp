@@ -24,8 +24,9 @@ void Gemm(const float* a, const float* b, float* out, int64_t m, int64_t k, int6
 
 class TwinExecutor final : public Executor {
  public:
-  TwinExecutor(std::shared_ptr<const NetPlan> plan, std::unique_ptr<ConvKernels> conv)
-      : plan_(std::move(plan)), conv_(std::move(conv)) {
+  TwinExecutor(std::shared_ptr<const NetPlan> plan, std::unique_ptr<ConvKernels> conv,
+               bool row_steps)
+      : plan_(std::move(plan)), conv_(std::move(conv)), row_steps_(row_steps) {
     if (!plan_) throw std::invalid_argument("TwinExecutor: no plan");
     storage_.resize(plan_->buffers.size());
     for (size_t i = 0; i < plan_->buffers.size(); ++i) {
@@ -102,10 +103,14 @@ class TwinExecutor final : public Executor {
     const int64_t taps = static_cast<int64_t>(g.c_out) * g.kh * g.kw;
     const int64_t pixels = static_cast<int64_t>(g.h_in) * g.w_in;
     Gemm(Buffer(s.weight), Buffer(s.in), scratch_.data(), taps, g.c_in, pixels);
-    // ConvTransposeAt's scatter, row by row of the output (the same sums, without its index
-    // arithmetic per element).
     float* out = Buffer(s.out);
     const float* bias = Optional(s.bias);
+    if (!row_steps_) {
+      const int64_t n = ConvTransposeOutCount(g);
+      for (int64_t i = 0; i < n; ++i) out[i] = ConvTransposeAt(scratch_.data(), bias, g, i);
+      return;
+    }
+    // ConvTransposeAt's scatter, row by row of the output.
     const float* taps_data = scratch_.data();
     const int64_t w_out = static_cast<int64_t>(g.w_in) * g.kw;
     for (int m = 0; m < g.c_out; ++m) {
@@ -134,6 +139,10 @@ class TwinExecutor final : public Executor {
     const float* a = Buffer(s.a);
     const float* b = Buffer(s.b);
     float* out = Buffer(s.out);
+    if (!row_steps_) {
+      for (int64_t i = 0; i < s.count; ++i) out[i] = BinaryAt(a, b, s.geometry, i);
+      return;
+    }
     // BinaryAt's broadcasting, row by row of the last axis: the operands' offsets of a row's
     // first element from BinaryAt's decomposition, then their last-axis strides.
     const BinaryGeometry& g = s.geometry;
@@ -157,6 +166,15 @@ class TwinExecutor final : public Executor {
   void Execute(const CopyStep& s) {
     const float* in = Buffer(s.in);
     float* out = Buffer(s.out);
+    if (!row_steps_) {
+      const int64_t n = CopyCount(s.geometry);
+      for (int64_t i = 0; i < n; ++i) {
+        int64_t ii = 0, oi = 0;
+        CopyIndices(s.geometry, i, &ii, &oi);
+        out[oi] = in[ii];
+      }
+      return;
+    }
     // CopyIndices' blocks: `inner` contiguous elements per (outer, axis position).
     const CopyGeometry& g = s.geometry;
     for (int64_t o = 0; o < g.outer; ++o) {
@@ -178,6 +196,10 @@ class TwinExecutor final : public Executor {
     const ResizeGeometry& g = s.geometry;
     const float* in = Buffer(s.in);
     float* out = Buffer(s.out);
+    if (!row_steps_) {
+      for (int64_t i = 0; i < ResizeOutCount(g); ++i) out[i] = ResizeNearestAt(in, g, i);
+      return;
+    }
     // ResizeNearestAt with the source row and column of each output row and column computed
     // once: element (c, oy, ox) reads the element ResizeNearestAt(c, oy, 0) and
     // ResizeNearestAt(0, 0, ox) place in their row and column.
@@ -212,6 +234,10 @@ class TwinExecutor final : public Executor {
 
   std::shared_ptr<const NetPlan> plan_;
   std::unique_ptr<ConvKernels> conv_;  // null: the twin's own convolutions
+  // The copy, element-wise, resize and ConvTranspose steps walk rows and blocks (the same numbers
+  // without the per-element index arithmetic) instead of calling the kernels' per-element
+  // functions, which the twin proper keeps so that it checks the CUDA kernels' code.
+  bool row_steps_ = false;
   std::vector<std::vector<float>> storage_;
   std::vector<float> scratch_;
 };
@@ -231,8 +257,8 @@ std::vector<std::vector<float>> Executor::Run(const float* input) {
 }
 
 std::unique_ptr<Executor> MakeTwinExecutor(std::shared_ptr<const NetPlan> plan,
-                                           std::unique_ptr<ConvKernels> conv) {
-  return std::make_unique<TwinExecutor>(std::move(plan), std::move(conv));
+                                           std::unique_ptr<ConvKernels> conv, bool row_steps) {
+  return std::make_unique<TwinExecutor>(std::move(plan), std::move(conv), row_steps);
 }
 
 }  // namespace pcr::gpu

@@ -53,6 +53,13 @@ float MaxDiff(const cv::Mat& a, const cv::Mat& b, int row_begin = -1, int row_en
 
 using test::BlockingWait;
 
+// The bytes of the 224x640 model (empty when it cannot be read).
+std::vector<uint8_t> ModelBytes() {
+  std::ifstream in(test::SharedPath(kFast), std::ios::binary);
+  return std::vector<uint8_t>((std::istreambuf_iterator<char>(in)),
+                              std::istreambuf_iterator<char>());
+}
+
 bool BitwiseEqual(const cv::Mat& a, const cv::Mat& b) {
   return a.total() == b.total() &&
          std::equal(a.ptr<float>(), a.ptr<float>() + a.total(), b.ptr<float>(),
@@ -126,10 +133,8 @@ TEST_P(CpuExecutor, SegmentFindsTheSameInstances) {
 }
 
 TEST(YoloTwin, SharedStorageGivesBitwiseTheSameOutputsInAFractionOfTheMemory) {
-  std::ifstream in(test::SharedPath(kFast), std::ios::binary);
-  ASSERT_TRUE(in);
-  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
-                                   std::istreambuf_iterator<char>());
+  const std::vector<uint8_t> bytes = ModelBytes();
+  ASSERT_FALSE(bytes.empty()) << test::SharedPath(kFast);
   auto shared = std::make_shared<const NetPlan>(BuildNetPlan(bytes, 224, 640, true));
   auto separate = std::make_shared<const NetPlan>(BuildNetPlan(bytes, 224, 640, false));
   EXPECT_EQ(shared->steps.size(), separate->steps.size());
@@ -146,6 +151,20 @@ TEST(YoloTwin, SharedStorageGivesBitwiseTheSameOutputsInAFractionOfTheMemory) {
     input[i] = static_cast<float>((i * 7919) % 256) / 255.0f;
   const auto a = MakeTwinExecutor(shared)->Run(input.data());
   const auto b = MakeTwinExecutor(separate)->Run(input.data());
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t k = 0; k < a.size(); ++k) EXPECT_TRUE(a[k] == b[k]) << "output " << k;
+}
+
+// The row-wise copy, element-wise, resize and ConvTranspose steps of the oneDNN executor's CPU
+// path compute the per-element functions' numbers exactly.
+TEST(YoloTwin, RowStepsGiveBitwiseTheTwinsOutputs) {
+  const std::vector<uint8_t> bytes = ModelBytes();
+  ASSERT_FALSE(bytes.empty()) << test::SharedPath(kFast);
+  const auto plan = std::make_shared<const NetPlan>(BuildNetPlan(bytes, 224, 640));
+  std::vector<float> input(static_cast<size_t>(ShapeElements(plan->input.shape)));
+  for (size_t i = 0; i < input.size(); ++i) input[i] = static_cast<float>((i * 7919) % 256) / 255;
+  const auto a = MakeTwinExecutor(plan)->Run(input.data());
+  const auto b = MakeTwinExecutor(plan, nullptr, /*row_steps=*/true)->Run(input.data());
   ASSERT_EQ(a.size(), b.size());
   for (size_t k = 0; k < a.size(); ++k) EXPECT_TRUE(a[k] == b[k]) << "output " << k;
 }
