@@ -121,6 +121,16 @@ void PrintModelInfo(const std::string& path) {
         "{:.1f} MiB activations\n",
         input_size.width, input_size.height, plan.steps.size(), plan.fused_activations,
         gpu::ConstantFloats(plan) * 4.0 / 1048576.0, gpu::ActivationFloats(plan) * 4.0 / 1048576.0);
+    if (!gpu::OneDnnBuilt()) {
+      fmt::print("onednn:        unavailable (this build has no oneDNN: install libdnnl-dev)\n");
+    } else {
+      try {
+        gpu::MakeOneDnnConvKernels(plan);  // builds every convolution's primitive
+        fmt::print("onednn:        runs (--inference onednn; auto's choice without CUDA)\n");
+      } catch (const std::exception& e) {
+        fmt::print("onednn:        cannot run it: {}\n", e.what());
+      }
+    }
   } catch (const std::invalid_argument& e) {
     fmt::print("pcr executor:  cannot run it: {}\n", e.what());
   }
