@@ -36,9 +36,12 @@ struct ConvPrimitive {
   memory user_src, user_dst;  // the plan's buffers (handles set per call)
   memory src, dst;            // the primitive's (the same objects as user_* without reorders)
   memory weights, bias;
+  // Whether a call reorders the plan's source into src and dst into the plan's destination.
+  // Neither runs where the convolutions are linked (LinkConvolutions): src is then the producing
+  // convolution's dst.
   bool reorder_src = false, reorder_dst = false;
   dnnl::reorder to_src, from_dst;
-  bool src_linked = false;  // src is the producing convolution's dst, in its layout
+  std::unordered_map<int, memory> args;  // the primitive's arguments, set once linked
 };
 
 class OneDnnConvKernels final : public ConvKernels {
@@ -58,6 +61,11 @@ class OneDnnConvKernels final : public ConvKernels {
       }
     }
     LinkConvolutions(plan);
+    for (const std::unique_ptr<ConvPrimitive>& c : convs_) {
+      if (!c) continue;
+      c->args = {{DNNL_ARG_SRC, c->src}, {DNNL_ARG_WEIGHTS, c->weights}, {DNNL_ARG_DST, c->dst}};
+      if (c->bias) c->args.emplace(DNNL_ARG_BIAS, c->bias);
+    }
   }
 
   void Conv(size_t step, const float* in, float* out) override {
@@ -69,11 +77,8 @@ class OneDnnConvKernels final : public ConvKernels {
     omp_set_num_threads(std::max(1, cv::getNumThreads()));
     c.user_src.set_data_handle(const_cast<float*>(in));
     c.user_dst.set_data_handle(out);
-    if (c.reorder_src && !c.src_linked) c.to_src.execute(stream_, c.user_src, c.src);
-    std::unordered_map<int, memory> args{
-        {DNNL_ARG_SRC, c.src}, {DNNL_ARG_WEIGHTS, c.weights}, {DNNL_ARG_DST, c.dst}};
-    if (c.bias) args.emplace(DNNL_ARG_BIAS, c.bias);
-    c.conv.execute(stream_, args);
+    if (c.reorder_src) c.to_src.execute(stream_, c.user_src, c.src);
+    c.conv.execute(stream_, c.args);
     if (c.reorder_dst) c.from_dst.execute(stream_, c.dst, c.user_dst);
     stream_.wait();
   }
@@ -123,8 +128,7 @@ class OneDnnConvKernels final : public ConvKernels {
       convs_[s]->reorder_dst = false;
       for (size_t t : readers) {
         convs_[t]->src = convs_[s]->dst;
-        convs_[t]->src_linked = true;
-        ++linked_;
+        convs_[t]->reorder_src = false;
       }
     }
   }
@@ -195,7 +199,6 @@ class OneDnnConvKernels final : public ConvKernels {
   dnnl::engine engine_;
   dnnl::stream stream_;
   std::vector<std::unique_ptr<ConvPrimitive>> convs_;  // per plan step; null: not a convolution
-  int linked_ = 0;  // convolutions that read their producer's memory
 };
 
 }  // namespace
