@@ -230,15 +230,20 @@ PCR_HD inline int64_t ResizeOutCount(const ResizeGeometry& g) {
   return static_cast<int64_t>(g.channels) * g.h_out * g.w_out;
 }
 
+// The input row (or column) that output row (column) `o` reads along an axis of `n_in` input
+// positions scaled by `scale`.
+PCR_HD inline int ResizeNearestSource(int o, float scale, int n_in) {
+  const int i = static_cast<int>(floorf(static_cast<float>(o) / scale));
+  return i < n_in - 1 ? i : n_in - 1;
+}
+
 PCR_HD inline float ResizeNearestAt(const float* in, const ResizeGeometry& g, int64_t index) {
   const int i = static_cast<int>(index);
   const int ox = i % g.w_out;
   const int oy = (i / g.w_out) % g.h_out;
   const int c = i / (g.w_out * g.h_out);
-  int y = static_cast<int>(floorf(static_cast<float>(oy) / g.scale_h));
-  int x = static_cast<int>(floorf(static_cast<float>(ox) / g.scale_w));
-  y = y < g.h_in - 1 ? y : g.h_in - 1;
-  x = x < g.w_in - 1 ? x : g.w_in - 1;
+  const int y = ResizeNearestSource(oy, g.scale_h, g.h_in);
+  const int x = ResizeNearestSource(ox, g.scale_w, g.w_in);
   return in[(c * g.h_in + y) * g.w_in + x];
 }
 

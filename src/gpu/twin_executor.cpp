@@ -2,7 +2,6 @@
 // (tensor_math.h), Eigen for the GEMMs. Also Executor::Run, which both executors share.
 #include <Eigen/Core>
 #include <algorithm>
-#include <cmath>
 #include <stdexcept>
 #include <type_traits>
 #include <vector>
@@ -200,18 +199,12 @@ class TwinExecutor final : public Executor {
       for (int64_t i = 0; i < ResizeOutCount(g); ++i) out[i] = ResizeNearestAt(in, g, i);
       return;
     }
-    // ResizeNearestAt with the source row and column of each output row and column computed
-    // once: element (c, oy, ox) reads the element ResizeNearestAt(c, oy, 0) and
-    // ResizeNearestAt(0, 0, ox) place in their row and column.
-    std::vector<int64_t> column(static_cast<size_t>(g.w_out));
-    for (int ox = 0; ox < g.w_out; ++ox) {
-      const int x = static_cast<int>(floorf(static_cast<float>(ox) / g.scale_w));
-      column[ox] = x < g.w_in - 1 ? x : g.w_in - 1;
-    }
+    // ResizeNearestAt with the source column of each output column computed once.
+    std::vector<int> column(static_cast<size_t>(g.w_out));
+    for (int ox = 0; ox < g.w_out; ++ox) column[ox] = ResizeNearestSource(ox, g.scale_w, g.w_in);
     for (int c = 0; c < g.channels; ++c) {
       for (int oy = 0; oy < g.h_out; ++oy) {
-        int y = static_cast<int>(floorf(static_cast<float>(oy) / g.scale_h));
-        y = y < g.h_in - 1 ? y : g.h_in - 1;
+        const int y = ResizeNearestSource(oy, g.scale_h, g.h_in);
         const float* src = in + (static_cast<int64_t>(c) * g.h_in + y) * g.w_in;
         float* row = out + (static_cast<int64_t>(c) * g.h_out + oy) * g.w_out;
         for (int ox = 0; ox < g.w_out; ++ox) row[ox] = src[column[ox]];
