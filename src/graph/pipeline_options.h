@@ -65,8 +65,8 @@ struct PipelineOptions {
   int waiting_capacity = 1;  // realtime: released frames waiting for a slot
   // Realtime: wait for a late mask at most this long. Half a 10 Hz period: with the onednn
   // engine (~30-40 ms a 224x640 call in the graph) most frames then get their own mask (drive
-  // 0005, realtime on 2 cores: 91 of 91 fresh at 50 ms against 8 of 91 at 10 ms, p99 to the pose
-  // 140 ms).
+  // 0005, `pcr_orb pipeline --policy realtime --adaptive on` on 2 cores: 65 and 68 of 91 frames
+  // fresh at 50 ms against 4 at 10 ms; p99 to the pose 161-165 ms against 133 ms).
   double mask_deadline_ms = 50;
   // Realtime: frames before the first fresh mask wait for their own, however long (nothing can
   // be carried to them, and the first frame makes the map); the deadline applies from then on.

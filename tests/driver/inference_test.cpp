@@ -12,7 +12,7 @@
 namespace pcr::driver {
 namespace {
 
-TEST(Inference, OpenCvIsTheDefaultEngineAndTwinPlugsInTheExecutor) {
+TEST(Inference, OpenCvTwinAndOneDnnEachGiveTheirEngine) {
   YoloOptions yolo;
   yolo.model_path = test::SharedPath("models/yolov8n-seg_coco_224x640.onnx");
   yolo.allow_cuda = false;
