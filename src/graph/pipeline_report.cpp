@@ -189,7 +189,8 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
                         {"job", o.job},
                         {"kind", ToString(o.kind)},
                         {"query_keyframe", o.query.value},
-                        {"candidates_tried", o.candidates_tried}};
+                        {"candidates_tried", o.candidates_tried},
+                        {"candidates_verified", o.candidates_verified}};
     if (o.match) {
       j["matched_keyframe"] = o.match->matched.value;
       j["bow_matches"] = o.match->bow_matches;

@@ -479,6 +479,9 @@ LoopOutcome LoopCloser::CloseLoop(const LoopJob& job) {
     outcome.rejection = "query keyframe gone";
     return outcome;
   }
+  // Every candidate is verified and the one with the most loop matches is kept: a facade
+  // repeated down the street can pass the checks too, with fewer matches than the place itself,
+  // and it may score higher in the bag of words.
   LoopMatch match;
   bool found = false;
   for (KeyframeId c : job.candidates) {
@@ -486,11 +489,14 @@ LoopOutcome LoopCloser::CloseLoop(const LoopJob& job) {
     if (!candidate) continue;
     ++outcome.candidates_tried;
     LoopMatch m;
-    if (VerifyCandidate(job, *query, *candidate, &m, &outcome.rejection)) {
-      match = std::move(m);
-      found = true;
-      break;
+    std::string why;
+    if (!VerifyCandidate(job, *query, *candidate, &m, &why)) {
+      if (!found) outcome.rejection = why;
+      continue;
     }
+    ++outcome.candidates_verified;
+    if (!found || m.matches.size() > match.matches.size()) match = std::move(m);
+    found = true;
   }
   outcome.verify_ms = MsSince(verify_start);
   if (!found) return outcome;
@@ -790,7 +796,7 @@ void LoopCloser::OnOutcome(const LoopOutcome& outcome, const Map& map) {
       return;
     case LoopOutcomeKind::kCorrected:
       ++stats_.corrections;
-      stats_.candidates_rejected += std::max(0, outcome.candidates_tried - 1);
+      stats_.candidates_rejected += outcome.candidates_tried - outcome.candidates_verified;
       loop_edges_.insert(loop_edges_.end(), outcome.new_loop_edges.begin(),
                          outcome.new_loop_edges.end());
       groups_.clear();

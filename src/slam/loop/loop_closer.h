@@ -109,7 +109,8 @@ struct LoopOutcome {
                                    // the global BA after it
   std::vector<std::pair<KeyframeId, KeyframeId>> new_loop_edges;  // kCorrected
   int candidates_tried = 0;
-  std::string rejection;  // why the last candidate failed (kRejected)
+  int candidates_verified = 0;  // passed verification (the one with the most matches is kept)
+  std::string rejection;        // why the last candidate failed (kRejected)
   // Figures: correction size at the query (metres, degrees), optimisation costs and times.
   double correction_m = 0, correction_deg = 0;
   int fused_points = 0;

@@ -170,5 +170,81 @@ TEST(LoopCloser, WithoutAVocabularyItIsInactiveAndBadOptionsAreRejected) {
   EXPECT_THROW(LoopCloser(bad, nullptr, true), ConfigError);
 }
 
+// A keyframe of scene frame `frame` (rendered at true_pose) stored at `stored_pose`, with a map
+// point for each of its first `max_points` keypoints of a scene point, placed where the stored
+// pose puts it. Appends keypoint -> scene point to *point_of_keypoint.
+void AddSceneKeyframe(test::SyntheticScene& scene, Map* map, int64_t frame, const SE3& true_pose,
+                      const SE3& stored_pose, int max_points, std::vector<int>* point_of_keypoint) {
+  MapDelta d;
+  NewKeyframe kf;
+  kf.frame = scene.MakeFrame(frame, true_pose, point_of_keypoint);
+  kf.cam_from_world = stored_pose;
+  d.new_keyframe = kf;
+  const KeyframeId id(static_cast<int64_t>(map->keyframes().size()));
+  for (size_t i = 0;
+       i < point_of_keypoint->size() && static_cast<int>(d.new_points.size()) < max_points; ++i) {
+    const int s = (*point_of_keypoint)[i];
+    if (s < 0) continue;
+    NewMapPoint p;
+    p.p_in_world = stored_pose.inverse() * (true_pose * scene.point(s));
+    p.observations = {{id, static_cast<int>(i)}};
+    d.new_points.push_back(p);
+  }
+  map->Apply(d);
+}
+
+TEST(LoopCloser, CloseLoopKeepsTheVerifiedCandidateWithTheMostMatches) {
+  // Two earlier keyframes of the same place, A (60 map points) and B (300), and a query that
+  // sees it with a drifted pose. Both pass verification; A is the first candidate (the better
+  // bag-of-words score), B the one with the most loop matches.
+  test::SyntheticScene scene(11);
+  Map map;
+  const SE3 pose_a = test::CamFromWorld({0, 0, 0}, 0.0);
+  const SE3 pose_b = test::CamFromWorld({0.2, 0, 1.0}, 0.01);
+  const SE3 true_q = test::CamFromWorld({0.1, 0, 1.5}, 0.02);
+  const SE3 drifted_q = test::CamFromWorld({1.1, 0, 2.5}, 0.06);
+  std::vector<int> of_a, of_b, of_q;
+  AddSceneKeyframe(scene, &map, 0, pose_a, pose_a, 60, &of_a);
+  AddSceneKeyframe(scene, &map, 1, pose_b, pose_b, 300, &of_b);
+  AddSceneKeyframe(scene, &map, 2, true_q, drifted_q, 1000, &of_q);
+  const KeyframeId a(0), b(1), q(2);
+  ASSERT_EQ(map.keyframe(a)->connections.count(b), 0u);  // no shared points
+
+  LoopJob job;
+  job.query = q;
+  job.candidates = {a, b};
+  // Word matches stand in for the owner's precheck: query keypoint <-> candidate keypoint of
+  // the same scene point, where both have a map point.
+  for (const auto& [id, of] : {std::pair{a, &of_a}, std::pair{b, &of_b}}) {
+    const Keyframe& kf = *map.keyframe(id);
+    for (size_t i = 0; i < of_q.size(); ++i) {
+      if (of_q[i] < 0 || !map.keyframe(q)->points[i].valid()) continue;
+      for (size_t j = 0; j < of->size(); ++j)
+        if ((*of)[j] == of_q[i] && kf.points[j].valid())
+          job.word_matches[id].emplace_back(static_cast<int>(i), static_cast<int>(j));
+    }
+  }
+  ASSERT_GE(job.word_matches[a].size(), 40u);
+  ASSERT_GT(job.word_matches[b].size(), 2 * job.word_matches[a].size());
+  job.map = std::make_shared<const Map>(map);
+
+  const LoopOutcome outcome = LoopCloser::CloseLoop(job);
+  ASSERT_EQ(outcome.kind, LoopOutcomeKind::kCorrected) << outcome.rejection;
+  EXPECT_EQ(outcome.candidates_tried, 2);
+  EXPECT_EQ(outcome.candidates_verified, 2);
+  ASSERT_TRUE(outcome.match.has_value());
+  EXPECT_EQ(outcome.match->matched, b);
+  // The corrected query pose is the true one.
+  const SE3 corrected = outcome.match->corrected_query_from_world.ToSE3();
+  EXPECT_LT((corrected.inverse().translation() - true_q.inverse().translation()).norm(), 0.05);
+
+  // A alone passes too (so the choice above was between two verified loops).
+  job.candidates = {a};
+  const LoopOutcome only_a = LoopCloser::CloseLoop(job);
+  ASSERT_EQ(only_a.kind, LoopOutcomeKind::kCorrected) << only_a.rejection;
+  EXPECT_EQ(only_a.match->matched, a);
+  EXPECT_LT(only_a.match->matches.size(), outcome.match->matches.size());
+}
+
 }  // namespace
 }  // namespace pcr
