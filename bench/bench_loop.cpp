@@ -33,7 +33,8 @@
 //              have a frame of their database within 10 m; those with the loop closer's word
 //              matches, then through a two-view geometric check (an essential matrix by RANSAC on
 //              those matches, each frame through its own camera, min_ransac_inliers inliers);
-//              (3) its best database frame that passes that check among its 10 best-scoring.
+//              (3) its best database frame by geometry: of its 10 best-scoring, the one that
+//              passes that check with the most inliers.
 //
 //  --cross     place recognition through the whole system: each clip is mapped alone (mono,
 //              sequential), then every clip runs in that map in localisation mode, where each
@@ -948,8 +949,9 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
                 revisits > 0 ? static_cast<double>(correct) / revisits : kNaN);
   }
 
-  // (3) Each query's best database frame that passes the two-view check, among its
-  // kPlaceVerifyTopK best-scoring ones (none when none of those passes).
+  // (3) Each query's best database frame by geometry: of its kPlaceVerifyTopK best-scoring ones,
+  // the one that passes the two-view check with the most inliers (the loop closer keeps the
+  // verified candidate with the most matches); none when none of those passes.
   std::vector<Candidate> verified_best;
   for (size_t q = 0; q < n; ++q) {
     std::vector<size_t> database;
@@ -959,17 +961,22 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     std::partial_sort(database.begin(), database.begin() + static_cast<std::ptrdiff_t>(top),
                       database.end(),
                       [&](size_t x, size_t y) { return score[q * n + x] > score[q * n + y]; });
+    int best_k = -1, best_inliers = 0;
     for (size_t k = 0; k < top; ++k) {
-      if (two_view(q, database[k]) < loop_options.min_ransac_inliers) continue;
-      verified_best.push_back({q, database[k], verdict(q, database[k])});
-      break;
+      const int inliers = two_view(q, database[k]);
+      if (inliers < loop_options.min_ransac_inliers || inliers <= best_inliers) continue;
+      best_k = static_cast<int>(k), best_inliers = inliers;
+    }
+    if (best_k >= 0) {
+      const size_t j = database[static_cast<size_t>(best_k)];
+      verified_best.push_back({q, j, verdict(q, j)});
     }
   }
   std::printf(
-      "\nbest database frame that passes the two-view check, among a query's %zu best-scoring "
-      "ones:\n%-28s %8s %8s %7s %8s %5s %5s %6s\n",
-      kPlaceVerifyTopK, "clip", "queries", "answered", "correct", "same far", "other", "prec",
-      "recall");
+      "\nbest database frame by geometry: the most two-view inliers (>= %d) among a query's %zu "
+      "best-scoring ones:\n%-28s %8s %8s %7s %8s %5s %5s %6s\n",
+      loop_options.min_ransac_inliers, kPlaceVerifyTopK, "clip", "queries", "answered", "correct",
+      "same far", "other", "prec", "recall");
   auto print_best_verified = [&](const std::string& name, int clip) {
     const Counts c = count(verified_best, clip);
     std::printf("%-28s %8d %8d %7d %8d %5d %5.2f %6.3f\n", name.c_str(), clip_queries(clip).queries,
@@ -979,10 +986,14 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   for (size_t c = 0; c < names.size(); ++c) print_best_verified(names[c], static_cast<int>(c));
   print_best_verified("all", -1);
   const auto [best_far_min, best_far_max] = far_range(verified_best);
+  int far_without_near = 0;
+  for (const Candidate& c : verified_best)
+    far_without_near += c.verdict == Verdict::kSameClipFar && !has_near[c.query];
   std::printf(
       "(answered: queries with such a frame; the same clip's ones further than %.0f m lie "
-      "%.1f-%.1f m from the query)\n",
-      kPlaceRadiusM, best_far_min, best_far_max);
+      "%.1f-%.1f m from the query, and %d of them answer a query whose database holds no frame "
+      "within %.0f m)\n",
+      kPlaceRadiusM, best_far_min, best_far_max, far_without_near, kPlaceRadiusM);
   return 0;
 }
 
