@@ -144,18 +144,32 @@ TEST(LoopClosing, ANewerLoopJobAbortsTheGlobalBundleAdjustment) {
   // after the correction. The global BA waits, before it starts, until the mapping node has sent
   // a newer job (a later frame reports one): sending it set the abort flag, so the global BA
   // gives way and its outcome changes nothing.
+  // The loop lane must find the loop while frames remain. On a loaded machine (CI runs two tests
+  // at once on 2 cores) a lane at nice 19 got so little CPU that the correction came after the
+  // last frame: here it runs at the process's priority, and from frame 100 on a frame's tracking
+  // waits (at most 5 s) until the lane has started every job sent so far, so that it lags one
+  // job at most, as on an idle machine.
   const size_t num_frames = OpenDataset(LoopStreet()).size();
   auto frames_done = std::make_shared<std::atomic<int64_t>>(0);
   auto ba_waiting_since = std::make_shared<std::atomic<int64_t>>(-1);
   auto newer_job = std::make_shared<std::atomic<bool>>(false);
+  auto jobs_sent = std::make_shared<std::atomic<int>>(0);
+  auto jobs_started = std::make_shared<std::atomic<int>>(0);
   graph::PipelineOptions slow_ba;
-  slow_ba.stage_hook = [=](std::string_view stage, int64_t) {
+  slow_ba.loop_lane_nice = 0;
+  slow_ba.stage_hook = [=](std::string_view stage, int64_t frame) {
+    using std::chrono::milliseconds;
+    if (stage == graph::kStageLoop) jobs_started->fetch_add(1);
+    for (int i = 0; stage == graph::kStageTracking && frame >= 100 &&
+                    jobs_started->load() < jobs_sent->load() && i < 500;
+         ++i)
+      std::this_thread::sleep_for(milliseconds(10));
     if (stage != graph::kStageGlobalBa) return;
     ba_waiting_since->store(frames_done->load());
     for (int i = 0;
          i < 600 && !newer_job->load() && frames_done->load() < static_cast<int64_t>(num_frames);
          ++i)
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      std::this_thread::sleep_for(milliseconds(100));
     ba_waiting_since->store(-1);
   };
   const LoopRun on =
@@ -163,6 +177,7 @@ TEST(LoopClosing, ANewerLoopJobAbortsTheGlobalBundleAdjustment) {
               {"loop.skip_keyframes_after_loop=0", "loop.consistency=0", "loop.min_bow_matches=5"},
               [=](size_t done, size_t, const graph::FrameRecord& r) {
                 const int64_t since = ba_waiting_since->load();
+                if (r.output.loop_job) jobs_sent->fetch_add(1);
                 if (r.output.loop_job && since >= 0 && static_cast<int64_t>(done) > since)
                   newer_job->store(true);
                 frames_done->store(static_cast<int64_t>(done));
