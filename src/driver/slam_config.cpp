@@ -105,6 +105,10 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("loop", "global_ba_optimise_twice", &l.global_ba_optimise_twice,
         "second global BA solve without the first one's outlier observations");
   s.Add("loop", "skip_keyframes_after_loop", &l.skip_keyframes_after_loop);
+  s.Add("loop", "incremental_snapshots", &l.incremental_snapshots,
+        "loop jobs carry the map edits since the previous job, not a copy of the map");
+  s.Add("loop", "max_snapshot_edits", &l.max_snapshot_edits,
+        "more map edits between two jobs: the next job carries a copy (0: no limit)");
 
   s.Add("segmenter", "crop_top_to_fill_width", &c.dynamic.crop_top_to_fill_width,
         "a YOLO input wider than the frame takes it at full width, its top rows cut");

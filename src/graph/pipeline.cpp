@@ -391,15 +391,16 @@ class GraphRun {
   // The loop lane's work on a job (verification and correction, then the global BA), each step
   // profiled; `post` receives the outcomes. Inline (sequential) or on the loop node.
   void RunLoopJob(const LoopWork& work, const std::function<void(nodes::LoopOutcomePtr)>& post) {
+    nodes::LoopJobPtr resolved;
     const auto corrected =
-        Guarded(kStageLoop, work.ticket, [&] { return nodes::LoopNode::Close(*work.job); });
+        Guarded(kStageLoop, work.ticket, [&] { return loop_node_.Close(work.job, &resolved); });
     if (!corrected) return;
     post(*corrected);
     if ((*corrected)->kind != LoopOutcomeKind::kCorrected ||
         !work.job->options.global_bundle_adjustment)
       return;
     if (auto ba = Guarded(kStageGlobalBa, work.ticket, [&] {
-          return nodes::LoopNode::GlobalBundleAdjustment(*work.job, **corrected, &loop_abort_);
+          return nodes::LoopNode::GlobalBundleAdjustment(*resolved, **corrected, &loop_abort_);
         }))
       post(*ba);
   }
@@ -452,7 +453,8 @@ class GraphRun {
   std::mutex loop_mutex_;
   std::vector<nodes::LoopOutcomePtr> loop_arrived_;
   std::atomic<bool> loop_abort_{false};
-  std::unique_ptr<LoopLane> loop_lane_;   // pipelined and realtime runs
+  std::unique_ptr<LoopLane> loop_lane_;  // pipelined and realtime runs
+  nodes::LoopNode loop_node_;  // the lane's copy of the map: the lane (or inline mapping) only
   std::unique_ptr<FrameClock[]> clocks_;  // by seq (< source size)
   const nodes::QualitySettings fixed_settings_;
   Profiler profiler_;

@@ -2,8 +2,9 @@
 
 namespace pcr::nodes {
 
-LoopOutcomePtr LoopNode::Close(const LoopJob& job) {
-  return std::make_shared<const LoopOutcome>(LoopCloser::CloseLoop(job));
+LoopOutcomePtr LoopNode::Close(const LoopJobPtr& job, LoopJobPtr* resolved) {
+  *resolved = replica_.Resolve(job);
+  return std::make_shared<const LoopOutcome>(LoopCloser::CloseLoop(**resolved));
 }
 
 LoopOutcomePtr LoopNode::GlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& corrected,

@@ -4,7 +4,10 @@
 #include <chrono>
 #include <cmath>
 #include <set>
+#include <stdexcept>
+#include <string>
 #include <unordered_map>
+#include <utility>
 
 #include "slam/common/error.h"
 #include "slam/common/lie.h"
@@ -87,6 +90,7 @@ bool LoopClosingOptions::IsValid(std::string* why) const {
   if (pose_graph_iterations < 1) return fail("pose_graph_iterations must be >= 1");
   if (global_ba_iterations < 1) return fail("global_ba_iterations must be >= 1");
   if (skip_keyframes_after_loop < 0) return fail("skip_keyframes_after_loop must be >= 0");
+  if (max_snapshot_edits < 0) return fail("max_snapshot_edits must be >= 0");
   return true;
 }
 
@@ -349,7 +353,21 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   job->id = next_job_++;
   job->query = id;
   job->candidates = consistent;
-  job->map = std::make_shared<const Map>(map);
+  // The map as it stands: the edits since the previous job when they were all recorded, else a
+  // copy; the recording starts again for the next job.
+  MapEditLog& log = *edit_log_;
+  if (log.recording && options_.incremental_snapshots) {
+    job->edits = std::exchange(log.edits, {});
+    ++stats_.map_edit_jobs;
+    stats_.map_edits += static_cast<int64_t>(job->edits.size());
+  } else {
+    job->map = std::make_shared<const Map>(map);
+    ++stats_.map_copies;
+  }
+  log.edits.clear();
+  log.overflowed = false;
+  log.recording = options_.incremental_snapshots;
+  log.max_edits = static_cast<size_t>(options_.max_snapshot_edits);
   job->word_matches = std::move(word_matches);  // the lane does not match them again
   job->loop_edges = loop_edges_;
   job->fix_scale = fix_scale_;
@@ -468,7 +486,48 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
 
 }  // namespace
 
+void LoopCloser::ResetEditLog() {
+  edit_log_->recording = false;
+  edit_log_->overflowed = false;
+  edit_log_->edits = {};
+}
+
+std::shared_ptr<const LoopJob> LoopMapReplica::Resolve(const std::shared_ptr<const LoopJob>& job) {
+  if (job->map) {
+    map_ = std::make_shared<Map>(*job->map);
+    last_job_ = job->id;
+    return job;
+  }
+  if (!map_ || job->id != last_job_ + 1) {
+    map_.reset();
+    throw std::invalid_argument("LoopMapReplica: loop job " + std::to_string(job->id) +
+                                " carries the map edits since job " + std::to_string(job->id - 1) +
+                                ", which this replica has not seen");
+  }
+  if (map_.use_count() > 1) map_ = std::make_shared<Map>(*map_);  // a job still reads it
+  try {
+    for (const MapDelta& edit : job->edits) map_->Apply(edit);
+  } catch (...) {
+    map_.reset();  // no longer the owner's map
+    throw;
+  }
+  last_job_ = job->id;
+  auto resolved = std::make_shared<LoopJob>();
+  resolved->id = job->id;
+  resolved->query = job->query;
+  resolved->candidates = job->candidates;
+  resolved->map = map_;
+  resolved->word_matches = job->word_matches;
+  resolved->loop_edges = job->loop_edges;
+  resolved->fix_scale = job->fix_scale;
+  resolved->options = job->options;
+  return resolved;
+}
+
 LoopOutcome LoopCloser::CloseLoop(const LoopJob& job) {
+  if (!job.map)
+    throw std::invalid_argument("LoopCloser::CloseLoop: job " + std::to_string(job.id) +
+                                " carries map edits; resolve it with the lane's LoopMapReplica");
   LoopOutcome outcome;
   outcome.job = job.id;
   outcome.query = job.query;
@@ -663,6 +722,9 @@ LoopOutcome LoopCloser::CloseLoop(const LoopJob& job) {
 
 LoopOutcome LoopCloser::GlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& corrected,
                                                const std::atomic<bool>* abort) {
+  if (!job.map)
+    throw std::invalid_argument("LoopCloser::GlobalBundleAdjustment: job " +
+                                std::to_string(job.id) + " carries map edits; resolve it first");
   const auto start = std::chrono::steady_clock::now();
   LoopOutcome outcome;
   outcome.job = job.id;

@@ -599,6 +599,15 @@ MapApplyResult Map::Apply(const MapDelta& delta) {
   if (replaced_by_.size() > 2 * replacements_after_compaction_ + 1024) CompactReplacements();
   touched_points_.clear();
   touched_keyframes_.clear();
+  if (MapEditLog* log = edit_log_.log.get(); log && log->recording) {
+    if (log->max_edits > 0 && log->edits.size() >= log->max_edits) {
+      log->recording = false;
+      log->overflowed = true;
+      log->edits = {};
+    } else {
+      log->edits.push_back(delta);
+    }
+  }
   return result;
 }
 

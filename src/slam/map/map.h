@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <unordered_map>
@@ -117,6 +118,15 @@ struct MapApplyResult {
   int num_keyframes_removed = 0;
 };
 
+// Edits a map records as Apply makes them (Map::set_edit_log), for a copy elsewhere that replays
+// them in order instead of copying the whole map again (the loop lane's replica, LoopMapReplica).
+struct MapEditLog {
+  bool recording = false;
+  size_t max_edits = 0;  // one more stops the recording and drops the edits; 0: no limit
+  std::vector<MapDelta> edits;
+  bool overflowed = false;  // set when max_edits stopped it
+};
+
 class Map {
  public:
   static constexpr int kCovisibilityMinWeight = 15;
@@ -148,6 +158,10 @@ class Map {
   // touched points and the covisibility of touched keyframes. Throws std::invalid_argument when
   // the new keyframe's id already exists or its frame is null.
   MapApplyResult Apply(const MapDelta& delta);
+  // From now on Apply appends each delta it applied to log while log->recording (null: none).
+  // The log belongs to this object: a copy of the map records nothing, and assigning another map
+  // to this one keeps this one's log.
+  void set_edit_log(std::shared_ptr<MapEditLog> log) { edit_log_.log = std::move(log); }
 
   const Keyframe* keyframe(KeyframeId id) const;
   const MapPoint* point(MapPointId id) const;
@@ -194,6 +208,16 @@ class Map {
   int64_t next_point_id_ = 0;
   int64_t next_keyframe_index_ = 0;
   KeyframeId first_keyframe_, last_keyframe_;
+  struct EditLogSlot {
+    EditLogSlot() = default;
+    EditLogSlot(const EditLogSlot&) {}
+    EditLogSlot(EditLogSlot&&) noexcept = default;
+    EditLogSlot& operator=(const EditLogSlot&) { return *this; }
+    EditLogSlot& operator=(EditLogSlot&&) noexcept { return *this; }
+    ~EditLogSlot() = default;
+    std::shared_ptr<MapEditLog> log;
+  };
+  EditLogSlot edit_log_;
   // Scratch sets filled during Apply.
   std::set<MapPointId> touched_points_;
   std::set<KeyframeId> touched_keyframes_;

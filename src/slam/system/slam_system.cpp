@@ -69,6 +69,7 @@ SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMod
       mapper_(options.mapping),
       loop_closer_(options.loop, std::move(vocabulary), mode == SlamMode::kStereo) {
   tracker_.SetLocalisationMode(options.localize_only);
+  if (loop_closer_.IsActive()) map_.set_edit_log(loop_closer_.edit_log());
   scale_.scale_factors = extractor_.scale_factors();
   scale_.level_sigma2 = extractor_.level_sigma2();
   scale_.inv_level_sigma2 = extractor_.inv_level_sigma2();
@@ -260,6 +261,7 @@ void SlamSystem::RestoreMap(const MapArchive& archive) {
         scale_.scale_factor()));
   }
   map_ = archive.map;
+  loop_closer_.ResetEditLog();
   const int computed = loop_closer_.Restore(archive.place, map_);
   if (computed > 0)
     spdlog::info("loaded map: {} keyframes' bags of words computed with this run's vocabulary",
@@ -308,11 +310,13 @@ bool SlamSystem::ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_inde
   return changed;
 }
 
-void SlamSystem::RunLoopJob(const LoopJob& job, int64_t frame_index) {
-  const LoopOutcome corrected = LoopCloser::CloseLoop(job);
+void SlamSystem::RunLoopJob(const std::shared_ptr<const LoopJob>& job, int64_t frame_index) {
+  const std::shared_ptr<const LoopJob> resolved = loop_replica_.Resolve(job);
+  const LoopOutcome corrected = LoopCloser::CloseLoop(*resolved);
   ApplyLoopOutcome(corrected, frame_index);
-  if (corrected.kind == LoopOutcomeKind::kCorrected && job.options.global_bundle_adjustment)
-    ApplyLoopOutcome(LoopCloser::GlobalBundleAdjustment(job, corrected, nullptr), frame_index);
+  if (corrected.kind == LoopOutcomeKind::kCorrected && job->options.global_bundle_adjustment)
+    ApplyLoopOutcome(LoopCloser::GlobalBundleAdjustment(*resolved, corrected, nullptr),
+                     frame_index);
 }
 
 void FillTrackingOutput(const TrackingResult& tracking, FrameOutput* out) {
@@ -367,7 +371,7 @@ FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv
   if (decision.insert) {
     out.mapping = InsertKeyframe(frame, tracking);
     out.keyframe_inserted = true;
-    if (const auto job = DetectLoop(KeyframeId(frame->id()), false)) RunLoopJob(*job, frame_index);
+    if (const auto job = DetectLoop(KeyframeId(frame->id()), false)) RunLoopJob(job, frame_index);
   }
   out.keyframe_inserted =
       out.keyframe_inserted || tracking.method == TrackingMethod::kInitialisation;

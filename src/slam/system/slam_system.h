@@ -144,7 +144,7 @@ class SlamSystem {
   // mapped (-1 after the last). Returns true when the map changed.
   bool ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_index);
   // The loop lane's work on a job, inline: CloseLoop, applied, then the global BA, applied.
-  void RunLoopJob(const LoopJob& job, int64_t frame_index);
+  void RunLoopJob(const std::shared_ptr<const LoopJob>& job, int64_t frame_index);
   const LoopCloser& loop_closer() const { return loop_closer_; }
   const RelocalisationStats& relocalisation_stats() const {
     return tracker_.relocalisation_stats();
@@ -195,6 +195,7 @@ class SlamSystem {
   Tracker tracker_;
   LocalMapper mapper_;
   LoopCloser loop_closer_;
+  LoopMapReplica loop_replica_;  // RunLoopJob's copy of the map (jobs may carry edits)
   std::vector<LoopEvent> loop_events_;
   int64_t next_frame_id_ = 0;
   std::vector<FrameRecord> records_;

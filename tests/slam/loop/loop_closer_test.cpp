@@ -31,25 +31,28 @@ SE3 Pose(double x, double yaw_rad) {
   return ExpSE3(xi);
 }
 
+// Keyframe k of a chain: it observes 20 of keyframe k-1's points (none for k = 0) and adds 20.
+MapDelta ChainKeyframe(int k) {
+  MapDelta d;
+  NewKeyframe kf;
+  kf.frame = TinyFrame(k, 40);
+  kf.cam_from_world = Pose(-1.0 * k, 0.01 * k);
+  if (k > 0)
+    for (int i = 0; i < 20; ++i) kf.associations.emplace_back(i, MapPointId(20 * (k - 1) + i));
+  d.new_keyframe = kf;
+  for (int i = 20; i < 40; ++i) {
+    NewMapPoint p;
+    p.p_in_world = {0.1 * i, 0.2 * k, 10.0 + k};
+    p.observations = {{KeyframeId(k), i}};
+    d.new_points.push_back(p);
+  }
+  return d;
+}
+
 // A chain of keyframes 0 -> 1 -> 2 (each observing the previous one's points), 20 points each.
 Map ChainMap(int num_keyframes) {
   Map map;
-  for (int k = 0; k < num_keyframes; ++k) {
-    MapDelta d;
-    NewKeyframe kf;
-    kf.frame = TinyFrame(k, 40);
-    kf.cam_from_world = Pose(-1.0 * k, 0.01 * k);
-    if (k > 0)
-      for (int i = 0; i < 20; ++i) kf.associations.emplace_back(i, MapPointId(20 * (k - 1) + i));
-    d.new_keyframe = kf;
-    for (int i = 20; i < 40; ++i) {
-      NewMapPoint p;
-      p.p_in_world = {0.1 * i, 0.2 * k, 10.0 + k};
-      p.observations = {{KeyframeId(k), i}};
-      d.new_points.push_back(p);
-    }
-    map.Apply(d);
-  }
+  for (int k = 0; k < num_keyframes; ++k) map.Apply(ChainKeyframe(k));
   return map;
 }
 
@@ -244,6 +247,140 @@ TEST(LoopCloser, CloseLoopKeepsTheVerifiedCandidateWithTheMostMatches) {
   ASSERT_EQ(only_a.kind, LoopOutcomeKind::kCorrected) << only_a.rejection;
   EXPECT_EQ(only_a.match->matched, a);
   EXPECT_LT(only_a.match->matches.size(), outcome.match->matches.size());
+}
+
+// Everything the loop lane reads of a map, compared field by field.
+void ExpectSameMap(const Map& a, const Map& b) {
+  ASSERT_EQ(a.num_keyframes(), b.num_keyframes());
+  ASSERT_EQ(a.num_points(), b.num_points());
+  for (const auto& [id, ka] : a.keyframes()) {
+    const Keyframe* kb = b.keyframe(id);
+    ASSERT_NE(kb, nullptr) << id.value;
+    EXPECT_EQ(ka.index, kb->index);
+    EXPECT_TRUE(ka.cam_from_world.matrix().isApprox(kb->cam_from_world.matrix(), 0)) << id.value;
+    EXPECT_EQ(ka.points, kb->points) << id.value;
+    EXPECT_EQ(ka.connections, kb->connections) << id.value;
+    EXPECT_EQ(ka.covisible, kb->covisible) << id.value;
+    EXPECT_EQ(ka.parent, kb->parent) << id.value;
+    EXPECT_EQ(ka.children, kb->children) << id.value;
+  }
+  for (const auto& [id, pa] : a.points()) {
+    const MapPoint* pb = b.point(id);
+    ASSERT_NE(pb, nullptr) << id.value;
+    EXPECT_EQ(pa.p_in_world, pb->p_in_world) << id.value;
+    EXPECT_EQ(pa.observations, pb->observations) << id.value;
+    EXPECT_EQ(pa.reference_keyframe, pb->reference_keyframe) << id.value;
+    EXPECT_EQ(pa.visible_count, pb->visible_count) << id.value;
+    EXPECT_EQ(pa.found_count, pb->found_count) << id.value;
+    EXPECT_EQ(cv::norm(pa.descriptor, pb->descriptor, cv::NORM_HAMMING), 0) << id.value;
+  }
+  const Map::Bookkeeping ba = a.bookkeeping(), bb = b.bookkeeping();
+  EXPECT_EQ(ba.replaced_by, bb.replaced_by);
+  EXPECT_EQ(ba.next_point_id, bb.next_point_id);
+  EXPECT_EQ(ba.next_keyframe_index, bb.next_keyframe_index);
+  EXPECT_EQ(ba.erased_keyframes.size(), bb.erased_keyframes.size());
+  EXPECT_EQ(ba.last_keyframe, bb.last_keyframe);
+}
+
+std::shared_ptr<const LoopJob> EditsJob(int64_t id, MapEditLog* log) {
+  auto job = std::make_shared<LoopJob>();
+  job->id = id;
+  job->edits = std::exchange(log->edits, {});
+  return job;
+}
+
+TEST(LoopMapReplica, ReplayedEditsGiveTheOwnersMapAndAJobKeepsItsOwn) {
+  // What Detect does with incremental snapshots: the first job copies the map, the next ones
+  // carry the edits the map recorded since; the lane's replica replays them.
+  Map live = ChainMap(3);
+  auto log = std::make_shared<MapEditLog>();
+  live.set_edit_log(log);
+  auto first = std::make_shared<LoopJob>();
+  first->map = std::make_shared<const Map>(live);
+  log->recording = true;
+  LoopMapReplica replica;
+  EXPECT_EQ(replica.Resolve(first), first);  // a job with a copy is used as it is
+
+  // Keyframes, tracking counters, a pose change, a merge, a removed observation and point.
+  live.Apply(ChainKeyframe(3));
+  live.Apply(ChainKeyframe(4));
+  MapDelta edit;
+  edit.visible_increments = {MapPointId(60), MapPointId(61)};
+  edit.found_increments = {MapPointId(60)};
+  edit.keyframe_poses = {{KeyframeId(2), Pose(-2.1, 0.03)}};
+  edit.point_positions = {{MapPointId(41), Eigen::Vector3d(1, 2, 12)}};
+  edit.merges = {{MapPointId(42), MapPointId(43)}};
+  edit.removed_observations = {{MapPointId(70), KeyframeId(3), 30}};
+  edit.removed_points = {MapPointId(75)};
+  live.Apply(edit);
+  ASSERT_EQ(log->edits.size(), 3u);
+  const Map copy = live;
+  Map other = live;  // a copy of the map records nothing
+  other.Apply(ChainKeyframe(5));
+  EXPECT_EQ(log->edits.size(), 3u);
+
+  const auto second = replica.Resolve(EditsJob(1, log.get()));
+  ASSERT_NE(second->map, nullptr);
+  EXPECT_TRUE(second->edits.empty());
+  ExpectSameMap(*second->map, live);
+  EXPECT_NE(second->map.get(), first->map.get());  // the replica's own copy
+
+  // The next job's edits do not change the map the second job still holds.
+  live.Apply(ChainKeyframe(5));
+  const auto third = replica.Resolve(EditsJob(2, log.get()));
+  ExpectSameMap(*third->map, live);
+  ExpectSameMap(*second->map, copy);
+  EXPECT_EQ(second->map->num_keyframes() + 1, third->map->num_keyframes());
+}
+
+TEST(LoopMapReplica, AMissingJobOrAnUnresolvedJobIsAClearError) {
+  Map live = ChainMap(3);
+  auto log = std::make_shared<MapEditLog>();
+  live.set_edit_log(log);
+  LoopMapReplica replica;
+  log->recording = true;
+  live.Apply(ChainKeyframe(3));
+  // No job with a copy came first.
+  EXPECT_THROW(replica.Resolve(EditsJob(0, log.get())), std::invalid_argument);
+  auto base = std::make_shared<LoopJob>();
+  base->id = 3;
+  base->map = std::make_shared<const Map>(live);
+  replica.Resolve(base);
+  live.Apply(ChainKeyframe(4));
+  // Job 4 was lost: job 5's edits cannot be replayed, nor any after them until a copy comes.
+  EXPECT_THROW(replica.Resolve(EditsJob(5, log.get())), std::invalid_argument);
+  EXPECT_THROW(replica.Resolve(EditsJob(6, log.get())), std::invalid_argument);
+  base->id = 7;
+  base->map = std::make_shared<const Map>(live);
+  EXPECT_EQ(replica.Resolve(base)->map, base->map);
+  // CloseLoop and the global BA refuse a job that still carries edits.
+  const auto unresolved = EditsJob(8, log.get());
+  EXPECT_THROW(LoopCloser::CloseLoop(*unresolved), std::invalid_argument);
+  EXPECT_THROW(LoopCloser::GlobalBundleAdjustment(*unresolved, LoopOutcome{}, nullptr),
+               std::invalid_argument);
+}
+
+TEST(MapEditLog, MoreThanMaxEditsStopsTheRecordingAndDropsThem) {
+  Map live = ChainMap(2);
+  auto log = std::make_shared<MapEditLog>();
+  log->recording = true;
+  log->max_edits = 2;
+  live.set_edit_log(log);
+  live.Apply(ChainKeyframe(2));
+  live.Apply(ChainKeyframe(3));
+  EXPECT_EQ(log->edits.size(), 2u);
+  live.Apply(ChainKeyframe(4));
+  EXPECT_FALSE(log->recording);
+  EXPECT_TRUE(log->overflowed);
+  EXPECT_TRUE(log->edits.empty());
+  live.Apply(ChainKeyframe(5));
+  EXPECT_TRUE(log->edits.empty());
+  // Assigning another map keeps this map's log.
+  live = ChainMap(2);
+  log->recording = true;
+  log->overflowed = false;
+  live.Apply(ChainKeyframe(2));
+  EXPECT_EQ(log->edits.size(), 1u);
 }
 
 }  // namespace
