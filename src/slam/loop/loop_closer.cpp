@@ -174,6 +174,7 @@ LoopCloser::LoopCloser(const LoopClosingOptions& options,
   std::string why;
   if (!options_.IsValid(&why)) throw ConfigError("LoopClosingOptions: " + why);
   if (vocabulary_ && vocabulary_->empty()) vocabulary_.reset();
+  edit_log_->max_edits = static_cast<size_t>(options_.max_snapshot_edits);
 }
 
 void LoopCloser::OnKeyframe(KeyframeId id, const Map& map) {
@@ -355,19 +356,16 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   job->candidates = consistent;
   // The map as it stands: the edits since the previous job when they were all recorded, else a
   // copy; the recording starts again for the next job.
-  MapEditLog& log = *edit_log_;
-  if (log.recording && options_.incremental_snapshots) {
-    job->edits = std::exchange(log.edits, {});
+  if (edit_log_->recording && options_.incremental_snapshots) {
+    job->edits = std::exchange(edit_log_->edits, {});
     ++stats_.map_edit_jobs;
     stats_.map_edits += static_cast<int64_t>(job->edits.size());
   } else {
     job->map = std::make_shared<const Map>(map);
     ++stats_.map_copies;
   }
-  log.edits.clear();
-  log.overflowed = false;
-  log.recording = options_.incremental_snapshots;
-  log.max_edits = static_cast<size_t>(options_.max_snapshot_edits);
+  ResetEditLog();
+  edit_log_->recording = options_.incremental_snapshots;
   job->word_matches = std::move(word_matches);  // the lane does not match them again
   job->loop_edges = loop_edges_;
   job->fix_scale = fix_scale_;
@@ -494,17 +492,24 @@ void LoopCloser::ResetEditLog() {
 
 std::shared_ptr<const LoopJob> LoopMapReplica::Resolve(const std::shared_ptr<const LoopJob>& job) {
   if (job->map) {
-    map_ = std::make_shared<Map>(*job->map);
+    base_ = job->map;
+    map_.reset();
     last_job_ = job->id;
     return job;
   }
-  if (!map_ || job->id != last_job_ + 1) {
+  if ((!base_ && !map_) || job->id != last_job_ + 1) {
+    base_.reset();
     map_.reset();
     throw std::invalid_argument("LoopMapReplica: loop job " + std::to_string(job->id) +
                                 " carries the map edits since job " + std::to_string(job->id - 1) +
                                 ", which this replica has not seen");
   }
-  if (map_.use_count() > 1) map_ = std::make_shared<Map>(*map_);  // a job still reads it
+  if (!map_) {
+    map_ = std::make_shared<Map>(*base_);  // the first edits after a job with a copy
+    base_.reset();
+  } else if (map_.use_count() > 1) {
+    map_ = std::make_shared<Map>(*map_);  // a job still reads it
+  }
   try {
     for (const MapDelta& edit : job->edits) map_->Apply(edit);
   } catch (...) {
@@ -512,15 +517,9 @@ std::shared_ptr<const LoopJob> LoopMapReplica::Resolve(const std::shared_ptr<con
     throw;
   }
   last_job_ = job->id;
-  auto resolved = std::make_shared<LoopJob>();
-  resolved->id = job->id;
-  resolved->query = job->query;
-  resolved->candidates = job->candidates;
+  auto resolved = std::make_shared<LoopJob>(*job);
+  resolved->edits = {};
   resolved->map = map_;
-  resolved->word_matches = job->word_matches;
-  resolved->loop_edges = job->loop_edges;
-  resolved->fix_scale = job->fix_scale;
-  resolved->options = job->options;
   return resolved;
 }
 

@@ -278,7 +278,10 @@ class LoopMapReplica {
   std::shared_ptr<const LoopJob> Resolve(const std::shared_ptr<const LoopJob>& job);
 
  private:
-  std::shared_ptr<Map> map_;  // shared with the last resolved job; copied before an edit if held
+  // The last job's map: the copy a job carried (base_; copied into map_ only when edits come)
+  // or this replica's own, shared with the jobs resolved on it (copied before an edit if held).
+  std::shared_ptr<const Map> base_;
+  std::shared_ptr<Map> map_;
   int64_t last_job_ = -1;
 };
 
