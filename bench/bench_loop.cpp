@@ -933,6 +933,34 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       "of the same clip further than %.0f m lie %.1f-%.1f m from the query)\n",
       max_other_inliers, max_correct_inliers, kPlaceRadiusM, far_min, far_max);
 
+  // The best database frames again, (a) for the queries whose database holds a frame of their own
+  // clip (a clip's first queries can only answer with another clip), (b) with the loop detector's
+  // own minimum score, the query's lowest score against its clip's frames in its window.
+  {
+    std::array<int, 3> own{}, gated{};
+    int own_queries = 0, gated_queries = 0;
+    for (const Best& b : bests) {
+      const size_t q = b.query;
+      bool has_own = false, any = false;
+      double min_score = 1.0;
+      for (size_t j = 0; j < n; ++j) {
+        if (images[j].clip != images[q].clip) continue;
+        if (in_database(q, j)) has_own = true;
+        if (j < q && in_window(q, j)) min_score = std::min(min_score, score[q * n + j]), any = true;
+      }
+      if (has_own) ++own_queries, ++own[static_cast<int>(b.verdict)];
+      if (any && b.score >= min_score) ++gated_queries, ++gated[static_cast<int>(b.verdict)];
+    }
+    std::printf(
+        "\nbest database frame, queries whose database holds frames of their own clip: %d "
+        "queries, %d correct, %d same clip further than %.0f m, %d of another clip\n"
+        "best database frame scoring at least the query's lowest score against its own window "
+        "(the detector's minimum score): %d queries answered, %d correct, %d same clip further, %d "
+        "of another clip\n",
+        own_queries, own[0], own[1], kPlaceRadiusM, own[2], gated_queries, gated[0], gated[1],
+        gated[2]);
+  }
+
   const int revisits = clip_queries(-1).revisits;
   std::printf("\nbest database frame with a minimum score:\n%9s %8s %7s %5s %9s %7s\n", "min score",
               "accepted", "correct", "other", "precision", "recall");
