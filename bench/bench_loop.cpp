@@ -698,6 +698,14 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     if (images[j].clip != images[q].clip) return true;
     return images[j].frame < images[q].frame && !in_window(q, j);
   };
+  // The loop detector's minimum score of query q: its lowest score against its clip's earlier
+  // frames in its window (standing in for its covisible keyframes); none when it has no such frame.
+  auto window_min_score = [&](size_t q) -> std::optional<double> {
+    std::optional<double> lowest;
+    for (size_t j = 0; j < q; ++j)
+      if (in_window(q, j)) lowest = std::min(lowest.value_or(1.0), score[q * n + j]);
+    return lowest;
+  };
   enum class Verdict { kCorrect, kSameClipFar, kOtherClip };
   auto verdict = [&](size_t q, size_t j) {
     if (images[j].clip != images[q].clip) return Verdict::kOtherClip;
@@ -759,11 +767,9 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   int queried = 0;
   for (size_t q = 0; q < n; ++q) {
     if (q > 0 && images[q - 1].clip != images[q].clip) groups.clear();
-    double min_score = 1.0;
-    bool any = false;
-    for (size_t j = 0; j < q; ++j)
-      if (in_window(q, j)) min_score = std::min(min_score, score[q * n + j]), any = true;
-    if (!any) continue;
+    const std::optional<double> lowest = window_min_score(q);
+    if (!lowest) continue;
+    const double min_score = *lowest;
     ++queried;
     int most_common = 0;
     for (size_t j = 0; j < n; ++j)
@@ -938,19 +944,17 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   // own minimum score, the query's lowest score against its clip's frames in its window.
   {
     std::array<int, 3> own{}, gated{};
-    int own_queries = 0, gated_queries = 0;
     for (const Best& b : bests) {
       const size_t q = b.query;
-      bool has_own = false, any = false;
-      double min_score = 1.0;
-      for (size_t j = 0; j < n; ++j) {
-        if (images[j].clip != images[q].clip) continue;
-        if (in_database(q, j)) has_own = true;
-        if (j < q && in_window(q, j)) min_score = std::min(min_score, score[q * n + j]), any = true;
-      }
-      if (has_own) ++own_queries, ++own[static_cast<int>(b.verdict)];
-      if (any && b.score >= min_score) ++gated_queries, ++gated[static_cast<int>(b.verdict)];
+      bool has_own = false;
+      for (size_t j = 0; j < n && !has_own; ++j)
+        has_own = images[j].clip == images[q].clip && in_database(q, j);
+      if (has_own) ++own[static_cast<int>(b.verdict)];
+      const std::optional<double> min_score = window_min_score(q);
+      if (min_score && b.score >= *min_score) ++gated[static_cast<int>(b.verdict)];
     }
+    const int own_queries = own[0] + own[1] + own[2];
+    const int gated_queries = gated[0] + gated[1] + gated[2];
     std::printf(
         "\nbest database frame, queries whose database holds frames of their own clip: %d "
         "queries, %d correct, %d same clip further than %.0f m, %d of another clip\n"
