@@ -486,7 +486,6 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
 
 void LoopCloser::ResetEditLog() {
   edit_log_->recording = false;
-  edit_log_->overflowed = false;
   edit_log_->edits = {};
 }
 

@@ -602,7 +602,6 @@ MapApplyResult Map::Apply(const MapDelta& delta) {
   if (MapEditLog* log = edit_log_.log.get(); log && log->recording) {
     if (log->max_edits > 0 && log->edits.size() >= log->max_edits) {
       log->recording = false;
-      log->overflowed = true;
       log->edits = {};
     } else {
       log->edits.push_back(delta);

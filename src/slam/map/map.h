@@ -124,7 +124,6 @@ struct MapEditLog {
   bool recording = false;
   size_t max_edits = 0;  // one more stops the recording and drops the edits; 0: no limit
   std::vector<MapDelta> edits;
-  bool overflowed = false;  // set when max_edits stopped it
 };
 
 class Map {

@@ -371,14 +371,12 @@ TEST(MapEditLog, MoreThanMaxEditsStopsTheRecordingAndDropsThem) {
   EXPECT_EQ(log->edits.size(), 2u);
   live.Apply(ChainKeyframe(4));
   EXPECT_FALSE(log->recording);
-  EXPECT_TRUE(log->overflowed);
   EXPECT_TRUE(log->edits.empty());
   live.Apply(ChainKeyframe(5));
   EXPECT_TRUE(log->edits.empty());
   // Assigning another map keeps this map's log.
   live = ChainMap(2);
   log->recording = true;
-  log->overflowed = false;
   live.Apply(ChainKeyframe(2));
   EXPECT_EQ(log->edits.size(), 1u);
 }
