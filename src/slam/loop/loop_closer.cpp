@@ -357,9 +357,9 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   // The map as it stands: the edits since the previous job when they were all recorded, else a
   // copy; the recording starts again for the next job.
   if (edit_log_->recording && options_.incremental_snapshots) {
-    job->edits = std::exchange(edit_log_->edits, {});
+    job->edits = std::make_shared<const std::vector<MapDelta>>(std::exchange(edit_log_->edits, {}));
     ++stats_.map_edit_jobs;
-    stats_.map_edits += static_cast<int64_t>(job->edits.size());
+    stats_.map_edits += static_cast<int64_t>(job->edits->size());
   } else {
     job->map = std::make_shared<const Map>(map);
     ++stats_.map_copies;
@@ -510,14 +510,15 @@ std::shared_ptr<const LoopJob> LoopMapReplica::Resolve(const std::shared_ptr<con
     map_ = std::make_shared<Map>(*map_);  // a job still reads it
   }
   try {
-    for (const MapDelta& edit : job->edits) map_->Apply(edit);
+    if (job->edits)
+      for (const MapDelta& edit : *job->edits) map_->Apply(edit);
   } catch (...) {
     map_.reset();  // no longer the owner's map
     throw;
   }
   last_job_ = job->id;
   auto resolved = std::make_shared<LoopJob>(*job);
-  resolved->edits = {};
+  resolved->edits.reset();
   resolved->map = map_;
   return resolved;
 }

@@ -87,9 +87,10 @@ struct LoopJob {
   std::vector<KeyframeId> candidates;  // best first
   // The map when the job was made (owned copy); null when the job carries `edits` instead:
   // the map edits made since the previous job, which its lane's LoopMapReplica replays on its
-  // copy of that job's map (LoopMapReplica::Resolve fills `map`).
+  // copy of that job's map (LoopMapReplica::Resolve fills `map`; shared, so that the resolved
+  // job it makes from this one does not copy them).
   std::shared_ptr<const Map> map;
-  std::vector<MapDelta> edits;
+  std::shared_ptr<const std::vector<MapDelta>> edits;
   // Query <-> candidate keypoint pairs by words, as the owner's precheck found them on the map
   // the snapshot copies (one entry per candidate).
   std::map<KeyframeId, std::vector<std::pair<int, int>>> word_matches;

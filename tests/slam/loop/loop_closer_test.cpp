@@ -285,7 +285,7 @@ void ExpectSameMap(const Map& a, const Map& b) {
 std::shared_ptr<const LoopJob> EditsJob(int64_t id, MapEditLog* log) {
   auto job = std::make_shared<LoopJob>();
   job->id = id;
-  job->edits = std::exchange(log->edits, {});
+  job->edits = std::make_shared<const std::vector<MapDelta>>(std::exchange(log->edits, {}));
   return job;
 }
 
@@ -321,7 +321,7 @@ TEST(LoopMapReplica, ReplayedEditsGiveTheOwnersMapAndAJobKeepsItsOwn) {
 
   const auto second = replica.Resolve(EditsJob(1, log.get()));
   ASSERT_NE(second->map, nullptr);
-  EXPECT_TRUE(second->edits.empty());
+  EXPECT_EQ(second->edits, nullptr);
   ExpectSameMap(*second->map, live);
   EXPECT_NE(second->map.get(), first->map.get());  // the replica's own copy
 
