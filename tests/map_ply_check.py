@@ -49,6 +49,8 @@ def main(out):
     assert all(1 <= v["reason"] <= 10 for v in removed), "a removed point must have a reason"
     keyframes = [l for l in open(f"{out}/keyframes.txt") if l.strip() and not l.startswith("#")]
     assert len(keyframes) == stats["keyframes"] == stats["map"]["keyframes"]
+    # KITTI 06's first frames revisit nothing: no loop (each would be [query, earlier match]).
+    assert stats["map"]["loops"] == [], stats["map"]["loops"]
     print(f"map.ply {len(kept)} points, map_removed.ply {len(removed)} points, "
           f"{len(keyframes)} keyframes: ok")
 

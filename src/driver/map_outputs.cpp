@@ -40,7 +40,9 @@ void WritePly(const std::string& path, size_t count, const std::string& comments
   if (!out) throw InputError(path, 0, "cannot write");
 }
 
-// Top view (x right, z up the picture) of kept points, removed points and keyframes.
+const cv::Scalar kLoopColour(40, 170, 40);  // BGR
+
+// Top view (x right, z up the picture) of kept points, removed points, keyframes and loops.
 void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
                      const RunSummary& summary) {
   std::vector<double> xs, zs;
@@ -84,10 +86,18 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
     const auto& b = map.keyframes[i].world_from_cam.translation();
     cv::line(canvas, pixel(a.x(), a.z()), pixel(b.x(), b.z()), cv::Scalar(200, 80, 0), 2);
   }
+  // Loops on top: a line between the two keyframes and a ring on the query's.
+  for (const auto& [query, match] : map.loops) {
+    const auto& a = map.keyframes.at(query).world_from_cam.translation();
+    const auto& b = map.keyframes.at(match).world_from_cam.translation();
+    cv::line(canvas, pixel(a.x(), a.z()), pixel(b.x(), b.z()), kLoopColour, 2);
+    cv::circle(canvas, pixel(a.x(), a.z()), 7, kLoopColour, 2);
+  }
   cv::putText(canvas,
               std::to_string(map.points.size()) + " map points (grey), " +
                   std::to_string(summary.removed_points.size()) +
-                  " removed by the filter (red), keyframes (blue); top view, x right, z up",
+                  " removed by the filter (red), keyframes (blue), loops closed (green): " +
+                  std::to_string(map.loops.size()) + "; top view, x right, z up",
               cv::Point(10, 15), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1);
   if (!cv::imwrite(path, canvas)) throw InputError(path, 0, "cannot write");
 }
@@ -121,11 +131,13 @@ nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnaps
            "property uchar reason", body);
   WriteTumTrajectory(out_dir + "/keyframes.txt", map.keyframes);
   WriteMapPicture(out_dir + "/map.png", map, summary);
-  return {{"points", map.points.size()},
-          {"removed_points", summary.removed_points.size()},
-          {"removed_by_reason", by_reason},
-          {"removed_by_truth", by_truth},
-          {"keyframes", map.keyframes.size()}};
+  nlohmann::json summary_json = {{"points", map.points.size()},
+                                 {"removed_points", summary.removed_points.size()},
+                                 {"removed_by_reason", by_reason},
+                                 {"removed_by_truth", by_truth},
+                                 {"keyframes", map.keyframes.size()}};
+  summary_json["loops"] = map.loops;
+  return summary_json;
 }
 
 }  // namespace pcr::driver

@@ -12,6 +12,7 @@
 #include <condition_variable>
 #include <exception>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <opencv2/core/utility.hpp>
@@ -860,8 +861,18 @@ PipelineResult GraphRun::Collect() {
   for (const auto& [id, kf] : map.keyframes()) keyframes.push_back(&kf);
   std::sort(keyframes.begin(), keyframes.end(),
             [](const Keyframe* a, const Keyframe* b) { return a->index < b->index; });
-  for (const Keyframe* kf : keyframes)
+  std::map<KeyframeId, size_t> position_of;
+  for (const Keyframe* kf : keyframes) {
+    position_of.emplace(kf->id, out.map.keyframes.size());
     out.map.keyframes.push_back({kf->frame->t_ns(), -1, kf->cam_from_world.inverse()});
+  }
+  for (const LoopEvent& e : out.loop_events) {
+    if (e.outcome.kind != LoopOutcomeKind::kCorrected || !e.outcome.match) continue;
+    const auto a = position_of.find(map.ResolveKeyframe(e.outcome.match->query));
+    const auto b = position_of.find(map.ResolveKeyframe(e.outcome.match->matched));
+    if (a != position_of.end() && b != position_of.end())
+      out.map.loops.emplace_back(a->second, b->second);
+  }
   out.events = profiler_.Events();
   if (error_) {
     out.error_frame_index = error_->frame_index;

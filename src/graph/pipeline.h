@@ -39,6 +39,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "graph/pipeline_options.h"
@@ -117,6 +118,10 @@ struct MapCloudPoint {
 struct MapSnapshot {
   std::vector<MapCloudPoint> points;
   Trajectory keyframes;  // world_from_cam of every keyframe, by insertion order
+  // Every loop closed (a correction applied), as indices into `keyframes`: the query keyframe
+  // and the earlier keyframe it was matched to (each the nearest live one along the spanning tree
+  // when it was culled since).
+  std::vector<std::pair<size_t, size_t>> loops;
 };
 
 struct PipelineResult {

@@ -84,6 +84,20 @@ TEST(LoopClosing, TheRevisitIsClosedAndTheTrajectoryImprovesSequentially) {
   EXPECT_GE(on.result.pipeline.loop_stats.global_bas, 1);
   // Measured 0.0328 against 0.2167 m (0.15x).
   EXPECT_LT(on.ate_m, 0.5 * off.ate_m);
+  // The map's snapshot (map.png, stats.json) holds the loop: from a keyframe at the revisit
+  // to one of the first lap, which is near it after the correction.
+  const graph::MapSnapshot& map = on.result.pipeline.map;
+  EXPECT_TRUE(off.result.pipeline.map.loops.empty());
+  ASSERT_EQ(map.loops.size(), static_cast<size_t>(CorrectionsApplied(on, nullptr)));
+  for (const auto& [query, match] : map.loops) {
+    ASSERT_LT(query, map.keyframes.size());
+    ASSERT_LT(match, map.keyframes.size());
+    EXPECT_GT(query, match + 20);
+    EXPECT_LT((map.keyframes[query].world_from_cam.translation() -
+               map.keyframes[match].world_from_cam.translation())
+                  .norm(),
+              10.0);
+  }
 }
 
 TEST(LoopClosing, PipelinedRunsTheLoopLaneBesideTrackingAndLosesNoPose) {
