@@ -178,6 +178,8 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   summary.tracked = p.tracked;
   summary.keyframes = p.keyframes;
   summary.map_points = p.map_points;
+  for (const auto& [query, match] : p.map.loops)
+    summary.loops_closed_t_ns.push_back(p.map.keyframes[query].t_ns);
   int64_t end = static_cast<int64_t>(range.end);
   if (!p.error.empty() && p.error_frame_index >= 0) end = p.error_frame_index;
   CompleteSummary(dataset, static_cast<int64_t>(range.first), end, !stereo, &summary);

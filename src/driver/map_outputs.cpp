@@ -40,8 +40,6 @@ void WritePly(const std::string& path, size_t count, const std::string& comments
   if (!out) throw InputError(path, 0, "cannot write");
 }
 
-const cv::Scalar kLoopColour(40, 170, 40);  // BGR
-
 // Top view (x right, z up the picture) of kept points, removed points, keyframes and loops.
 void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
                      const RunSummary& summary) {
@@ -87,11 +85,12 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
     cv::line(canvas, pixel(a.x(), a.z()), pixel(b.x(), b.z()), cv::Scalar(200, 80, 0), 2);
   }
   // Loops on top: a line between the two keyframes and a ring on the query's.
+  const cv::Scalar loop_bgr(kLoopColour.b, kLoopColour.g, kLoopColour.r);
   for (const auto& [query, match] : map.loops) {
     const auto& a = map.keyframes.at(query).world_from_cam.translation();
     const auto& b = map.keyframes.at(match).world_from_cam.translation();
-    cv::line(canvas, pixel(a.x(), a.z()), pixel(b.x(), b.z()), kLoopColour, 2);
-    cv::circle(canvas, pixel(a.x(), a.z()), 7, kLoopColour, 2);
+    cv::line(canvas, pixel(a.x(), a.z()), pixel(b.x(), b.z()), loop_bgr, 2);
+    cv::circle(canvas, pixel(a.x(), a.z()), 7, loop_bgr, 2);
   }
   cv::putText(canvas,
               std::to_string(map.points.size()) + " map points (grey), " +

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -178,8 +179,15 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
     plot.title = "PCR-ORB " + s.dataset_name + " (top view, " +
                  (s.eval_options.alignment.mode == eval::AlignMode::kSim3 ? "Sim(3)" : "SE(3)") +
                  "-aligned)";
-    eval::WriteTrajectoryPlot(out_dir + "/trajectory.png",
-                              eval::GroundTruthAndEstimate(e.reference, e.aligned_estimate), plot);
+    std::vector<eval::PlotSeries> series =
+        eval::GroundTruthAndEstimate(e.reference, e.aligned_estimate);
+    eval::PlotSeries loops{"loop closed", {}, kLoopColour, 2.0, eval::PlotStyle::kRings};
+    for (const StampedPose& p : e.aligned_estimate)
+      if (std::find(s.loops_closed_t_ns.begin(), s.loops_closed_t_ns.end(), p.t_ns) !=
+          s.loops_closed_t_ns.end())
+        loops.trajectory.push_back(p);
+    if (!loops.trajectory.empty()) series.push_back(std::move(loops));
+    eval::WriteTrajectoryPlot(out_dir + "/trajectory.png", series, plot);
   }
   if (extra.is_object())
     for (const auto& [key, value] : extra.items()) j[key] = value;

@@ -8,6 +8,7 @@
 #include "driver/slam_config.h"
 #include "eval/confusion.h"
 #include "eval/evaluation.h"
+#include "eval/plot.h"
 #include "io/dataset.h"
 #include "slam/common/timing.h"
 #include "slam/system/slam_system.h"
@@ -25,6 +26,8 @@ struct FrameRange {
   // ConfigError "<what> selects no frame of <size>" when nothing is left.
   FrameRange Within(size_t size, const std::string& what) const;
 };
+
+inline constexpr eval::Rgb kLoopColour{40, 170, 40};  // loops on trajectory.png and map.png
 
 struct RunSummary {
   std::string dataset_name;
@@ -61,6 +64,9 @@ struct RunSummary {
     char truth = '-';  // 'm' moving object, 'p' parked object, 's' static, '-' unknown
   };
   std::vector<RemovedPoint> removed_points;
+  // The query keyframes' timestamps of the loops closed (ringed on trajectory.png in
+  // kLoopColour).
+  std::vector<int64_t> loops_closed_t_ns;
   std::string error;  // non-empty when the run stopped early (outputs cover the frames done)
 };
 

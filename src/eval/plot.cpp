@@ -283,6 +283,12 @@ cv::Mat RenderTrajectoryPlot(const std::vector<PlotSeries>& series, const PlotOp
     for (const StampedPose& p : s.trajectory)
       points.push_back(Fixed(l.Pixel(p.world_from_cam) - area_origin));
     const int thickness = std::max(1, static_cast<int>(std::lround(s.line_width_px)));
+    if (s.style == PlotStyle::kRings) {
+      for (const cv::Point& p : points)
+        cv::circle(area, p, static_cast<int>(kPlotRingRadiusPx) << kShift, Bgr(s.color), thickness,
+                   cv::LINE_AA, kShift);
+      continue;
+    }
     cv::polylines(area, points, false, Bgr(s.color), thickness, cv::LINE_AA, kShift);
     cv::circle(area, points.front(), 5 << kShift, Bgr(s.color), cv::FILLED, cv::LINE_AA, kShift);
   }
@@ -299,8 +305,13 @@ cv::Mat RenderTrajectoryPlot(const std::vector<PlotSeries>& series, const PlotOp
   for (size_t i = 0; i < series.size(); ++i) {
     const int y = box.y + LegendBox::kPadding + 8 + LegendBox::kRowHeight * static_cast<int>(i);
     const int x = box.x + LegendBox::kPadding;
-    cv::line(img, {x, y}, {x + LegendBox::kSampleWidth, y}, Bgr(series[i].color),
-             std::max(1, static_cast<int>(std::lround(series[i].line_width_px))), cv::LINE_AA);
+    const int thickness = std::max(1, static_cast<int>(std::lround(series[i].line_width_px)));
+    if (series[i].style == PlotStyle::kRings)
+      cv::circle(img, {x + LegendBox::kSampleWidth / 2, y}, static_cast<int>(kPlotRingRadiusPx),
+                 Bgr(series[i].color), thickness, cv::LINE_AA);
+    else
+      cv::line(img, {x, y}, {x + LegendBox::kSampleWidth, y}, Bgr(series[i].color), thickness,
+               cv::LINE_AA);
     PutText(img, series[i].label, {x + LegendBox::kSampleWidth + 8, y + 5}, kLabelFontScale,
             kTextColor);
   }
@@ -366,6 +377,16 @@ std::string RenderTrajectoryPlotSvg(const std::vector<PlotSeries>& series, const
       "stroke-linecap=\"round\">\n";
   for (const PlotSeries& s : series) {
     if (s.trajectory.empty()) continue;
+    if (s.style == PlotStyle::kRings) {
+      for (const StampedPose& p : s.trajectory) {
+        const cv::Point2d px = l.Pixel(p.world_from_cam);
+        svg += fmt::format(
+            "<circle cx=\"{:.2f}\" cy=\"{:.2f}\" r=\"{:g}\" stroke=\"{}\" "
+            "stroke-width=\"{:g}\"/>\n",
+            px.x, px.y, kPlotRingRadiusPx, Hex(s.color), s.line_width_px);
+      }
+      continue;
+    }
     svg += fmt::format("<polyline stroke=\"{}\" stroke-width=\"{:g}\" points=\"", Hex(s.color),
                        s.line_width_px);
     for (const StampedPose& p : s.trajectory) {
@@ -390,11 +411,19 @@ std::string RenderTrajectoryPlotSvg(const std::vector<PlotSeries>& series, const
   for (size_t i = 0; i < series.size(); ++i) {
     const int y = box.y + LegendBox::kPadding + 8 + LegendBox::kRowHeight * static_cast<int>(i);
     const int x = box.x + LegendBox::kPadding;
-    svg += fmt::format(
-        "<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"{}\" stroke-width=\"{:g}\"/>"
-        "<text x=\"{}\" y=\"{}\" font-size=\"13\" fill=\"{}\">{}</text>\n",
-        x, y, x + LegendBox::kSampleWidth, y, Hex(series[i].color), series[i].line_width_px,
-        x + LegendBox::kSampleWidth + 8, y + 5, Hex(kTextColor), EscapeXml(series[i].label));
+    if (series[i].style == PlotStyle::kRings)
+      svg += fmt::format(
+          "<circle cx=\"{}\" cy=\"{}\" r=\"{:g}\" fill=\"none\" stroke=\"{}\" "
+          "stroke-width=\"{:g}\"/>",
+          x + LegendBox::kSampleWidth / 2, y, kPlotRingRadiusPx, Hex(series[i].color),
+          series[i].line_width_px);
+    else
+      svg += fmt::format(
+          "<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"{}\" stroke-width=\"{:g}\"/>", x,
+          y, x + LegendBox::kSampleWidth, y, Hex(series[i].color), series[i].line_width_px);
+    svg += fmt::format("<text x=\"{}\" y=\"{}\" font-size=\"13\" fill=\"{}\">{}</text>\n",
+                       x + LegendBox::kSampleWidth + 8, y + 5, Hex(kTextColor),
+                       EscapeXml(series[i].label));
   }
   svg += "</g>\n</svg>\n";
   return svg;

@@ -15,12 +15,19 @@ struct Rgb {
   uint8_t r = 0, g = 0, b = 0;
 };
 
+// kLine: a polyline through the positions with a dot at the first; kRings: a ring on each
+// position (places along a trajectory, e.g. where loops were closed).
+enum class PlotStyle { kLine, kRings };
+
 struct PlotSeries {
   std::string label;
   Trajectory trajectory;  // positions of world_from_cam are drawn
   Rgb color;
   double line_width_px = 2.0;
+  PlotStyle style = PlotStyle::kLine;
 };
+
+inline constexpr double kPlotRingRadiusPx = 8.0;
 
 struct PlotOptions {
   std::string title = "Trajectory (top view)";

@@ -89,6 +89,7 @@ TEST(LoopClosing, TheRevisitIsClosedAndTheTrajectoryImprovesSequentially) {
   const graph::MapSnapshot& map = on.result.pipeline.map;
   EXPECT_TRUE(off.result.pipeline.map.loops.empty());
   ASSERT_EQ(map.loops.size(), static_cast<size_t>(CorrectionsApplied(on, nullptr)));
+  EXPECT_EQ(on.result.summary.loops_closed_t_ns.size(), map.loops.size());  // trajectory.png
   for (const auto& [query, match] : map.loops) {
     ASSERT_LT(query, map.keyframes.size());
     ASSERT_LT(match, map.keyframes.size());

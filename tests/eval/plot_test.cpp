@@ -59,6 +59,39 @@ TEST(PlotTest, PngHasBothTrajectoriesAndAxes) {
   EXPECT_EQ(CountColor(img.rowRange(0, 5), Rgb{30, 30, 30}, 60), 0u);
 }
 
+TEST(PlotTest, RingsMarkTheirPlacesInPngAndSvg) {
+  // Two rings (e.g. where loops were closed) on KITTI 07's trajectory: a ring of radius
+  // kPlotRingRadiusPx in its colour around each place (a ring, not a disc) and one legend row; the
+  // SVG has one circle per place and no polyline for them.
+  std::vector<PlotSeries> series = Seq07Series();
+  const Rgb green{40, 170, 40};
+  PlotSeries rings{"loop closed",
+                   {series[1].trajectory[300], series[1].trajectory[900]},
+                   green,
+                   2.0,
+                   PlotStyle::kRings};
+  series.push_back(rings);
+  const cv::Mat img = RenderTrajectoryPlot(series, PlotOptions{});
+  const size_t without = CountColor(RenderTrajectoryPlot(Seq07Series(), PlotOptions{}), green, 10);
+  EXPECT_EQ(without, 0u);
+  // Each ring is about 2 * pi * 8 px long and 2 px wide (measured 262 px for the three, the
+  // legend's included; three filled discs of that radius would cover about 600).
+  const size_t ink = CountColor(img, green, 10);
+  EXPECT_GT(ink, 3 * 40u);
+  EXPECT_LT(ink, 3 * 160u);
+  const std::string svg = RenderTrajectoryPlotSvg(series, PlotOptions{});
+  size_t circles = 0, polylines = 0;
+  for (size_t at = svg.find("stroke=\"#28aa28\""); at != std::string::npos;
+       at = svg.find("stroke=\"#28aa28\"", at + 1))
+    ++circles;
+  for (size_t at = svg.find("<polyline"); at != std::string::npos;
+       at = svg.find("<polyline", at + 1))
+    ++polylines;
+  EXPECT_EQ(circles, 3u);  // two places and the legend's sample
+  EXPECT_EQ(polylines, 2u);
+  EXPECT_NE(svg.find(">loop closed<"), std::string::npos);
+}
+
 TEST(PlotTest, SvgHasPolylinesLegendAndTicks) {
   const std::vector<PlotSeries> series = Seq07Series();
   PlotOptions options;
