@@ -27,6 +27,14 @@ size_t CountColor(const cv::Mat& bgr, Rgb c, int tolerance) {
   return count;
 }
 
+// How often needle occurs in text.
+size_t CountOf(const std::string& text, const std::string& needle) {
+  size_t count = 0;
+  for (size_t at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1))
+    ++count;
+  return count;
+}
+
 std::vector<PlotSeries> Seq07Series() {
   const Trajectory gt = ReadKittiTrajectory(pcr::test::SharedPath("data/kitti/poses/07.txt"));
   Trajectory est = gt;
@@ -80,15 +88,8 @@ TEST(PlotTest, RingsMarkTheirPlacesInPngAndSvg) {
   EXPECT_GT(ink, 3 * 40u);
   EXPECT_LT(ink, 3 * 160u);
   const std::string svg = RenderTrajectoryPlotSvg(series, PlotOptions{});
-  size_t circles = 0, polylines = 0;
-  for (size_t at = svg.find("stroke=\"#28aa28\""); at != std::string::npos;
-       at = svg.find("stroke=\"#28aa28\"", at + 1))
-    ++circles;
-  for (size_t at = svg.find("<polyline"); at != std::string::npos;
-       at = svg.find("<polyline", at + 1))
-    ++polylines;
-  EXPECT_EQ(circles, 3u);  // two places and the legend's sample
-  EXPECT_EQ(polylines, 2u);
+  EXPECT_EQ(CountOf(svg, "stroke=\"#28aa28\""), 3u);  // two places and the legend's sample
+  EXPECT_EQ(CountOf(svg, "<polyline"), 2u);
   EXPECT_NE(svg.find(">loop closed<"), std::string::npos);
 }
 
@@ -105,11 +106,7 @@ TEST(PlotTest, SvgHasPolylinesLegendAndTicks) {
   const std::string svg = buffer.str();
   EXPECT_EQ(svg.rfind("<?xml", 0), 0u);
   EXPECT_NE(svg.find("</svg>"), std::string::npos);
-  size_t polylines = 0;
-  for (size_t at = svg.find("<polyline"); at != std::string::npos;
-       at = svg.find("<polyline", at + 1))
-    ++polylines;
-  EXPECT_EQ(polylines, 2u);
+  EXPECT_EQ(CountOf(svg, "<polyline"), 2u);
   EXPECT_NE(svg.find(">ground truth<"), std::string::npos);
   EXPECT_NE(svg.find(">PCR-ORB<"), std::string::npos);
   EXPECT_NE(svg.find("KITTI 07 &lt;top view&gt;"), std::string::npos);
