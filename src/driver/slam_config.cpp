@@ -35,6 +35,8 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("stereo", "sad_search_half_px", &st.sad_search_half_px);
   s.Add("stereo", "outlier_sad_factor", &st.outlier_sad_factor);
   s.Add("stereo", "subpixel_fit", &c.subpixel_fit, "parabola or equiangular");
+  s.Add("stereo", "slant_refinement", &st.slant_refinement,
+        "Gauss-Newton refinement with a disparity gradient down the window");
   s.Add("orb", "quadtree_oversplit", &orb.quadtree_oversplit,
         "1: one corner per quadtree node (ORB-SLAM); 2: strongest of twice as many nodes");
 

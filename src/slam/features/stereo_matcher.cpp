@@ -1,6 +1,9 @@
 #include "slam/features/stereo_matcher.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <climits>
 #include <cmath>
 #include <cstdlib>
@@ -14,6 +17,8 @@ namespace {
 constexpr float kMinDisparityPx = 0.01f;  // disparities below this are clamped (depth ~ Bf/0.01)
 // Row band of a right keypoint: y +- kRowBandSigmas * scale of its octave.
 constexpr float kRowBandSigmas = 2.0f;
+// The slanted refinement may move a disparity this far (level pixels) from the SAD fit.
+constexpr double kMaxSlantMovePx = 1.0;
 
 // Buffers of the correlation search, reused across keypoints.
 struct SadWorkspace {
@@ -70,6 +75,79 @@ void ZeroMeanSadCosts(const cv::Mat& left, int xl, const cv::Mat& right, int xr0
       for (int k = 0; k < n_shifts; ++k) cost[k] += std::abs(l - rc[k] - offset[k]);
     }
   }
+}
+
+// Gauss-Newton refinement of a level disparity over the (2w+1)^2 window of `left` at (xl, y): the
+// right window is sampled at x - (d + gy * dy) on each row dy (a surface whose disparity changes
+// down the window, as a road's does by ~0.33 px per row at KITTI geometry), with a brightness
+// offset. Inverse compositional (Baker and Matthews): the Jacobian comes from the left window's
+// gradient, so the 3x3 system is factored once; rows stay whole pixels, so each row is one linear
+// interpolation along x. Returns false (d unchanged) when a sample leaves the image, the left
+// window has no x gradient or d moves more than max_move_px.
+bool RefineSlantedDisparity(const cv::Mat& left, const cv::Mat& right, int xl, int y, int w,
+                            double max_move_px, double* d) {
+  const int side = 2 * w + 1;
+  if (xl - w - 1 < 0 || xl + w + 1 >= left.cols) return false;
+  // Left window gradient and the Jacobian sums: (-g, -g * dy, -1) for (d, gy, offset).
+  std::array<float, 31 * 31> gradient;
+  double sg2 = 0, sg2y = 0, sg2y2 = 0, sg = 0, sgy = 0;
+  for (int dy = -w; dy <= w; ++dy) {
+    const std::uint8_t* l = left.ptr<std::uint8_t>(y + dy) + xl - w;
+    float row_g2 = 0, row_g = 0;
+    for (int c = 0; c < side; ++c) {
+      const float g = 0.5f * static_cast<float>(l[c + 1] - l[c - 1]);
+      gradient[(dy + w) * side + c] = g;
+      row_g2 += g * g;
+      row_g += g;
+    }
+    sg2 += row_g2;
+    sg2y += row_g2 * dy;
+    sg2y2 += static_cast<double>(row_g2) * dy * dy;
+    sg += row_g;
+    sgy += row_g * dy;
+  }
+  if (!(sg2 > 0)) return false;
+  Eigen::Matrix3d h;
+  h << sg2, sg2y, sg, sg2y, sg2y2, sgy, sg, sgy, side * side;
+  const Eigen::LDLT<Eigen::Matrix3d> solver(h);
+  if (solver.info() != Eigen::Success || !solver.isPositive()) return false;
+
+  const double d0 = *d;
+  double disparity = d0, gy = 0.0, offset = 0.0;
+  constexpr int kIterations = 5;
+  for (int it = 0; it < kIterations; ++it) {
+    // Residual e = right(x - d - gy * dy) + offset - left(x); right-hand side sum(J * e).
+    double sge = 0, sgye = 0, se = 0;
+    for (int dy = -w; dy <= w; ++dy) {
+      const double x0 = xl - w - (disparity + gy * dy);  // right position of the row's first pixel
+      const int i0 = static_cast<int>(std::floor(x0));
+      if (i0 < 0 || i0 + side >= right.cols) return false;
+      const float a = static_cast<float>(x0 - i0), b = 1.0f - a;
+      const float o = static_cast<float>(offset);
+      const std::uint8_t* r = right.ptr<std::uint8_t>(y + dy) + i0;
+      const std::uint8_t* l = left.ptr<std::uint8_t>(y + dy) + xl - w;
+      const float* g = gradient.data() + (dy + w) * side;
+      float row_ge = 0, row_e = 0;
+      for (int c = 0; c < side; ++c) {
+        const float e = b * r[c] + a * r[c + 1] + o - static_cast<float>(l[c]);
+        row_ge += g[c] * e;
+        row_e += e;
+      }
+      sge += row_ge;
+      sgye += row_ge * dy;
+      se += row_e;
+    }
+    const Eigen::Vector3d step = solver.solve(Eigen::Vector3d(-sge, -sgye, -se));
+    if (!step.allFinite()) return false;
+    // Compose with the inverse of the step: the warp's parameters add.
+    disparity -= step(0);
+    gy -= step(1);
+    offset += step(2);
+    if (std::abs(disparity - d0) > max_move_px) return false;
+    if (std::abs(step(0)) < 5e-3) break;
+  }
+  *d = disparity;
+  return true;
 }
 
 void CheckFeatures(const OrbFeatures& f, const char* side, size_t n_scales) {
@@ -233,7 +311,12 @@ StereoMatches MatchStereo(const StereoRig& rig, const OrbFeatures& left, const O
     const double delta = (d1 - d3) / denominator;
     if (std::abs(delta) > 1.0) continue;
 
-    const float x_right_level = static_cast<float>(xr0 + best_inc + delta);
+    double level_disparity = xl - (xr0 + best_inc + delta);
+    // A refinement that leaves the window or wanders off the SAD minimum: no reliable depth.
+    if (options.slant_refinement &&
+        !RefineSlantedDisparity(img_l, img_r, xl, yl, w, kMaxSlantMovePx, &level_disparity))
+      continue;
+    const float x_right_level = static_cast<float>(xl - level_disparity);
     float u_right = right.BaseFromLevel(level, {x_right_level, p_left.y}).x;
     float disparity = u_left - u_right;
     if (disparity < min_disparity || disparity >= max_disparity) continue;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
@@ -64,7 +65,19 @@ struct SyntheticResult {
   double Median() const { return abs_errors_px[abs_errors_px.size() / 2]; }
 };
 
-SyntheticResult RunSynthetic(const cv::Mat& left, const cv::Mat& right, double disparity_px,
+// right(x, y) = left(x + d0 + g (y - y0), y): a plane whose disparity grows by g per row, as a
+// road's does (~0.33 px per row at KITTI geometry); d0 at row y0.
+cv::Mat ShearLeft(const cv::Mat& left, double d0, double g, double y0) {
+  const cv::Mat m = (cv::Mat_<double>(2, 3) << 1, g, d0 - g * y0, 0, 1, 0);
+  cv::Mat right;
+  cv::warpAffine(left, right, m, left.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                 cv::BORDER_REFLECT_101);
+  return right;
+}
+
+// truth_px: the true disparity at a left keypoint.
+SyntheticResult RunSynthetic(const cv::Mat& left, const cv::Mat& right,
+                             const std::function<double(const cv::Point2f&)>& truth_px,
                              const StereoMatchOptions& options = {}) {
   const StereoRig rig = SyntheticRig(left.size());
   const OrbFeatures fl = Extractor().Extract(left);
@@ -81,12 +94,18 @@ SyntheticResult RunSynthetic(const cv::Mat& left, const cv::Mat& right, double d
     }
     const double disparity = fl.keypoints[i].pt.x - m.u_right_px[i];
     EXPECT_NEAR(m.depth_m[i], rig.Bf() / disparity, 1e-3 * m.depth_m[i]);
-    r.abs_errors_px.push_back(std::abs(disparity - disparity_px));
+    r.abs_errors_px.push_back(std::abs(disparity - truth_px(fl.keypoints[i].pt)));
   }
   std::sort(r.abs_errors_px.begin(), r.abs_errors_px.end());
   r.matched = m.num_matched;
   EXPECT_EQ(static_cast<int>(r.abs_errors_px.size()), m.num_matched);
   return r;
+}
+
+SyntheticResult RunSynthetic(const cv::Mat& left, const cv::Mat& right, double disparity_px,
+                             const StereoMatchOptions& options = {}) {
+  return RunSynthetic(
+      left, right, [disparity_px](const cv::Point2f&) { return disparity_px; }, options);
 }
 
 TEST(StereoMatchOptions, DefaultsAreValidAndBadValuesAreRejected) {
@@ -168,6 +187,26 @@ TEST(MatchStereo, EquiangularFitBeatsTheParabolaOnSad) {
   EXPECT_GE(p.WithinPx(0.5), 0.97 * p.matched);  // biased, not wrong
 }
 
+// A square SAD window on a road averages the disparities of its rows; the slanted refinement
+// fits their gradient. Measured: 703 of 2000 keypoints matched (the shear costs descriptor
+// matches), median error 0.014 px and 677 within 0.15 px; with the square window 713, 0.28 px, 214.
+TEST(MatchStereo, SlantedRefinementFollowsARoadLikeDisparityGradient) {
+  const cv::Mat left = test::SyntheticTexture({752, 480}, 9);
+  constexpr double kD0 = 20.3, kGradient = 0.33, kRow0 = 240.0;
+  const cv::Mat right = ShearLeft(left, kD0, kGradient, kRow0);
+  const auto truth = [&](const cv::Point2f& p) { return kD0 + kGradient * (p.y - kRow0); };
+  StereoMatchOptions slanted;
+  slanted.slant_refinement = true;
+  const SyntheticResult s = RunSynthetic(left, right, truth);
+  const SyntheticResult r = RunSynthetic(left, right, truth, slanted);
+  ASSERT_GE(r.matched, 0.3 * r.n_left) << r.matched << " of " << r.n_left;
+  EXPECT_GE(r.matched, 0.95 * s.matched) << r.matched << " vs " << s.matched;
+  EXPECT_GE(r.WithinPx(0.15), 0.95 * r.matched) << r.WithinPx(0.15) << " of " << r.matched;
+  EXPECT_LT(r.Median(), 0.03);
+  EXPECT_LT(r.Median(), 0.2 * s.Median()) << r.Median() << " vs " << s.Median();
+  EXPECT_LT(s.WithinPx(0.15), 0.5 * r.WithinPx(0.15));
+}
+
 TEST(MatchStereo, IntegerDisparity) {
   const cv::Mat left = test::SyntheticTexture({752, 480}, 8);
   cv::Mat right;
@@ -198,19 +237,21 @@ const OrbFeatures& KittiRight() {
   return f;
 }
 
-TEST(MatchStereo, KittiMatchesMostKeypointsConsistentlyWithSgbm) {
+// Matches of KITTI 06 frame 0 and how many of them agree (within 1 px) with dense semi-global
+// matching, an independent reference.
+struct SgbmAgreement {
+  int matched = 0, compared = 0, agree = 0;
+};
+SgbmAgreement KittiAgreementWithSgbm(const StereoMatchOptions& options) {
   const StereoRig rig = KittiSeq06Rig();
   const OrbFeatures& fl = KittiLeft();
-  const StereoMatches m = MatchStereo(rig, fl, KittiRight(), Extractor().scale_factors());
-  EXPECT_GE(m.num_matched, 0.6 * fl.keypoints.size())
-      << m.num_matched << " of " << fl.keypoints.size();
-
-  // Independent reference: dense semi-global matching on the same pair.
+  const StereoMatches m = MatchStereo(rig, fl, KittiRight(), Extractor().scale_factors(), options);
   cv::Ptr<cv::StereoSGBM> sgbm = cv::StereoSGBM::create(0, 128, 5, 8 * 25, 32 * 25, 1, 0, 10, 100,
                                                         2, cv::StereoSGBM::MODE_SGBM);
   cv::Mat disparity_x16;
   sgbm->compute(test::KittiSeq06(0, 0), test::KittiSeq06(1, 0), disparity_x16);
-  int compared = 0, agree = 0;
+  SgbmAgreement a;
+  a.matched = m.num_matched;
   for (size_t i = 0; i < fl.keypoints.size(); ++i) {
     if (m.u_right_px[i] < 0) continue;
     const double disparity = fl.keypoints[i].pt.x - m.u_right_px[i];
@@ -221,11 +262,26 @@ TEST(MatchStereo, KittiMatchesMostKeypointsConsistentlyWithSgbm) {
     const int y = static_cast<int>(std::lround(fl.keypoints[i].pt.y));
     const short d16 = disparity_x16.at<short>(y, x);
     if (d16 <= 0) continue;  // no SGBM value here
-    ++compared;
-    agree += std::abs(disparity - d16 / 16.0) < 1.0 ? 1 : 0;
+    ++a.compared;
+    a.agree += std::abs(disparity - d16 / 16.0) < 1.0 ? 1 : 0;
   }
-  ASSERT_GE(compared, 0.5 * m.num_matched);
-  EXPECT_GE(agree, 0.85 * compared) << agree << " of " << compared;
+  return a;
+}
+
+TEST(MatchStereo, KittiMatchesMostKeypointsConsistentlyWithSgbm) {
+  const size_t n = KittiLeft().keypoints.size();
+  StereoMatchOptions slanted;
+  slanted.slant_refinement = true;
+  const SgbmAgreement s = KittiAgreementWithSgbm({});
+  const SgbmAgreement a = KittiAgreementWithSgbm(slanted);
+  // Measured: 1184 of 2000 matched, 999 of 1106 agree; with the square window 1227, 1028 of 1144.
+  // The slanted refinement drops the matches whose fit leaves the SAD minimum by a pixel.
+  for (const SgbmAgreement& r : {s, a}) {
+    EXPECT_GE(r.matched, 0.55 * n) << r.matched << " of " << n;
+    ASSERT_GE(r.compared, 0.5 * r.matched);
+    EXPECT_GE(r.agree, 0.85 * r.compared) << r.agree << " of " << r.compared;
+  }
+  EXPECT_GE(a.matched, 0.95 * s.matched) << a.matched << " vs " << s.matched;
 }
 
 TEST(MatchStereo, KittiDepthLimitsAndOutlierFactorAreApplied) {
