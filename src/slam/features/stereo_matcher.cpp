@@ -89,7 +89,7 @@ bool RefineSlantedDisparity(const cv::Mat& left, const cv::Mat& right, int xl, i
   const int side = 2 * w + 1;
   if (xl - w - 1 < 0 || xl + w + 1 >= left.cols) return false;
   // Left window gradient and the Jacobian sums: (-g, -g * dy, -1) for (d, gy, offset).
-  std::array<float, 31 * 31> gradient;
+  std::array<float, (2 * kMaxSadWindowHalfPx + 1) * (2 * kMaxSadWindowHalfPx + 1)> gradient;
   double sg2 = 0, sg2y = 0, sg2y2 = 0, sg = 0, sgy = 0;
   for (int dy = -w; dy <= w; ++dy) {
     const std::uint8_t* l = left.ptr<std::uint8_t>(y + dy) + xl - w;
@@ -184,7 +184,7 @@ bool StereoMatchOptions::IsValid(std::string* why) const {
   if (!std::isfinite(max_depth_m) || max_depth_m < 0) return fail("max_depth_m must be >= 0");
   if (max_depth_m > 0 && min_depth_m > 0 && max_depth_m <= min_depth_m)
     return fail("max_depth_m must be 0 or greater than min_depth_m");
-  if (sad_window_half_px < 1 || sad_window_half_px > 15)
+  if (sad_window_half_px < 1 || sad_window_half_px > kMaxSadWindowHalfPx)
     return fail("sad_window_half_px must be in [1, 15]");
   if (sad_search_half_px < 2 || sad_search_half_px > 64)
     return fail("sad_search_half_px must be in [2, 64]");

@@ -20,6 +20,9 @@ enum class SubpixelFit {
   kEquiangular  // two lines of opposite slope: unbiased for a V-shaped cost (SAD)
 };
 
+// Largest sad_window_half_px (a 31 x 31 window).
+inline constexpr int kMaxSadWindowHalfPx = 15;
+
 struct StereoMatchOptions {
   int max_descriptor_distance = 75;       // (ORB-SLAM: (TH_HIGH + TH_LOW) / 2)
   double min_depth_m = 0.0;               // 0: derived as baseline (disparity <= fx)
