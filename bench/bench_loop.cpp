@@ -34,7 +34,9 @@
 //              matches, then through a two-view geometric check (an essential matrix by RANSAC on
 //              those matches, each frame through its own camera, min_ransac_inliers inliers);
 //              (3) its best database frame by geometry: of its 10 best-scoring, the one that
-//              passes that check with the most inliers.
+//              passes that check with the most inliers. --held-out adds (1) and (3) for each
+//              clip's queries under a vocabulary trained like the given one on the other clips'
+//              frames only (the shipped one is trained on these clips), beside the given one's.
 //
 //  --cross     place recognition through the whole system: each clip is mapped alone (mono,
 //              sequential), then every clip runs in that map in localisation mode, where each
@@ -49,6 +51,7 @@
 //   bench_loop --sequence DIR... [--mode mono]
 //   bench_loop --cross DIR... [--work DIR]
 //   bench_loop --place DIR... [--place-stride 2] [--window 10] [--thresholds 0,0.02,...]
+//              [--held-out]
 //
 // Work directory: seed S is looked up as WORK/loopS/ (the layout of `pcr_orb synth --out
 // WORK/loopS`: WORK/loopS/sequences/00, WORK/loopS/poses/00.txt) and as
@@ -60,8 +63,9 @@
 // Runtime (2 cores shared with other work, load average 2-3, 600 frames, seed 1): stereo
 // sequential ~160 s ON / ~130 s OFF, so the default 3 seeds take ~15 minutes (plus rendering of
 // missing loops); mono ~100 s / ~55 s; --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7
-// minutes); --sequence 10-40 s a KITTI clip; --place ~1 min on the four shipped clips; --cross ~8
-// minutes on them (16 runs, most frames of the cross pairs try 10-20 keyframes).
+// minutes); --sequence 10-40 s a KITTI clip; --place ~1 min on the four shipped clips (--held-out
+// ~2 min more); --cross ~8 minutes on them (16 runs, most frames of the cross pairs try 10-20
+// keyframes).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -131,6 +135,7 @@ struct Args {
   int place_stride = 2;
   int window = 10;
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
+  bool held_out = false;
 };
 
 using pcr::bench::ParseList;
@@ -629,94 +634,264 @@ int TwoViewInliers(const std::vector<cv::KeyPoint>& keypoints_a, const pcr::Pinh
   return e.empty() ? 0 : cv::countNonZero(inliers);
 }
 
-int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
-  struct Image {
-    int clip = 0;
-    int64_t frame = 0;
-    Eigen::Vector3d position = Eigen::Vector3d::Zero();
-    pcr::BowVector bow;
-    pcr::FeatureVector direct;  // the direct index the loop closer keeps (2 levels up)
-    pcr::PinholeCamera camera;  // its clip's rectified left camera
-    std::vector<cv::KeyPoint> keypoints;
-    cv::Mat descriptors;
-  };
-  std::vector<std::string> names;
-  std::vector<Image> images;
-  const pcr::OrbExtractor orb{pcr::OrbOptions{}};
-  pcr::TimingSeries extract_ms, transform_ms;
-  for (const std::string& path : args.place) {
-    const pcr::Dataset d = pcr::OpenDataset(path);
-    if (!d.ground_truth) throw std::runtime_error(path + ": --place needs ground truth");
-    names.push_back(d.name);
-    for (size_t i = 0; i < d.size(); i += static_cast<size_t>(args.place_stride)) {
-      Image image;
-      image.clip = static_cast<int>(names.size()) - 1;
-      image.frame = static_cast<int64_t>(i);
-      image.position = (*d.ground_truth)[i].world_from_cam.translation();
-      image.camera = d.rig.left;
-      const auto t0 = std::chrono::steady_clock::now();
-      const pcr::OrbFeatures features = orb.Extract(d.LoadLeft(i));
-      const auto t1 = std::chrono::steady_clock::now();
-      vocabulary.Transform(features.descriptors, nullptr,
-                           pcr::LoopClosingOptions{}.direct_index_levels_up, &image.bow,
-                           &image.direct);
-      const auto t2 = std::chrono::steady_clock::now();
-      extract_ms.Add(std::chrono::duration<double, std::milli>(t1 - t0).count());
-      transform_ms.Add(std::chrono::duration<double, std::milli>(t2 - t1).count());
-      image.keypoints = features.keypoints;
-      image.descriptors = features.descriptors;
-      images.push_back(std::move(image));
-    }
-  }
-  const size_t n = images.size();
-  // All pairwise scores once (a few hundred images).
-  std::vector<double> score(n * n, 0.0);
-  std::vector<int> common(n * n, 0);
-  for (size_t a = 0; a < n; ++a)
-    for (size_t b = a + 1; b < n; ++b) {
-      score[a * n + b] = score[b * n + a] = pcr::Vocabulary::Score(images[a].bow, images[b].bow);
-      int shared = 0;
-      auto i = images[a].bow.words.begin(), j = images[b].bow.words.begin();
-      while (i != images[a].bow.words.end() && j != images[b].bow.words.end()) {
-        if (i->first < j->first) {
-          ++i;
-        } else if (j->first < i->first) {
-          ++j;
-        } else {
-          ++shared, ++i, ++j;
-        }
+// One left frame of --place.
+struct PlaceImage {
+  int clip = 0;
+  int64_t frame = 0;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  pcr::BowVector bow;
+  pcr::FeatureVector direct;  // the direct index the loop closer keeps (2 levels up)
+  pcr::PinholeCamera camera;  // its clip's rectified left camera
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+};
+
+enum class Verdict { kCorrect, kSameClipFar, kOtherClip };
+
+// The frames of --place's clips (ORB on every --place-stride'th left frame, all clips in one
+// pool) and what is asked of them: a query's database, the verdict of an answer, and the pairwise
+// bag-of-words scores under the vocabulary last applied.
+class PlacePool {
+ public:
+  explicit PlacePool(const Args& args) : window_(args.window) {
+    const pcr::OrbExtractor orb{pcr::OrbOptions{}};
+    for (const std::string& path : args.place) {
+      const pcr::Dataset d = pcr::OpenDataset(path);
+      if (!d.ground_truth) throw std::runtime_error(path + ": --place needs ground truth");
+      names_.push_back(d.name);
+      for (size_t i = 0; i < d.size(); i += static_cast<size_t>(args.place_stride)) {
+        PlaceImage image;
+        image.clip = static_cast<int>(names_.size()) - 1;
+        image.frame = static_cast<int64_t>(i);
+        image.position = (*d.ground_truth)[i].world_from_cam.translation();
+        image.camera = d.rig.left;
+        const auto t0 = std::chrono::steady_clock::now();
+        pcr::OrbFeatures features = orb.Extract(d.LoadLeft(i));
+        extract_ms_.Add(MsSince(t0));
+        image.keypoints = std::move(features.keypoints);
+        image.descriptors = features.descriptors;
+        images_.push_back(std::move(image));
       }
-      common[a * n + b] = common[b * n + a] = shared;
     }
-  auto in_window = [&](size_t a, size_t b) {
-    return images[a].clip == images[b].clip &&
-           std::abs(images[a].frame - images[b].frame) <= args.window;
-  };
+    const size_t n = images_.size();
+    has_near_.assign(n, false);
+    for (size_t q = 0; q < n; ++q)
+      for (size_t j = 0; j < n; ++j)
+        if (InDatabase(q, j) && VerdictOf(q, j) == Verdict::kCorrect) has_near_[q] = true;
+  }
+
+  // Quantises every image with `vocabulary` and scores all pairs, replacing what an earlier
+  // vocabulary gave.
+  void Apply(const pcr::Vocabulary& vocabulary) {
+    for (PlaceImage& image : images_) {
+      const auto t0 = std::chrono::steady_clock::now();
+      vocabulary.Transform(image.descriptors, nullptr, loop_options_.direct_index_levels_up,
+                           &image.bow, &image.direct);
+      transform_ms_.Add(MsSince(t0));
+    }
+    const size_t n = images_.size();
+    score_.assign(n * n, 0.0);
+    common_.assign(n * n, 0);
+    for (size_t a = 0; a < n; ++a)
+      for (size_t b = a + 1; b < n; ++b) {
+        const auto& wa = images_[a].bow.words;
+        const auto& wb = images_[b].bow.words;
+        score_[a * n + b] = score_[b * n + a] =
+            pcr::Vocabulary::Score(images_[a].bow, images_[b].bow);
+        int shared = 0;
+        for (auto i = wa.begin(), j = wb.begin(); i != wa.end() && j != wb.end();) {
+          if (i->first < j->first) {
+            ++i;
+          } else if (j->first < i->first) {
+            ++j;
+          } else {
+            ++shared, ++i, ++j;
+          }
+        }
+        common_[a * n + b] = common_[b * n + a] = shared;
+      }
+  }
+
+  size_t size() const { return images_.size(); }
+  const PlaceImage& image(size_t i) const { return images_[i]; }
+  const std::vector<std::string>& names() const { return names_; }
+  const pcr::TimingSeries& extract_ms() const { return extract_ms_; }
+  const pcr::TimingSeries& transform_ms() const { return transform_ms_; }
+  double score(size_t a, size_t b) const { return score_[a * images_.size() + b]; }
+  int common(size_t a, size_t b) const { return common_[a * images_.size() + b]; }
+
+  bool InWindow(size_t a, size_t b) const {
+    return images_[a].clip == images_[b].clip &&
+           std::abs(images_[a].frame - images_[b].frame) <= window_;
+  }
   // The database at query q: every frame of the other clips (as if mapped before) and the frames
   // of q's clip seen before it, outside its window.
-  auto in_database = [&](size_t q, size_t j) {
-    if (images[j].clip != images[q].clip) return true;
-    return images[j].frame < images[q].frame && !in_window(q, j);
+  bool InDatabase(size_t q, size_t j) const {
+    if (images_[j].clip != images_[q].clip) return true;
+    return images_[j].frame < images_[q].frame && !InWindow(q, j);
+  }
+  Verdict VerdictOf(size_t q, size_t j) const {
+    if (images_[j].clip != images_[q].clip) return Verdict::kOtherClip;
+    return (images_[q].position - images_[j].position).norm() <= kPlaceRadiusM
+               ? Verdict::kCorrect
+               : Verdict::kSameClipFar;
+  }
+  // Whether q's database holds a frame within kPlaceRadiusM (a revisit).
+  bool HasNear(size_t q) const { return has_near_[q]; }
+
+  // The loop closer's word matches between query q and frame j, then the two-view check's
+  // inliers on them; -1 when the matches are fewer than min_bow_matches.
+  int TwoView(size_t q, size_t j) const {
+    const PlaceImage& a = images_[q];
+    const PlaceImage& b = images_[j];
+    const auto pairs = pcr::MatchFeaturesByWords(
+        a.keypoints, a.descriptors, a.direct, nullptr, b.keypoints, b.descriptors, b.direct,
+        nullptr, loop_options_.bow_max_distance, loop_options_.bow_ratio);
+    if (static_cast<int>(pairs.size()) < loop_options_.min_bow_matches) return -1;
+    return TwoViewInliers(a.keypoints, a.camera, b.keypoints, b.camera, pairs);
+  }
+
+  // q's best-scoring database frame; none when its database is empty.
+  std::optional<size_t> BestScoring(size_t q) const {
+    std::optional<size_t> best;
+    for (size_t j = 0; j < images_.size(); ++j)
+      if (InDatabase(q, j) && (!best || score(q, j) > score(q, *best))) best = j;
+    return best;
+  }
+  // q's best database frame by geometry: of its kPlaceVerifyTopK best-scoring ones, the one that
+  // passes the two-view check (>= min_ransac_inliers) with the most inliers (the loop closer keeps
+  // the verified candidate with the most matches); none when none of those passes.
+  std::optional<size_t> BestByGeometry(size_t q) const {
+    std::vector<size_t> database;
+    for (size_t j = 0; j < images_.size(); ++j)
+      if (InDatabase(q, j)) database.push_back(j);
+    const size_t top = std::min(database.size(), kPlaceVerifyTopK);
+    std::partial_sort(database.begin(), database.begin() + static_cast<std::ptrdiff_t>(top),
+                      database.end(),
+                      [&](size_t x, size_t y) { return score(q, x) > score(q, y); });
+    std::optional<size_t> best;
+    int best_inliers = 0;
+    for (size_t k = 0; k < top; ++k) {
+      const int inliers = TwoView(q, database[k]);
+      if (inliers < loop_options_.min_ransac_inliers || inliers <= best_inliers) continue;
+      best = database[k], best_inliers = inliers;
+    }
+    return best;
+  }
+
+ private:
+  static double MsSince(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  }
+
+  const int window_;
+  const pcr::LoopClosingOptions loop_options_;
+  std::vector<std::string> names_;
+  std::vector<PlaceImage> images_;
+  std::vector<bool> has_near_;
+  std::vector<double> score_;  // n x n, under the vocabulary last applied
+  std::vector<int> common_;    // words shared, n x n
+  pcr::TimingSeries extract_ms_, transform_ms_;
+};
+
+// A clip's queries in the pool under the vocabulary last applied: their best-scoring database
+// frames and their best database frames by geometry, by verdict.
+struct PlaceRow {
+  int queries = 0, revisits = 0;
+  std::array<int, 3> best{};  // by Verdict
+  int answered = 0;           // queries with a frame by geometry
+  std::array<int, 3> geometry{};
+};
+PlaceRow RowOf(const PlacePool& pool, int clip) {
+  PlaceRow row;
+  for (size_t q = 0; q < pool.size(); ++q) {
+    if (pool.image(q).clip != clip) continue;
+    ++row.queries, row.revisits += pool.HasNear(q);
+    if (const auto j = pool.BestScoring(q)) ++row.best[static_cast<int>(pool.VerdictOf(q, *j))];
+    if (const auto j = pool.BestByGeometry(q))
+      ++row.answered, ++row.geometry[static_cast<int>(pool.VerdictOf(q, *j))];
+  }
+  return row;
+}
+
+// --place --held-out: each clip's queries again under a vocabulary trained like `given` on the
+// other clips' frames of the pool only, so that none of the clip's own descriptors shaped the
+// words (the shipped vocabulary is trained on these very clips), beside the same queries under
+// `given`. Leaves the pool under the last held-out vocabulary.
+void PrintHeldOut(const pcr::Vocabulary& given, PlacePool* pool) {
+  const pcr::VocabularyOptions& options = given.options();
+  std::printf(
+      "\nplace recognition on unseen clips (--held-out): each clip's queries under a vocabulary "
+      "trained like the given one (k=%d, L=%d, %d iterations, seed %llu) on the other clips' "
+      "frames of this pool, beside the same queries under the given vocabulary; database and "
+      "verdicts as above\n%-28s %-8s %6s %7s | %7s %8s | %7s %8s %5s | %8s %7s %8s %5s %5s %6s\n",
+      options.branching, options.depth, options.max_iterations,
+      static_cast<unsigned long long>(options.seed), "clip", "vocab", "words", "train s", "queries",
+      "revisits", "correct", "same far", "other", "answered", "correct", "same far", "other",
+      "prec", "recall");
+  auto print = [](const std::string& name, const char* vocab, size_t words, double train_s,
+                  const PlaceRow& r) {
+    const int correct = r.geometry[0];
+    const std::string seconds = std::isnan(train_s) ? "-" : fmt::format("{:.1f}", train_s);
+    std::printf("%-28s %-8s %6s %7s | %7d %8d | %7d %8d %5d | %8d %7d %8d %5d %5.2f %6.3f\n",
+                name.c_str(), vocab, words > 0 ? std::to_string(words).c_str() : "-",
+                seconds.c_str(), r.queries, r.revisits, r.best[0], r.best[1], r.best[2], r.answered,
+                correct, r.geometry[1], r.geometry[2],
+                r.answered > 0 ? static_cast<double>(correct) / r.answered : kNaN,
+                r.revisits > 0 ? static_cast<double>(correct) / r.revisits : kNaN);
   };
+  auto add = [](PlaceRow* sum, const PlaceRow& r) {
+    sum->queries += r.queries, sum->revisits += r.revisits, sum->answered += r.answered;
+    for (size_t v = 0; v < 3; ++v) sum->best[v] += r.best[v], sum->geometry[v] += r.geometry[v];
+  };
+  const int clips = static_cast<int>(pool->names().size());
+  if (clips < 2) throw std::runtime_error("--held-out needs at least two --place clips");
+  std::vector<PlaceRow> given_rows;
+  for (int c = 0; c < clips; ++c) given_rows.push_back(RowOf(*pool, c));
+  PlaceRow given_sum, held_sum;
+  for (int c = 0; c < clips; ++c) {
+    std::vector<cv::Mat> training;
+    for (size_t i = 0; i < pool->size(); ++i)
+      if (pool->image(i).clip != c) training.push_back(pool->image(i).descriptors);
+    const auto t0 = std::chrono::steady_clock::now();
+    const pcr::Vocabulary held_out = pcr::Vocabulary::Train(training, options);
+    const double train_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    pool->Apply(held_out);
+    const PlaceRow row = RowOf(*pool, c);
+    const std::string& name = pool->names()[static_cast<size_t>(c)];
+    print(name, "given", given.num_words(), kNaN, given_rows[static_cast<size_t>(c)]);
+    print(name, "held out", held_out.num_words(), train_s, row);
+    std::fflush(stdout);
+    add(&given_sum, given_rows[static_cast<size_t>(c)]);
+    add(&held_sum, row);
+  }
+  print("all", "given", given.num_words(), kNaN, given_sum);
+  print("all", "held out", 0, kNaN, held_sum);
+  std::printf(
+      "(best-scoring: each query's best-scoring database frame; by geometry: the most two-view "
+      "inliers among its %zu best-scoring; the database always holds the other clips' frames, "
+      "quantised with the same vocabulary; \"all\" held out sums each clip under its own)\n",
+      kPlaceVerifyTopK);
+}
+
+int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
+  PlacePool pool(args);
+  pool.Apply(vocabulary);
+  const size_t n = pool.size();
+  const std::vector<std::string>& names = pool.names();
+  auto images = [&](size_t i) -> const PlaceImage& { return pool.image(i); };
+  auto in_window = [&](size_t a, size_t b) { return pool.InWindow(a, b); };
+  auto in_database = [&](size_t q, size_t j) { return pool.InDatabase(q, j); };
+  auto verdict = [&](size_t q, size_t j) { return pool.VerdictOf(q, j); };
   // The loop detector's minimum score of query q: its lowest score against its clip's earlier
   // frames in its window (standing in for its covisible keyframes); none when it has no such frame.
   auto window_min_score = [&](size_t q) -> std::optional<double> {
     std::optional<double> lowest;
     for (size_t j = 0; j < q; ++j)
-      if (in_window(q, j)) lowest = std::min(lowest.value_or(1.0), score[q * n + j]);
+      if (in_window(q, j)) lowest = std::min(lowest.value_or(1.0), pool.score(q, j));
     return lowest;
   };
-  enum class Verdict { kCorrect, kSameClipFar, kOtherClip };
-  auto verdict = [&](size_t q, size_t j) {
-    if (images[j].clip != images[q].clip) return Verdict::kOtherClip;
-    return (images[q].position - images[j].position).norm() <= kPlaceRadiusM
-               ? Verdict::kCorrect
-               : Verdict::kSameClipFar;
-  };
-  std::vector<bool> has_near(n, false);  // a frame of the database within kPlaceRadiusM
-  for (size_t q = 0; q < n; ++q)
-    for (size_t j = 0; j < n; ++j)
-      if (in_database(q, j) && verdict(q, j) == Verdict::kCorrect) has_near[q] = true;
 
   // (1) The best-scoring database frame of every query.
   struct Best {
@@ -725,13 +900,9 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     Verdict verdict = Verdict::kOtherClip;
   };
   std::vector<Best> bests;
-  for (size_t q = 0; q < n; ++q) {
-    int best = -1;
-    for (size_t j = 0; j < n; ++j)
-      if (in_database(q, j) && (best < 0 || score[q * n + j] > score[q * n + best]))
-        best = static_cast<int>(j);
-    if (best >= 0) bests.push_back({q, score[q * n + best], verdict(q, static_cast<size_t>(best))});
-  }
+  for (size_t q = 0; q < n; ++q)
+    if (const auto best = pool.BestScoring(q))
+      bests.push_back({q, pool.score(q, *best), verdict(q, *best)});
 
   // (2) The loop detector's candidates (LoopCloser::Detect with KeyframeDatabase::
   // DetectLoopCandidates), with a frame's window standing in for its covisible keyframes: the
@@ -742,17 +913,6 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   // group of the previous queries 3 times in a row.
   const pcr::LoopQueryOptions query_options;
   const pcr::LoopClosingOptions loop_options;
-  // The loop closer's word matches between query q and frame j, then the two-view check's
-  // inliers on them; -1 when the matches are fewer than min_bow_matches.
-  auto two_view = [&](size_t q, size_t j) {
-    const Image& a = images[q];
-    const Image& b = images[j];
-    const auto pairs = pcr::MatchFeaturesByWords(
-        a.keypoints, a.descriptors, a.direct, nullptr, b.keypoints, b.descriptors, b.direct,
-        nullptr, loop_options.bow_max_distance, loop_options.bow_ratio);
-    if (static_cast<int>(pairs.size()) < loop_options.min_bow_matches) return -1;
-    return TwoViewInliers(a.keypoints, a.camera, b.keypoints, b.camera, pairs);
-  };
   struct Candidate {
     size_t query = 0, frame = 0;
     Verdict verdict = Verdict::kOtherClip;
@@ -766,27 +926,27 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   std::vector<Group> groups;
   int queried = 0;
   for (size_t q = 0; q < n; ++q) {
-    if (q > 0 && images[q - 1].clip != images[q].clip) groups.clear();
+    if (q > 0 && images(q - 1).clip != images(q).clip) groups.clear();
     const std::optional<double> lowest = window_min_score(q);
     if (!lowest) continue;
     const double min_score = *lowest;
     ++queried;
     int most_common = 0;
     for (size_t j = 0; j < n; ++j)
-      if (in_database(q, j)) most_common = std::max(most_common, common[q * n + j]);
+      if (in_database(q, j)) most_common = std::max(most_common, pool.common(q, j));
     const double min_common = query_options.min_common_words_ratio * most_common;
     auto similar = [&](size_t j) {
-      return in_database(q, j) && common[q * n + j] > 0 && common[q * n + j] >= min_common;
+      return in_database(q, j) && pool.common(q, j) > 0 && pool.common(q, j) >= min_common;
     };
     std::vector<std::pair<double, size_t>> group_scores;  // (accumulated, best member)
     for (size_t j = 0; j < n; ++j) {
-      if (!similar(j) || score[q * n + j] < min_score) continue;
+      if (!similar(j) || pool.score(q, j) < min_score) continue;
       double accumulated = 0;
       size_t best = j;
       for (size_t m = 0; m < n; ++m) {
         if (!similar(m) || !in_window(j, m)) continue;
-        accumulated += score[q * n + m];
-        if (score[q * n + m] > score[q * n + best]) best = m;
+        accumulated += pool.score(q, m);
+        if (pool.score(q, m) > pool.score(q, best)) best = m;
       }
       group_scores.emplace_back(accumulated, best);
     }
@@ -822,7 +982,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       if (!extended_any) current.push_back({members, 0});
       if (!enough) continue;
       consistent.push_back({q, c, verdict(q, c)});
-      const int inliers = two_view(q, c);
+      const int inliers = pool.TwoView(q, c);
       if (inliers < 0) continue;
       const Verdict v = verdict(q, c);
       plausible.push_back({q, c, v});
@@ -837,8 +997,8 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       "\nPlace recognition: left frames at stride %d, window +-%d frames, correct within %.0f m "
       "(ORB %.1f ms, bag of words %.2f ms per image, p50); the database of a query: the frames of "
       "the other clips and its own clip's earlier frames outside the window\n",
-      args.place_stride, args.window, kPlaceRadiusM, extract_ms.Summarize().p50_ms,
-      transform_ms.Summarize().p50_ms);
+      args.place_stride, args.window, kPlaceRadiusM, pool.extract_ms().Summarize().p50_ms,
+      pool.transform_ms().Summarize().p50_ms);
   std::printf("%-28s %7s %8s | %-34s | %-42s | %s\n", "", "", "",
               "best database frame of every query", "loop detector: consistent candidates",
               "of those, >= min_bow_matches word matches");
@@ -855,7 +1015,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   auto clip_queries = [&](int clip) {
     ClipQueries out;
     for (size_t q = 0; q < n; ++q)
-      if (clip < 0 || images[q].clip == clip) ++out.queries, out.revisits += has_near[q];
+      if (clip < 0 || images(q).clip == clip) ++out.queries, out.revisits += pool.HasNear(q);
     return out;
   };
   // A list's candidates of the queries of `clip` (< 0: all) by verdict, and the recall against
@@ -873,7 +1033,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     const int near = clip_queries(clip).revisits;
     std::vector<bool> found(n, false);
     for (const Candidate& c : list) {
-      if (clip >= 0 && images[c.query].clip != clip) continue;
+      if (clip >= 0 && images(c.query).clip != clip) continue;
       ++counts.cands;
       ++counts.by_verdict[static_cast<int>(c.verdict)];
       if (c.verdict == Verdict::kCorrect) found[c.query] = true;
@@ -886,7 +1046,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     const auto [queries, near] = clip_queries(clip);
     std::array<int, 3> best_counts{};
     for (const Best& b : bests)
-      if (clip < 0 || images[b.query].clip == clip) ++best_counts[static_cast<int>(b.verdict)];
+      if (clip < 0 || images(b.query).clip == clip) ++best_counts[static_cast<int>(b.verdict)];
     const Counts detector = count(consistent, clip), checked = count(plausible, clip);
     const int best_total = best_counts[0] + best_counts[1] + best_counts[2];
     std::printf(
@@ -927,7 +1087,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     double lo = kNaN, hi = kNaN;
     for (const Candidate& c : list) {
       if (c.verdict != Verdict::kSameClipFar) continue;
-      const double d = (images[c.query].position - images[c.frame].position).norm();
+      const double d = (images(c.query).position - images(c.frame).position).norm();
       lo = std::isnan(lo) ? d : std::min(lo, d);
       hi = std::isnan(hi) ? d : std::max(hi, d);
     }
@@ -948,7 +1108,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       const size_t q = b.query;
       bool has_own = false;
       for (size_t j = 0; j < n && !has_own; ++j)
-        has_own = images[j].clip == images[q].clip && in_database(q, j);
+        has_own = images(j).clip == images(q).clip && in_database(q, j);
       if (has_own) ++own[static_cast<int>(b.verdict)];
       const std::optional<double> min_score = window_min_score(q);
       if (min_score && b.score >= *min_score) ++gated[static_cast<int>(b.verdict)];
@@ -981,29 +1141,10 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
                 revisits > 0 ? static_cast<double>(correct) / revisits : kNaN);
   }
 
-  // (3) Each query's best database frame by geometry: of its kPlaceVerifyTopK best-scoring ones,
-  // the one that passes the two-view check with the most inliers (the loop closer keeps the
-  // verified candidate with the most matches); none when none of those passes.
+  // (3) Each query's best database frame by geometry (PlacePool::BestByGeometry).
   std::vector<Candidate> verified_best;
-  for (size_t q = 0; q < n; ++q) {
-    std::vector<size_t> database;
-    for (size_t j = 0; j < n; ++j)
-      if (in_database(q, j)) database.push_back(j);
-    const size_t top = std::min(database.size(), kPlaceVerifyTopK);
-    std::partial_sort(database.begin(), database.begin() + static_cast<std::ptrdiff_t>(top),
-                      database.end(),
-                      [&](size_t x, size_t y) { return score[q * n + x] > score[q * n + y]; });
-    int best_k = -1, best_inliers = 0;
-    for (size_t k = 0; k < top; ++k) {
-      const int inliers = two_view(q, database[k]);
-      if (inliers < loop_options.min_ransac_inliers || inliers <= best_inliers) continue;
-      best_k = static_cast<int>(k), best_inliers = inliers;
-    }
-    if (best_k >= 0) {
-      const size_t j = database[static_cast<size_t>(best_k)];
-      verified_best.push_back({q, j, verdict(q, j)});
-    }
-  }
+  for (size_t q = 0; q < n; ++q)
+    if (const auto j = pool.BestByGeometry(q)) verified_best.push_back({q, *j, verdict(q, *j)});
   std::printf(
       "\nbest database frame by geometry: the most two-view inliers (>= %d) among a query's %zu "
       "best-scoring ones:\n%-28s %8s %8s %7s %8s %5s %5s %6s\n",
@@ -1020,12 +1161,13 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   const auto [best_far_min, best_far_max] = far_range(verified_best);
   int far_without_near = 0;
   for (const Candidate& c : verified_best)
-    far_without_near += c.verdict == Verdict::kSameClipFar && !has_near[c.query];
+    far_without_near += c.verdict == Verdict::kSameClipFar && !pool.HasNear(c.query);
   std::printf(
       "(answered: queries with such a frame; the same clip's ones further than %.0f m lie "
       "%.1f-%.1f m from the query, and %d of them answer a query whose database holds no frame "
       "within %.0f m)\n",
       kPlaceRadiusM, best_far_min, best_far_max, far_without_near, kPlaceRadiusM);
+  if (args.held_out) PrintHeldOut(vocabulary, &pool);
   return 0;
 }
 
@@ -1152,6 +1294,9 @@ int main(int argc, char** argv) {
   app.add_option("--window", a.window, "--place: excluded frames of the query's clip (+-)")
       ->capture_default_str();
   app.add_option("--thresholds", a.thresholds, "--place: minimum scores")->capture_default_str();
+  app.add_flag(
+      "--held-out", a.held_out,
+      "--place: also each clip under a vocabulary trained without it (the others' frames)");
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
 
