@@ -397,9 +397,7 @@ class GraphRun {
         Guarded(kStageLoop, work.ticket, [&] { return loop_node_.Close(work.job, &resolved); });
     if (!corrected) return;
     post(*corrected);
-    if ((*corrected)->kind != LoopOutcomeKind::kCorrected ||
-        !work.job->options.global_bundle_adjustment)
-      return;
+    if (!nodes::LoopNode::FollowsWithGlobalBundleAdjustment(*resolved, **corrected)) return;
     if (auto ba = Guarded(kStageGlobalBa, work.ticket, [&] {
           return nodes::LoopNode::GlobalBundleAdjustment(*resolved, **corrected, &loop_abort_);
         }))

@@ -26,6 +26,10 @@ class LoopNode {
   LoopOutcomePtr Close(const LoopJobPtr& job, LoopJobPtr* resolved);
   static LoopOutcomePtr GlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& corrected,
                                                const std::atomic<bool>* abort);
+  // Whether GlobalBundleAdjustment follows Close's outcome (LoopCloser's rule).
+  static bool FollowsWithGlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& closed) {
+    return LoopCloser::FollowsWithGlobalBundleAdjustment(job, closed);
+  }
 
  private:
   LoopMapReplica replica_;

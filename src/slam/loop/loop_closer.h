@@ -213,6 +213,11 @@ class LoopCloser {
   // nothing to apply).
   static LoopOutcome GlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& corrected,
                                             const std::atomic<bool>* abort);
+  // Whether `closed` (CloseLoop's outcome of job) is followed by GlobalBundleAdjustment: a
+  // correction, and the job's options ask for it. The one rule of every lane that runs jobs.
+  static bool FollowsWithGlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& closed) {
+    return closed.kind == LoopOutcomeKind::kCorrected && job.options.global_bundle_adjustment;
+  }
   // The owner: the edits that carry a correction over to the map as it stands now. Keyframes of
   // the snapshot move to their corrected pose relative to where they stand now; later keyframes
   // move with their nearest spanning-tree ancestor of the snapshot; points with their position

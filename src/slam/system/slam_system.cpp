@@ -314,7 +314,7 @@ void SlamSystem::RunLoopJob(const std::shared_ptr<const LoopJob>& job, int64_t f
   const std::shared_ptr<const LoopJob> resolved = loop_replica_.Resolve(job);
   const LoopOutcome corrected = LoopCloser::CloseLoop(*resolved);
   ApplyLoopOutcome(corrected, frame_index);
-  if (corrected.kind == LoopOutcomeKind::kCorrected && job->options.global_bundle_adjustment)
+  if (LoopCloser::FollowsWithGlobalBundleAdjustment(*resolved, corrected))
     ApplyLoopOutcome(LoopCloser::GlobalBundleAdjustment(*resolved, corrected, nullptr),
                      frame_index);
 }
