@@ -795,20 +795,22 @@ class PlacePool {
 };
 
 // A clip's queries in the pool under the vocabulary last applied: their best-scoring database
-// frames and their best database frames by geometry, by verdict.
+// frames and their best database frames by geometry (by_geometry, per query of the pool, as
+// PlacePool::BestByGeometry gave them), by verdict.
 struct PlaceRow {
   int queries = 0, revisits = 0;
   std::array<int, 3> best{};  // by Verdict
   int answered = 0;           // queries with a frame by geometry
   std::array<int, 3> geometry{};
 };
-PlaceRow RowOf(const PlacePool& pool, int clip) {
+using GeometryAnswers = std::vector<std::optional<size_t>>;
+PlaceRow RowOf(const PlacePool& pool, int clip, const GeometryAnswers& by_geometry) {
   PlaceRow row;
   for (size_t q = 0; q < pool.size(); ++q) {
     if (pool.image(q).clip != clip) continue;
     ++row.queries, row.revisits += pool.HasNear(q);
     if (const auto j = pool.BestScoring(q)) ++row.best[static_cast<int>(pool.VerdictOf(q, *j))];
-    if (const auto j = pool.BestByGeometry(q))
+    if (const auto j = by_geometry[q])
       ++row.answered, ++row.geometry[static_cast<int>(pool.VerdictOf(q, *j))];
   }
   return row;
@@ -817,8 +819,10 @@ PlaceRow RowOf(const PlacePool& pool, int clip) {
 // --place --held-out: each clip's queries again under a vocabulary trained like `given` on the
 // other clips' frames of the pool only, so that none of the clip's own descriptors shaped the
 // words (the shipped vocabulary is trained on these very clips), beside the same queries under
-// `given`. Leaves the pool under the last held-out vocabulary.
-void PrintHeldOut(const pcr::Vocabulary& given, PlacePool* pool) {
+// `given` (whose answers by geometry are given_by_geometry). Leaves the pool under the last
+// held-out vocabulary.
+void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_geometry,
+                  PlacePool* pool) {
   const pcr::VocabularyOptions& options = given.options();
   std::printf(
       "\nplace recognition on unseen clips (--held-out): each clip's queries under a vocabulary "
@@ -847,7 +851,7 @@ void PrintHeldOut(const pcr::Vocabulary& given, PlacePool* pool) {
   const int clips = static_cast<int>(pool->names().size());
   if (clips < 2) throw std::runtime_error("--held-out needs at least two --place clips");
   std::vector<PlaceRow> given_rows;
-  for (int c = 0; c < clips; ++c) given_rows.push_back(RowOf(*pool, c));
+  for (int c = 0; c < clips; ++c) given_rows.push_back(RowOf(*pool, c, given_by_geometry));
   PlaceRow given_sum, held_sum;
   for (int c = 0; c < clips; ++c) {
     std::vector<cv::Mat> training;
@@ -858,7 +862,10 @@ void PrintHeldOut(const pcr::Vocabulary& given, PlacePool* pool) {
     const double train_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     pool->Apply(held_out);
-    const PlaceRow row = RowOf(*pool, c);
+    GeometryAnswers by_geometry(pool->size());
+    for (size_t q = 0; q < pool->size(); ++q)
+      if (pool->image(q).clip == c) by_geometry[q] = pool->BestByGeometry(q);
+    const PlaceRow row = RowOf(*pool, c, by_geometry);
     const std::string& name = pool->names()[static_cast<size_t>(c)];
     print(name, "given", given.num_words(), kNaN, given_rows[static_cast<size_t>(c)]);
     print(name, "held out", held_out.num_words(), train_s, row);
@@ -1142,9 +1149,11 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   }
 
   // (3) Each query's best database frame by geometry (PlacePool::BestByGeometry).
+  GeometryAnswers by_geometry(n);
   std::vector<Candidate> verified_best;
   for (size_t q = 0; q < n; ++q)
-    if (const auto j = pool.BestByGeometry(q)) verified_best.push_back({q, *j, verdict(q, *j)});
+    if ((by_geometry[q] = pool.BestByGeometry(q)))
+      verified_best.push_back({q, *by_geometry[q], verdict(q, *by_geometry[q])});
   std::printf(
       "\nbest database frame by geometry: the most two-view inliers (>= %d) among a query's %zu "
       "best-scoring ones:\n%-28s %8s %8s %7s %8s %5s %5s %6s\n",
@@ -1167,7 +1176,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       "%.1f-%.1f m from the query, and %d of them answer a query whose database holds no frame "
       "within %.0f m)\n",
       kPlaceRadiusM, best_far_min, best_far_max, far_without_near, kPlaceRadiusM);
-  if (args.held_out) PrintHeldOut(vocabulary, &pool);
+  if (args.held_out) PrintHeldOut(vocabulary, by_geometry, &pool);
   return 0;
 }
 
