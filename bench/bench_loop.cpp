@@ -64,7 +64,7 @@
 // sequential ~160 s ON / ~130 s OFF, so the default 3 seeds take ~15 minutes (plus rendering of
 // missing loops); mono ~100 s / ~55 s; --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7
 // minutes); --sequence 10-40 s a KITTI clip; --place ~1 min on the four shipped clips (--held-out
-// ~2 min more); --cross ~8 minutes on them (16 runs, most frames of the cross pairs try 10-20
+// ~1 min more); --cross ~8 minutes on them (16 runs, most frames of the cross pairs try 10-20
 // keyframes).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
