@@ -667,7 +667,7 @@ class PlacePool {
         image.camera = d.rig.left;
         const auto t0 = std::chrono::steady_clock::now();
         pcr::OrbFeatures features = orb.Extract(d.LoadLeft(i));
-        extract_ms_.Add(MsSince(t0));
+        extract_ms_.Add(pcr::MsSince(t0));
         image.keypoints = std::move(features.keypoints);
         image.descriptors = features.descriptors;
         images_.push_back(std::move(image));
@@ -687,7 +687,7 @@ class PlacePool {
       const auto t0 = std::chrono::steady_clock::now();
       vocabulary.Transform(image.descriptors, nullptr, loop_options_.direct_index_levels_up,
                            &image.bow, &image.direct);
-      transform_ms_.Add(MsSince(t0));
+      transform_ms_.Add(pcr::MsSince(t0));
     }
     const size_t n = images_.size();
     score_.assign(n * n, 0.0);
@@ -780,10 +780,6 @@ class PlacePool {
   }
 
  private:
-  static double MsSince(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  }
-
   const int window_;
   const pcr::LoopClosingOptions loop_options_;
   std::vector<std::string> names_;
@@ -859,8 +855,7 @@ void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_
       if (pool->image(i).clip != c) training.push_back(pool->image(i).descriptors);
     const auto t0 = std::chrono::steady_clock::now();
     const pcr::Vocabulary held_out = pcr::Vocabulary::Train(training, options);
-    const double train_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double train_s = pcr::MsSince(t0) / 1000.0;
     pool->Apply(held_out);
     GeometryAnswers by_geometry(pool->size());
     for (size_t q = 0; q < pool->size(); ++q)
