@@ -172,6 +172,11 @@ int main(int argc, char** argv) {
                  seeds.c_str());
     return 1;
   }
+  for (double seed : seed_list)
+    if (!(seed >= 0 && seed == std::floor(seed))) {
+      std::fprintf(stderr, "bench_stereo_truth: a seed must be a whole number >= 0: %g\n", seed);
+      return 1;
+    }
   cv::setNumThreads(1);
   const std::vector<Setting> settings = Settings();
   std::vector<std::array<Stats, kRowNames.size()>> stats(settings.size());
