@@ -16,6 +16,9 @@
 //              with perfect loops (ground-truth loop edges at every revisit frame, OracleOf),
 //              the best any loop correction of that drift can do without re-estimating the
 //              structure, so ATE on/off can be read against ATE oracle/off of the same run.
+//              Then where the error lies, off and on: the aligned error's RMS along the direction
+//              of travel, across it and vertical, and the scale error of 40-frame windows on
+//              straights (RMS, and the correlation of the same windows' errors off and on).
 //  --latency   one seed, pipelined policy: ON/OFF/ON/OFF... for --repeat rounds; tracking latency
 //              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages.
 //  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
@@ -96,6 +99,7 @@
 #include "driver/loop_vocabulary.h"
 #include "eval/association.h"
 #include "eval/evaluation.h"
+#include "eval/statistics.h"
 #include "graph/pipeline.h"
 #include "graph/pipeline_options.h"
 #include "io/dataset.h"
@@ -253,9 +257,60 @@ std::pair<double, double> StepLengths(const pcr::Dataset& d, const pcr::Trajecto
   return {est, gt};
 }
 
+// Where an aligned estimate's error lies: RMS along the ground truth's direction of travel, across
+// it and vertical (the world's y axis: KITTI's camera 0 at frame 0, y down), and the scale error
+// of windows of kSplitWindow frames on straights (estimated distance / true distance - 1).
+constexpr int kSplitWindow = 40;  // frames (32 m at 8 m/s)
+
+struct ErrorSplit {
+  double along_m = kNaN, cross_m = kNaN, vertical_m = kNaN;
+  std::vector<std::pair<int64_t, double>> window_scale;  // (first frame, scale error)
+};
+
+ErrorSplit SplitOf(const pcr::eval::EvalResult& e) {
+  ErrorSplit split;
+  const pcr::Trajectory& truth = e.reference;
+  const pcr::Trajectory& estimate = e.aligned_estimate;
+  const size_t n = truth.size();
+  if (n < 3 || estimate.size() != n) return split;
+  auto p = [&](size_t i) -> Eigen::Vector3d { return truth[i].world_from_cam.translation(); };
+  auto q = [&](size_t i) -> Eigen::Vector3d { return estimate[i].world_from_cam.translation(); };
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitY();
+  // Horizontal direction of travel at pose i (central difference; one-sided at the ends).
+  auto forward = [&](size_t i) -> Eigen::Vector3d {
+    Eigen::Vector3d d = p(std::min(i + 1, n - 1)) - p(i > 0 ? i - 1 : 0);
+    d -= d.dot(up) * up;
+    return d.norm() > 1e-9 ? Eigen::Vector3d(d.normalized()) : Eigen::Vector3d::Zero();
+  };
+  std::vector<double> along, cross, vertical;
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d err = q(i) - p(i);
+    const Eigen::Vector3d f = forward(i);
+    along.push_back(err.dot(f));
+    cross.push_back(err.dot(up.cross(f)));
+    vertical.push_back(err.dot(up));
+  }
+  split.along_m = pcr::eval::ComputeStatistics(along).rmse;
+  split.cross_m = pcr::eval::ComputeStatistics(cross).rmse;
+  split.vertical_m = pcr::eval::ComputeStatistics(vertical).rmse;
+  // Straight windows: every frame present and the heading within 0.01 rad throughout.
+  for (size_t i = 0; i + kSplitWindow < n; i += kSplitWindow / 2) {
+    const size_t j = i + kSplitWindow;
+    if (truth[j].frame_index - truth[i].frame_index != kSplitWindow) continue;
+    bool straight = true;
+    for (size_t k = i; k <= j && straight; ++k)
+      straight = forward(k).dot(forward(i)) > std::cos(0.01);
+    const double true_m = (p(j) - p(i)).norm();
+    if (!straight || true_m <= 0) continue;
+    split.window_scale.emplace_back(truth[i].frame_index, (q(j) - q(i)).norm() / true_m - 1);
+  }
+  return split;
+}
+
 struct Figures {
   size_t tracked = 0;
   double ate_m = kNaN;
+  ErrorSplit split;
   double end_m = kNaN;          // last tracked frame's position error, see EndOfRoute
   double end_scale_pct = kNaN;  // mono: scale of the last kScaleWindow frames against the first
   double wall_s = 0;
@@ -272,9 +327,10 @@ Figures Measure(const pcr::Dataset& d, const pcr::driver::DriverResult& run, boo
   pcr::eval::EvalOptions options;
   options.alignment.mode = mono ? pcr::eval::AlignMode::kSim3 : pcr::eval::AlignMode::kSe3;
   try {
-    f.ate_m =
-        pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(*d.ground_truth, tracked), options)
-            .ape.trans_m.rmse;
+    const pcr::eval::EvalResult e =
+        pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(*d.ground_truth, tracked), options);
+    f.ate_m = e.ape.trans_m.rmse;
+    f.split = SplitOf(e);
   } catch (const std::exception& e) {
     spdlog::warn("ATE: {}", e.what());
   }
@@ -508,6 +564,34 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
         "ATE ratio oracle/off (the OFF run's drift, pose graph with ground-truth loop edges): "
         "median %.3f, min %.3f, max %.3f\n",
         oracle_ratios[oracle_ratios.size() / 2], oracle_ratios.front(), oracle_ratios.back());
+  }
+
+  std::printf(
+      "\nWhere the error lies (RMS m of the aligned error along the direction of travel, across "
+      "it and vertical; scale error of %d-frame windows on straights, estimated / true distance "
+      "- 1, RMS per mille, and the correlation of the windows' errors off and on)\n",
+      kSplitWindow);
+  std::printf("%4s | %7s %7s | %7s %7s | %7s %7s | %7s %7s %7s %5s\n", "seed", "al off", "al on",
+              "cr off", "cr on", "vt off", "vt on", "windows", "scl off", "scl on", "corr");
+  for (const Row& r : rows) {
+    // The windows both runs measured, in frame order.
+    std::vector<double> off, on;
+    for (const auto& [frame, e_off] : r.off.split.window_scale)
+      for (const auto& [frame_on, e_on] : r.on.split.window_scale)
+        if (frame_on == frame) off.push_back(e_off), on.push_back(e_on);
+    const pcr::eval::ErrorStatistics off_stats = pcr::eval::ComputeStatistics(off);
+    const pcr::eval::ErrorStatistics on_stats = pcr::eval::ComputeStatistics(on);
+    double sxy = 0, sxx = 0, syy = 0;
+    for (size_t i = 0; i < off.size(); ++i) {
+      sxy += (off[i] - off_stats.mean) * (on[i] - on_stats.mean);
+      sxx += (off[i] - off_stats.mean) * (off[i] - off_stats.mean);
+      syy += (on[i] - on_stats.mean) * (on[i] - on_stats.mean);
+    }
+    const double corr = sxx > 0 && syy > 0 ? sxy / std::sqrt(sxx * syy) : kNaN;
+    std::printf("%4d | %7.3f %7.3f | %7.3f %7.3f | %7.3f %7.3f | %7zu %7.2f %7.2f %5.2f\n",
+                static_cast<int>(r.seed), r.off.split.along_m, r.on.split.along_m,
+                r.off.split.cross_m, r.on.split.cross_m, r.off.split.vertical_m,
+                r.on.split.vertical_m, off.size(), 1e3 * off_stats.rmse, 1e3 * on_stats.rmse, corr);
   }
 
   std::printf(
