@@ -18,7 +18,6 @@
 // seeds, 40 frames) takes ~10 s.
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -33,6 +32,7 @@
 #include "sim/synthetic_world.h"
 #include "slam/features/orb_extractor.h"
 #include "slam/features/stereo_matcher.h"
+#include "slam/geometry/plane.h"
 
 namespace {
 
@@ -87,17 +87,16 @@ double TrueDisparity(const cv::Mat& disparity, cv::Point2f pt) {
 
 // A true point of the left camera at a pixel and its true disparity.
 Eigen::Vector3d PointAt(const pcr::StereoRig& rig, cv::Point2f pt, double disparity) {
-  const double z = rig.Bf() / disparity;
-  return {(pt.x - rig.left.cx) / rig.left.fx * z, (pt.y - rig.left.cy) / rig.left.fy * z, z};
+  return rig.left.Unproject(Eigen::Vector2d(pt.x, pt.y), rig.Bf() / disparity);
 }
 
 constexpr double kRoadBandM = 0.03;  // a road point: within 3 cm of the frame's road plane
 
-// The road plane of a frame in the left camera (n, d with n.X + d = 0, |n| = 1): a least-squares
-// fit to the true points of the static world in a patch of road in front of the car (the bottom
-// rows, centre columns). None when that patch is not flat (a car close ahead, a kerb).
-std::optional<Eigen::Vector4d> FitRoadPlane(const pcr::sim::RenderedFrame& frame,
-                                            const cv::Mat& disparity, const pcr::StereoRig& rig) {
+// The road plane of a frame in the left camera: a least-squares fit (FitPlaneLeastSquares) to the
+// true points of the static world in a patch of road in front of the car (the bottom rows, centre
+// columns). None when that patch is not flat (a car close ahead, a kerb): RMS distance > 1 cm.
+std::optional<pcr::Plane> FitRoadPlane(const pcr::sim::RenderedFrame& frame,
+                                       const cv::Mat& disparity, const pcr::StereoRig& rig) {
   std::vector<Eigen::Vector3d> points;
   const int rows = disparity.rows, cols = disparity.cols;
   for (int y = rows - 40; y < rows - 4; y += 3)
@@ -108,21 +107,12 @@ std::optional<Eigen::Vector4d> FitRoadPlane(const pcr::sim::RenderedFrame& frame
             PointAt(rig, cv::Point2f(static_cast<float>(x), static_cast<float>(y)), d));
     }
   if (points.size() < 100) return std::nullopt;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3d& p : points) mean += p;
-  mean /= static_cast<double>(points.size());
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  for (const Eigen::Vector3d& p : points) scatter += (p - mean) * (p - mean).transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
-  const Eigen::Vector3d n = eig.eigenvectors().col(0);  // smallest eigenvalue: the normal
-  const double rms = std::sqrt(std::max(0.0, eig.eigenvalues()(0)) / points.size());
-  if (rms > 0.01) return std::nullopt;
-  return Eigen::Vector4d(n.x(), n.y(), n.z(), -n.dot(mean));
-}
-
-double RoadDistance(const Eigen::Vector4d& plane, const pcr::StereoRig& rig, cv::Point2f pt,
-                    double disparity) {
-  return std::abs(plane.head<3>().dot(PointAt(rig, pt, disparity)) + plane(3));
+  const std::optional<pcr::Plane> plane = pcr::FitPlaneLeastSquares(points);
+  if (!plane) return std::nullopt;
+  double sum2 = 0;
+  for (const Eigen::Vector3d& p : points) sum2 += std::pow(plane->SignedDistance(p), 2);
+  if (std::sqrt(sum2 / static_cast<double>(points.size())) > 0.01) return std::nullopt;
+  return plane;
 }
 
 void PrintRow(const char* name, const Stats& s) {
@@ -201,7 +191,7 @@ int main(int argc, char** argv) {
           disparity.at<float>(y, x) =
               std::isfinite(z) && z > 0 ? static_cast<float>(rig.Bf() / z) : 0.0f;
         }
-      const std::optional<Eigen::Vector4d> road_plane = FitRoadPlane(frame, disparity, rig);
+      const std::optional<pcr::Plane> road_plane = FitRoadPlane(frame, disparity, rig);
       const pcr::OrbFeatures left = extractor.Extract(frame.left);
       const pcr::OrbFeatures right = extractor.Extract(frame.right);
       keypoints += static_cast<long>(left.keypoints.size());
@@ -216,7 +206,8 @@ int main(int argc, char** argv) {
           const double truth = TrueDisparity(disparity, pt);
           const bool edge = !(truth > 0);
           const bool road =
-              !edge && road_plane && RoadDistance(*road_plane, rig, pt, truth) < kRoadBandM;
+              !edge && road_plane &&
+              std::abs(road_plane->SignedDistance(PointAt(rig, pt, truth))) < kRoadBandM;
           const int bin = edge ? -1 : truth < 4 ? 2 : truth < 10 ? 3 : truth < 25 ? 4 : 5;
           const double e = (pt.x - m.u_right_px[i]) - truth;
           for (int row = 0; row < static_cast<int>(kRowNames.size()); ++row) {
