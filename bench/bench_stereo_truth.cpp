@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "bench_args.h"
+#include "eval/statistics.h"
 #include "sim/instances.h"
 #include "sim/synthetic_world.h"
 #include "slam/features/orb_extractor.h"
@@ -117,19 +118,14 @@ std::optional<pcr::Plane> FitRoadPlane(const pcr::sim::RenderedFrame& frame,
 
 void PrintRow(const char* name, const Stats& s) {
   const size_t n = s.errors.size();
-  double sum = 0, sum2 = 0;
+  const pcr::eval::ErrorStatistics stats = pcr::eval::ComputeStatistics(s.errors);
   std::vector<double> abs_errors;
   abs_errors.reserve(n);
   long within = 0;
   for (double e : s.errors) {
-    sum += e;
-    sum2 += e * e;
     abs_errors.push_back(std::abs(e));
     within += std::abs(e) <= 0.15;
   }
-  const double mean = n ? sum / n : NAN;
-  const double rms = n ? std::sqrt(sum2 / n) : NAN;
-  const double sd = n ? std::sqrt(std::max(0.0, sum2 / n - mean * mean)) : NAN;
   double p95 = NAN;
   if (n) {
     const auto k = abs_errors.begin() + static_cast<std::ptrdiff_t>(0.95 * (n - 1));
@@ -137,7 +133,7 @@ void PrintRow(const char* name, const Stats& s) {
     p95 = *k;
   }
   std::printf("  %-10s %8ld %6ld %6ld %8.4f %7.4f %7.4f %7.3f %7.1f%%\n", name, s.matched, s.edge,
-              s.wrong, mean, sd, rms, p95, n ? 100.0 * within / n : NAN);
+              s.wrong, stats.mean, stats.std, stats.rmse, p95, n ? 100.0 * within / n : NAN);
 }
 
 }  // namespace
