@@ -174,7 +174,7 @@ void CheckFeatures(const OrbFeatures& f, const char* side, size_t n_scales) {
 }  // namespace
 
 bool StereoMatchOptions::IsValid(std::string* why) const {
-  auto fail = [&](const char* m) {
+  auto fail = [&](const std::string& m) {
     if (why) *why = m;
     return false;
   };
@@ -185,7 +185,7 @@ bool StereoMatchOptions::IsValid(std::string* why) const {
   if (max_depth_m > 0 && min_depth_m > 0 && max_depth_m <= min_depth_m)
     return fail("max_depth_m must be 0 or greater than min_depth_m");
   if (sad_window_half_px < 1 || sad_window_half_px > kMaxSadWindowHalfPx)
-    return fail("sad_window_half_px must be in [1, 15]");
+    return fail("sad_window_half_px must be in [1, " + std::to_string(kMaxSadWindowHalfPx) + "]");
   if (sad_search_half_px < 2 || sad_search_half_px > 64)
     return fail("sad_search_half_px must be in [2, 64]");
   if (!std::isfinite(outlier_sad_factor) || outlier_sad_factor <= 0)
