@@ -60,15 +60,16 @@
 // WORK/loopS`: WORK/loopS/sequences/00, WORK/loopS/poses/00.txt) and as
 // WORK/loop_sS_vSPEED_mMOVERS_fFRAMES/; a directory is reused when its synth_options.txt has the
 // same frames, seed, movers, speed and route and its times.txt all the frames; otherwise the
-// sequence is rendered into the second name (~9 minutes for 600 full-size frames on one core).
+// sequence is rendered into the second name (600 full-size frames: ~80 s on 2 cores, 7.7
+// frames/s, 2026-12-04).
 // `--work /tmp/lc` reuses /tmp/lc/loop1..3.
 //
-// Runtime (2 cores shared with other work, load average 2-3, 600 frames, seed 1): stereo
-// sequential ~160 s ON / ~130 s OFF, so the default 3 seeds take ~15 minutes (plus rendering of
-// missing loops); mono ~100 s / ~55 s; --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7
-// minutes); --sequence 10-40 s a KITTI clip; --place ~1 min on the four shipped clips (--held-out
-// ~1 min more); --cross ~8 minutes on them (16 runs, most frames of the cross pairs try 10-20
-// keyframes).
+// Runtime (2 cores, 600 frames; 2026-12-04, seeds 1-4, 6-8): stereo sequential 60-95 s ON / 54-78 s
+// OFF, so the default 3 seeds take ~7 minutes (plus rendering of missing loops; with other work
+// on the cores, load average 2-3, seed 1 took ~160 s ON / ~130 s OFF); mono ~100 s / ~55 s;
+// --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7 minutes); --sequence 10-40 s a KITTI
+// clip; --place ~1 min on the four shipped clips (--held-out ~1 min more); --cross ~8 minutes on
+// them (16 runs, most frames of the cross pairs try 10-20 keyframes).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -218,7 +219,8 @@ std::string LoopSequence(const Args& args, uint64_t seed) {
                                        args.movers, args.frames);
   for (const fs::path& dir : {fs::path(fmt::format("{}/loop{}", args.work, seed)), written})
     if (HoldsSequence(dir, o)) return (dir / "sequences" / o.sequence).string();
-  std::printf("writing %s (%d frames, ~1 s a frame) ...\n", written.c_str(), o.frames);
+  std::printf("writing %s (%d frames, ~0.15 s a frame on 2 cores) ...\n", written.c_str(),
+              o.frames);
   std::fflush(stdout);
   return pcr::sim::WriteSequence(o, written.string()).sequence_dir;
 }
