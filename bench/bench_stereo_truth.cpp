@@ -25,12 +25,14 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bench_args.h"
 #include "eval/statistics.h"
 #include "sim/instances.h"
 #include "sim/synthetic_world.h"
+#include "slam/common/timing.h"
 #include "slam/features/orb_extractor.h"
 #include "slam/features/stereo_matcher.h"
 #include "slam/geometry/plane.h"
@@ -126,12 +128,7 @@ void PrintRow(const char* name, const Stats& s) {
     abs_errors.push_back(std::abs(e));
     within += std::abs(e) <= 0.15;
   }
-  double p95 = NAN;
-  if (n) {
-    const auto k = abs_errors.begin() + static_cast<std::ptrdiff_t>(0.95 * (n - 1));
-    std::nth_element(abs_errors.begin(), k, abs_errors.end());
-    p95 = *k;
-  }
+  const double p95 = n ? pcr::Percentile(std::move(abs_errors), 95.0) : NAN;
   std::printf("  %-10s %8ld %6ld %6ld %8.4f %7.4f %7.4f %7.3f %7.1f%%\n", name, s.matched, s.edge,
               s.wrong, stats.mean, stats.std, stats.rmse, p95, n ? 100.0 * within / n : NAN);
 }
