@@ -37,9 +37,14 @@
 //              matches, then through a two-view geometric check (an essential matrix by RANSAC on
 //              those matches, each frame through its own camera, min_ransac_inliers inliers);
 //              (3) its best database frame by geometry: of its 10 best-scoring, the one that
-//              passes that check with the most inliers. --held-out adds (1) and (3) for each
-//              clip's queries under a vocabulary trained like the given one on the other clips'
-//              frames only (the shipped one is trained on these clips), beside the given one's.
+//              passes that check with the most inliers; (4) its best database frame over
+//              sequences, bag of words alone (pcr::SequenceScore: the mean score of its last
+//              --sequence-length frames against a database frame's, at 7 speed ratios), kept when
+//              it scores >= --uniqueness x the best database frame elsewhere (another clip, or its
+//              own clip outside the answer's window), with a sweep of that gate. --held-out adds
+//              (1), (3) and (4) for each clip's queries under a vocabulary trained like the given
+//              one on the other clips' frames only (the shipped one is trained on these clips),
+//              beside the given one's.
 //
 //  --cross     place recognition through the whole system: each clip is mapped alone (mono,
 //              sequential), then every clip runs in that map in localisation mode, where each
@@ -54,7 +59,7 @@
 //   bench_loop --sequence DIR... [--mode mono]
 //   bench_loop --cross DIR... [--work DIR]
 //   bench_loop --place DIR... [--place-stride 2] [--window 10] [--thresholds 0,0.02,...]
-//              [--held-out]
+//              [--sequence-length 12] [--sequence-min 3] [--uniqueness 1.05] [--held-out]
 //
 // Work directory: seed S is looked up as WORK/loopS/ (the layout of `pcr_orb synth --out
 // WORK/loopS`: WORK/loopS/sequences/00, WORK/loopS/poses/00.txt) and as
@@ -92,6 +97,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -111,6 +117,7 @@
 #include "slam/geometry/se3.h"
 #include "slam/loop/keyframe_database.h"
 #include "slam/loop/loop_closer.h"
+#include "slam/loop/sequence_score.h"
 #include "slam/loop/vocabulary.h"
 #include "slam/optim/pose_graph.h"
 
@@ -141,6 +148,8 @@ struct Args {
   int window = 10;
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
   bool held_out = false;
+  pcr::SequenceScoreOptions sequence;  // --place: answer (4)
+  double uniqueness = 1.05;            // --place: answer (4)'s gate
 };
 
 using pcr::bench::ParseList;
@@ -760,6 +769,15 @@ class PlacePool {
       }
     }
     const size_t n = images_.size();
+    positions_.resize(n);
+    clip_start_.assign(n, 0);
+    for (size_t i = 0; i < n; ++i) {
+      positions_[i] = i;
+      if (i > 0 && images_[i].clip == images_[i - 1].clip)
+        clip_start_[i] = clip_start_[i - 1];
+      else
+        clip_start_[i] = i;
+    }
     has_near_.assign(n, false);
     for (size_t q = 0; q < n; ++q)
       for (size_t j = 0; j < n; ++j)
@@ -844,6 +862,41 @@ class PlacePool {
       if (InDatabase(q, j) && (!best || score(q, j) > score(q, *best))) best = j;
     return best;
   }
+  // The frames of i's clip up to i, in time order: its history for SequenceScore.
+  std::span<const size_t> History(size_t i) const {
+    return {positions_.data() + clip_start_[i], i - clip_start_[i] + 1};
+  }
+  // q's best database frame over sequences (pcr::SequenceScore on the pairwise scores of the
+  // frames leading up to each), with its uniqueness: its sequence score over the best one of the
+  // database frames elsewhere (another clip, or its own clip outside its window); none when no
+  // database frame has a sequence score. Bag of words alone: no geometry.
+  struct SequenceAnswer {
+    size_t frame = 0;
+    double score = 0, uniqueness = 0;
+  };
+  std::optional<SequenceAnswer> BestBySequence(size_t q,
+                                               const pcr::SequenceScoreOptions& options) const {
+    const size_t n = images_.size();
+    std::vector<double> sequence(n, kNaN);
+    std::optional<size_t> best;
+    for (size_t j = 0; j < n; ++j) {
+      if (!InDatabase(q, j)) continue;
+      const std::optional<double> s = pcr::SequenceScore(
+          History(q), History(j), [this](size_t a, size_t b) { return score(a, b); }, options);
+      if (!s) continue;
+      sequence[j] = *s;
+      if (!best || *s > sequence[*best]) best = j;
+    }
+    if (!best) return std::nullopt;
+    double elsewhere = 0;
+    for (size_t j = 0; j < n; ++j)
+      if (!std::isnan(sequence[j]) && !InWindow(*best, j))
+        elsewhere = std::max(elsewhere, sequence[j]);
+    return SequenceAnswer{
+        *best, sequence[*best],
+        elsewhere > 0 ? sequence[*best] / elsewhere : std::numeric_limits<double>::infinity()};
+  }
+
   // q's best database frame by geometry: of its kPlaceVerifyTopK best-scoring ones, the one that
   // passes the two-view check (>= min_ransac_inliers) with the most inliers (the loop closer keeps
   // the verified candidate with the most matches); none when none of those passes.
@@ -871,22 +924,31 @@ class PlacePool {
   std::vector<std::string> names_;
   std::vector<PlaceImage> images_;
   std::vector<bool> has_near_;
-  std::vector<double> score_;  // n x n, under the vocabulary last applied
-  std::vector<int> common_;    // words shared, n x n
+  std::vector<size_t> positions_;   // 0..n-1, for History
+  std::vector<size_t> clip_start_;  // per image: its clip's first image
+  std::vector<double> score_;       // n x n, under the vocabulary last applied
+  std::vector<int> common_;         // words shared, n x n
   pcr::TimingSeries extract_ms_, transform_ms_;
 };
 
 // A clip's queries in the pool under the vocabulary last applied: their best-scoring database
-// frames and their best database frames by geometry (by_geometry, per query of the pool, as
-// PlacePool::BestByGeometry gave them), by verdict.
+// frames, their best database frames by geometry (by_geometry, per query of the pool, as
+// PlacePool::BestByGeometry gave them) and over sequences (by_sequence, as
+// PlacePool::BestBySequence gave them; those with uniqueness >= `uniqueness` counted again), by
+// verdict.
 struct PlaceRow {
   int queries = 0, revisits = 0;
   std::array<int, 3> best{};  // by Verdict
   int answered = 0;           // queries with a frame by geometry
   std::array<int, 3> geometry{};
+  std::array<int, 3> sequence{};  // best over sequences
+  int unique_answered = 0;        // of those, unique enough
+  std::array<int, 3> unique{};
 };
 using GeometryAnswers = std::vector<std::optional<size_t>>;
-PlaceRow RowOf(const PlacePool& pool, int clip, const GeometryAnswers& by_geometry) {
+using SequenceAnswers = std::vector<std::optional<PlacePool::SequenceAnswer>>;
+PlaceRow RowOf(const PlacePool& pool, int clip, const GeometryAnswers& by_geometry,
+               const SequenceAnswers& by_sequence, double uniqueness) {
   PlaceRow row;
   for (size_t q = 0; q < pool.size(); ++q) {
     if (pool.image(q).clip != clip) continue;
@@ -894,6 +956,11 @@ PlaceRow RowOf(const PlacePool& pool, int clip, const GeometryAnswers& by_geomet
     if (const auto j = pool.BestScoring(q)) ++row.best[static_cast<int>(pool.VerdictOf(q, *j))];
     if (const auto j = by_geometry[q])
       ++row.answered, ++row.geometry[static_cast<int>(pool.VerdictOf(q, *j))];
+    if (const auto& a = by_sequence[q]) {
+      const int v = static_cast<int>(pool.VerdictOf(q, a->frame));
+      ++row.sequence[v];
+      if (a->uniqueness >= uniqueness) ++row.unique_answered, ++row.unique[v];
+    }
   }
   return row;
 }
@@ -901,39 +968,51 @@ PlaceRow RowOf(const PlacePool& pool, int clip, const GeometryAnswers& by_geomet
 // --place --held-out: each clip's queries again under a vocabulary trained like `given` on the
 // other clips' frames of the pool only, so that none of the clip's own descriptors shaped the
 // words (the shipped vocabulary is trained on these very clips), beside the same queries under
-// `given` (whose answers by geometry are given_by_geometry). Leaves the pool under the last
-// held-out vocabulary.
+// `given` (whose answers by geometry and over sequences are given_by_geometry and
+// given_by_sequence). Leaves the pool under the last held-out vocabulary.
 void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_geometry,
-                  PlacePool* pool) {
+                  const SequenceAnswers& given_by_sequence, const Args& args, PlacePool* pool) {
   const pcr::VocabularyOptions& options = given.options();
   std::printf(
       "\nplace recognition on unseen clips (--held-out): each clip's queries under a vocabulary "
       "trained like the given one (k=%d, L=%d, %d iterations, seed %llu) on the other clips' "
       "frames of this pool, beside the same queries under the given vocabulary; database and "
-      "verdicts as above\n%-28s %-8s %6s %7s | %7s %8s | %7s %8s %5s | %8s %7s %8s %5s %5s %6s\n",
+      "verdicts as above\n%-28s %-8s %6s %7s | %7s %8s | %7s %8s %5s | %8s %7s %8s %5s %5s %6s | "
+      "%7s %8s %5s | %8s %7s %8s %5s %6s\n",
       options.branching, options.depth, options.max_iterations,
       static_cast<unsigned long long>(options.seed), "clip", "vocab", "words", "train s", "queries",
       "revisits", "correct", "same far", "other", "answered", "correct", "same far", "other",
-      "prec", "recall");
+      "prec", "recall", "correct", "same far", "other", "unique", "correct", "same far", "other",
+      "recall");
   auto print = [](const std::string& name, const char* vocab, size_t words, double train_s,
                   const PlaceRow& r) {
     const int correct = r.geometry[0];
     const std::string seconds = std::isnan(train_s) ? "-" : fmt::format("{:.1f}", train_s);
-    std::printf("%-28s %-8s %6s %7s | %7d %8d | %7d %8d %5d | %8d %7d %8d %5d %5.2f %6.3f\n",
-                name.c_str(), vocab, words > 0 ? std::to_string(words).c_str() : "-",
-                seconds.c_str(), r.queries, r.revisits, r.best[0], r.best[1], r.best[2], r.answered,
-                correct, r.geometry[1], r.geometry[2],
-                r.answered > 0 ? static_cast<double>(correct) / r.answered : kNaN,
-                r.revisits > 0 ? static_cast<double>(correct) / r.revisits : kNaN);
+    auto recall = [&r](int found) {
+      return r.revisits > 0 ? static_cast<double>(found) / r.revisits : kNaN;
+    };
+    std::printf(
+        "%-28s %-8s %6s %7s | %7d %8d | %7d %8d %5d | %8d %7d %8d %5d %5.2f %6.3f | %7d %8d %5d | "
+        "%8d %7d %8d %5d %6.3f\n",
+        name.c_str(), vocab, words > 0 ? std::to_string(words).c_str() : "-", seconds.c_str(),
+        r.queries, r.revisits, r.best[0], r.best[1], r.best[2], r.answered, correct, r.geometry[1],
+        r.geometry[2], r.answered > 0 ? static_cast<double>(correct) / r.answered : kNaN,
+        recall(correct), r.sequence[0], r.sequence[1], r.sequence[2], r.unique_answered,
+        r.unique[0], r.unique[1], r.unique[2], recall(r.unique[0]));
   };
   auto add = [](PlaceRow* sum, const PlaceRow& r) {
     sum->queries += r.queries, sum->revisits += r.revisits, sum->answered += r.answered;
-    for (size_t v = 0; v < 3; ++v) sum->best[v] += r.best[v], sum->geometry[v] += r.geometry[v];
+    sum->unique_answered += r.unique_answered;
+    for (size_t v = 0; v < 3; ++v) {
+      sum->best[v] += r.best[v], sum->geometry[v] += r.geometry[v];
+      sum->sequence[v] += r.sequence[v], sum->unique[v] += r.unique[v];
+    }
   };
   const int clips = static_cast<int>(pool->names().size());
   if (clips < 2) throw std::runtime_error("--held-out needs at least two --place clips");
   std::vector<PlaceRow> given_rows;
-  for (int c = 0; c < clips; ++c) given_rows.push_back(RowOf(*pool, c, given_by_geometry));
+  for (int c = 0; c < clips; ++c)
+    given_rows.push_back(RowOf(*pool, c, given_by_geometry, given_by_sequence, args.uniqueness));
   PlaceRow given_sum, held_sum;
   for (int c = 0; c < clips; ++c) {
     std::vector<cv::Mat> training;
@@ -944,9 +1023,13 @@ void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_
     const double train_s = pcr::MsSince(t0) / 1000.0;
     pool->Apply(held_out);
     GeometryAnswers by_geometry(pool->size());
+    SequenceAnswers by_sequence(pool->size());
     for (size_t q = 0; q < pool->size(); ++q)
-      if (pool->image(q).clip == c) by_geometry[q] = pool->BestByGeometry(q);
-    const PlaceRow row = RowOf(*pool, c, by_geometry);
+      if (pool->image(q).clip == c) {
+        by_geometry[q] = pool->BestByGeometry(q);
+        by_sequence[q] = pool->BestBySequence(q, args.sequence);
+      }
+    const PlaceRow row = RowOf(*pool, c, by_geometry, by_sequence, args.uniqueness);
     const std::string& name = pool->names()[static_cast<size_t>(c)];
     print(name, "given", given.num_words(), kNaN, given_rows[static_cast<size_t>(c)]);
     print(name, "held out", held_out.num_words(), train_s, row);
@@ -958,9 +1041,10 @@ void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_
   print("all", "held out", 0, kNaN, held_sum);
   std::printf(
       "(best-scoring: each query's best-scoring database frame; by geometry: the most two-view "
-      "inliers among its %zu best-scoring; the database always holds the other clips' frames, "
+      "inliers among its %zu best-scoring; over sequences: the best sequence score of %d frames, "
+      "then those with uniqueness >= %.3f; the database always holds the other clips' frames, "
       "quantised with the same vocabulary; \"all\" held out sums each clip under its own)\n",
-      kPlaceVerifyTopK);
+      kPlaceVerifyTopK, args.sequence.length, args.uniqueness);
 }
 
 int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
@@ -1257,7 +1341,92 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       "%.1f-%.1f m from the query, and %d of them answer a query whose database holds no frame "
       "within %.0f m)\n",
       kPlaceRadiusM, best_far_min, best_far_max, far_without_near, kPlaceRadiusM);
-  if (args.held_out) PrintHeldOut(vocabulary, by_geometry, &pool);
+
+  // (4) Each query's best database frame over sequences (PlacePool::BestBySequence), bag of words
+  // alone, and those of them unique enough.
+  SequenceAnswers by_sequence(n);
+  pcr::TimingSeries sequence_ms;
+  for (size_t q = 0; q < n; ++q) {
+    const auto t0 = std::chrono::steady_clock::now();
+    by_sequence[q] = pool.BestBySequence(q, args.sequence);
+    sequence_ms.Add(pcr::MsSince(t0));
+  }
+  std::printf(
+      "\nbest database frame over sequences (bag of words alone): the best mean score of the "
+      "query's last %d frames against a database frame's, at %zu speed ratios (%d frames at "
+      "least), then those whose score is >= %.3f x the best elsewhere (another clip, or the same "
+      "clip outside the answer's window):\n%-28s %8s %8s %7s %8s %5s %5s | %8s %7s %8s %5s %5s "
+      "%6s\n",
+      args.sequence.length, args.sequence.speeds.size(), args.sequence.min_length, args.uniqueness,
+      "clip", "queries", "answered", "correct", "same far", "other", "own", "unique", "correct",
+      "same far", "other", "prec", "recall");
+  auto print_sequence = [&](const std::string& name, int clip) {
+    std::array<int, 3> all{}, unique{};
+    int answered = 0, unique_answered = 0, own_other = 0;
+    for (size_t q = 0; q < n; ++q) {
+      const auto& a = by_sequence[q];
+      if (!a || (clip >= 0 && images(q).clip != clip)) continue;
+      const Verdict v = verdict(q, a->frame);
+      ++answered, ++all[static_cast<int>(v)];
+      bool has_own = false;
+      for (size_t j = 0; j < n && !has_own; ++j)
+        has_own = images(j).clip == images(q).clip && in_database(q, j);
+      own_other += has_own && v == Verdict::kOtherClip;
+      if (a->uniqueness >= args.uniqueness) ++unique_answered, ++unique[static_cast<int>(v)];
+    }
+    const int near = clip_queries(clip).revisits;
+    std::printf("%-28s %8d %8d %7d %8d %5d %5d | %8d %7d %8d %5d %5.2f %6.3f\n", name.c_str(),
+                clip_queries(clip).queries, answered, all[0], all[1], all[2], own_other,
+                unique_answered, unique[0], unique[1], unique[2],
+                unique_answered > 0 ? static_cast<double>(unique[0]) / unique_answered : kNaN,
+                near > 0 ? static_cast<double>(unique[0]) / near : kNaN);
+  };
+  for (size_t c = 0; c < names.size(); ++c) print_sequence(names[c], static_cast<int>(c));
+  print_sequence("all", -1);
+  std::vector<Candidate> unique_far;
+  for (size_t q = 0; q < n; ++q)
+    if (by_sequence[q] && by_sequence[q]->uniqueness >= args.uniqueness)
+      unique_far.push_back({q, by_sequence[q]->frame, verdict(q, by_sequence[q]->frame)});
+  const auto [seq_far_min, seq_far_max] = far_range(unique_far);
+  int seq_far_without_near = 0;
+  for (const Candidate& c : unique_far)
+    seq_far_without_near += c.verdict == Verdict::kSameClipFar && !pool.HasNear(c.query);
+  const pcr::TimingSummary sequence_time = sequence_ms.Summarize();
+  std::printf(
+      "(own: the answers of another clip to queries whose database holds frames of their own "
+      "clip; recall: correct / revisits; the unique ones of the same clip further than %.0f m lie "
+      "%.1f-%.1f m from the query, and %d of them answer a query whose database holds no frame "
+      "within %.0f m; a query's sequence scores against its whole database and the uniqueness: "
+      "p50 %.2f ms, p99 %.2f ms from the pairwise scores)\nuniqueness of the best frame over "
+      "sequences by verdict (min / median / max):",
+      kPlaceRadiusM, seq_far_min, seq_far_max, seq_far_without_near, kPlaceRadiusM,
+      sequence_time.p50_ms, sequence_time.p99_ms);
+  for (const Verdict v : {Verdict::kCorrect, Verdict::kSameClipFar, Verdict::kOtherClip}) {
+    std::vector<double> u;
+    for (size_t q = 0; q < n; ++q)
+      if (by_sequence[q] && verdict(q, by_sequence[q]->frame) == v)
+        u.push_back(by_sequence[q]->uniqueness);
+    std::sort(u.begin(), u.end());
+    static constexpr const char* kNames[] = {"correct", "same far", "other"};
+    if (u.empty())
+      std::printf(" %s none;", kNames[static_cast<int>(v)]);
+    else
+      std::printf(" %s %.3f / %.3f / %.3f;", kNames[static_cast<int>(v)], u.front(),
+                  u[u.size() / 2], u.back());
+  }
+  std::printf("\n%10s %8s %7s %8s %5s %9s %7s\n", "uniqueness", "answered", "correct", "same far",
+              "other", "precision", "recall");
+  for (const double gate : {1.0, 1.02, 1.04, 1.05, 1.06, 1.08, 1.1, 1.15}) {
+    std::array<int, 3> counts{};
+    for (size_t q = 0; q < n; ++q)
+      if (by_sequence[q] && by_sequence[q]->uniqueness >= gate)
+        ++counts[static_cast<int>(verdict(q, by_sequence[q]->frame))];
+    const int answered = counts[0] + counts[1] + counts[2];
+    std::printf("%10.2f %8d %7d %8d %5d %9.3f %7.3f\n", gate, answered, counts[0], counts[1],
+                counts[2], answered > 0 ? static_cast<double>(counts[0]) / answered : kNaN,
+                revisits > 0 ? static_cast<double>(counts[0]) / revisits : kNaN);
+  }
+  if (args.held_out) PrintHeldOut(vocabulary, by_geometry, by_sequence, args, &pool);
   return 0;
 }
 
@@ -1384,6 +1553,14 @@ int main(int argc, char** argv) {
   app.add_option("--window", a.window, "--place: excluded frames of the query's clip (+-)")
       ->capture_default_str();
   app.add_option("--thresholds", a.thresholds, "--place: minimum scores")->capture_default_str();
+  app.add_option("--sequence-length", a.sequence.length, "--place: frames of a sequence (answer 4)")
+      ->capture_default_str();
+  app.add_option("--sequence-min", a.sequence.min_length,
+                 "--place: fewest frames a sequence score needs")
+      ->capture_default_str();
+  app.add_option("--uniqueness", a.uniqueness,
+                 "--place: answer 4's best over the best elsewhere, at least")
+      ->capture_default_str();
   app.add_flag(
       "--held-out", a.held_out,
       "--place: also each clip under a vocabulary trained without it (the others' frames)");
