@@ -1383,13 +1383,13 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
   };
   for (size_t c = 0; c < names.size(); ++c) print_sequence(names[c], static_cast<int>(c));
   print_sequence("all", -1);
-  std::vector<Candidate> unique_far;
+  std::vector<Candidate> unique_answers;
   for (size_t q = 0; q < n; ++q)
     if (by_sequence[q] && by_sequence[q]->uniqueness >= args.uniqueness)
-      unique_far.push_back({q, by_sequence[q]->frame, verdict(q, by_sequence[q]->frame)});
-  const auto [seq_far_min, seq_far_max] = far_range(unique_far);
+      unique_answers.push_back({q, by_sequence[q]->frame, verdict(q, by_sequence[q]->frame)});
+  const auto [seq_far_min, seq_far_max] = far_range(unique_answers);
   int seq_far_without_near = 0;
-  for (const Candidate& c : unique_far)
+  for (const Candidate& c : unique_answers)
     seq_far_without_near += c.verdict == Verdict::kSameClipFar && !pool.HasNear(c.query);
   const pcr::TimingSummary sequence_time = sequence_ms.Summarize();
   std::printf(
@@ -1406,13 +1406,13 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     for (size_t q = 0; q < n; ++q)
       if (by_sequence[q] && verdict(q, by_sequence[q]->frame) == v)
         u.push_back(by_sequence[q]->uniqueness);
-    std::sort(u.begin(), u.end());
     static constexpr const char* kNames[] = {"correct", "same far", "other"};
     if (u.empty())
       std::printf(" %s none;", kNames[static_cast<int>(v)]);
     else
-      std::printf(" %s %.3f / %.3f / %.3f;", kNames[static_cast<int>(v)], u.front(),
-                  u[u.size() / 2], u.back());
+      std::printf(" %s %.3f / %.3f / %.3f;", kNames[static_cast<int>(v)],
+                  *std::min_element(u.begin(), u.end()), pcr::Percentile(u, 50),
+                  *std::max_element(u.begin(), u.end()));
   }
   std::printf("\n%10s %8s %7s %8s %5s %9s %7s\n", "uniqueness", "answered", "correct", "same far",
               "other", "precision", "recall");
