@@ -779,9 +779,13 @@ class PlacePool {
         clip_start_[i] = i;
     }
     has_near_.assign(n, false);
+    has_own_.assign(n, false);
     for (size_t q = 0; q < n; ++q)
-      for (size_t j = 0; j < n; ++j)
-        if (InDatabase(q, j) && VerdictOf(q, j) == Verdict::kCorrect) has_near_[q] = true;
+      for (size_t j = 0; j < n; ++j) {
+        if (!InDatabase(q, j)) continue;
+        if (images_[j].clip == images_[q].clip) has_own_[q] = true;
+        if (VerdictOf(q, j) == Verdict::kCorrect) has_near_[q] = true;
+      }
   }
 
   // Quantises every image with `vocabulary` and scores all pairs, replacing what an earlier
@@ -848,6 +852,8 @@ class PlacePool {
   }
   // Whether q's database holds a frame within kPlaceRadiusM (a revisit).
   bool HasNear(size_t q) const { return has_near_[q]; }
+  // Whether q's database holds a frame of its own clip (a clip's first queries' does not).
+  bool HasOwnClip(size_t q) const { return has_own_[q]; }
 
   // The loop closer's word matches between query q and frame j, then the two-view check's
   // inliers on them; -1 when the matches are fewer than min_bow_matches.
@@ -930,6 +936,7 @@ class PlacePool {
   std::vector<std::string> names_;
   std::vector<PlaceImage> images_;
   std::vector<bool> has_near_;
+  std::vector<bool> has_own_;
   std::vector<size_t> positions_;   // 0..n-1, for History
   std::vector<size_t> clip_start_;  // per image: its clip's first image
   std::vector<double> score_;       // n x n, under the vocabulary last applied
@@ -1285,10 +1292,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
     std::array<int, 3> own{}, gated{};
     for (const Best& b : bests) {
       const size_t q = b.query;
-      bool has_own = false;
-      for (size_t j = 0; j < n && !has_own; ++j)
-        has_own = images(j).clip == images(q).clip && in_database(q, j);
-      if (has_own) ++own[static_cast<int>(b.verdict)];
+      if (pool.HasOwnClip(q)) ++own[static_cast<int>(b.verdict)];
       const std::optional<double> min_score = window_min_score(q);
       if (min_score && b.score >= *min_score) ++gated[static_cast<int>(b.verdict)];
     }
@@ -1375,10 +1379,7 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
       if (!a || (clip >= 0 && images(q).clip != clip)) continue;
       const Verdict v = verdict(q, a->frame);
       ++answered, ++all[static_cast<int>(v)];
-      bool has_own = false;
-      for (size_t j = 0; j < n && !has_own; ++j)
-        has_own = images(j).clip == images(q).clip && in_database(q, j);
-      own_other += has_own && v == Verdict::kOtherClip;
+      own_other += pool.HasOwnClip(q) && v == Verdict::kOtherClip;
       if (a->uniqueness >= args.uniqueness) ++unique_answered, ++unique[static_cast<int>(v)];
     }
     const int near = clip_queries(clip).revisits;
