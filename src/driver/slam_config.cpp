@@ -107,6 +107,20 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("loop", "global_ba_optimise_twice", &l.global_ba_optimise_twice,
         "second global BA solve without the first one's outlier observations");
   s.Add("loop", "skip_keyframes_after_loop", &l.skip_keyframes_after_loop);
+  s.Add("loop", "sequence_length", &l.sequence_length,
+        "0: loop candidates by single keyframes (ORB-SLAM's); else over sequences of this many "
+        "keyframes (SeqSLAM's idea on bag-of-words scores)");
+  s.Add("loop", "sequence_min_length", &l.sequence_min_length,
+        "fewest keyframe pairs a sequence score needs");
+  s.Add("loop", "sequence_uniqueness", &l.sequence_uniqueness,
+        "a sequence answer must score this many times the best keyframe elsewhere (>= 1)");
+  s.Add("loop", "sequence_window", &l.sequence_window,
+        "keyframes this close to the sequence answer are not 'elsewhere'");
+  s.Add("loop", "sequence_neighbours", &l.sequence_neighbours,
+        "keyframes either side of the sequence answer verified with it (the most loop matches "
+        "wins)");
+  s.Add("loop", "sequence_consistency", &l.sequence_consistency,
+        "over sequences: consecutive keyframes whose candidate groups must agree");
   s.Add("loop", "incremental_snapshots", &l.incremental_snapshots,
         "loop jobs carry the map edits since the previous job, not a copy of the map");
   s.Add("loop", "max_snapshot_edits", &l.max_snapshot_edits,

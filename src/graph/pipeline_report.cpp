@@ -172,11 +172,11 @@ std::string FormatPipelineStats(const PipelineStats& s) {
   return o.str();
 }
 
-// Place-recognition time per keyframe, for stats.json and the summary line alike.
-static TimingSummary DetectionTimes(const LoopStats& st) {
-  TimingSeries detect;
-  for (double ms : st.detect_ms) detect.Add(ms);
-  return detect.Summarize();
+// Place-recognition times per keyframe (LoopStats), for stats.json and the summary line alike.
+static TimingSummary TimesOf(const std::vector<double>& ms) {
+  TimingSeries series;
+  for (double t : ms) series.Add(t);
+  return series.Summarize();
 }
 
 nlohmann::json LoopToJson(const PipelineResult& result) {
@@ -244,7 +244,9 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
           {"jobs_with_map_copy", st.map_copies},
           {"jobs_with_map_edits", st.map_edit_jobs},
           {"map_edits_sent", st.map_edits},
-          {"detect_ms", TimingJson(DetectionTimes(st))},
+          {"sequence_gated", st.sequence_gated},
+          {"detect_ms", TimingJson(TimesOf(st.detect_ms))},
+          {"add_ms", TimingJson(TimesOf(st.add_ms))},
           {"verify_ms", TimingJson(verify.Summarize())},
           {"correct_ms", TimingJson(correct.Summarize())},
           {"pose_graph_ms", TimingJson(graph.Summarize())},
@@ -255,7 +257,7 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
 std::string FormatLoopSummary(const PipelineResult& result) {
   const LoopStats& st = result.loop_stats;
   if (st.keyframes_seen == 0) return "";
-  const TimingSummary d = DetectionTimes(st);
+  const TimingSummary d = TimesOf(st.detect_ms);
   std::string out = fmt::format(
       "loop closing: {} loops closed, {} global BAs ({} aborted); {} keyframes in the database, "
       "{} queries, {} candidates, {} jobs rejected ({} candidates failed the geometry); "

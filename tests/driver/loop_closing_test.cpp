@@ -101,6 +101,35 @@ TEST(LoopClosing, TheRevisitIsClosedAndTheTrajectoryImprovesSequentially) {
   }
 }
 
+TEST(LoopClosing, OverSequencesTheRevisitIsClosedAsWell) {
+  // The same street with loop candidates over sequences of 12 keyframes: the loop is closed at
+  // the revisit as well, from fewer candidates and no more jobs than single keyframes give.
+  // Measured: both close at frame 168 after 2 jobs, ATE 0.0418 m each; 165 candidates against
+  // 290, 43 queries gated.
+  const LoopRun single = RunLoop(graph::Policy::kSequential, true);
+  const LoopRun sequences =
+      RunLoop(graph::Policy::kSequential, true, {}, {"loop.sequence_length=12"});
+  const Dataset dataset = OpenDataset(LoopStreet());
+  EXPECT_EQ(sequences.result.summary.frames_tracked, dataset.size());
+  int64_t first = -1;
+  ASSERT_GE(CorrectionsApplied(sequences, &first), 1);
+  EXPECT_GE(first, 150);  // at the revisit, not before
+  const LoopStats& st = sequences.result.pipeline.loop_stats;
+  EXPECT_GT(st.detections, 0);
+  EXPECT_LE(st.jobs, single.result.pipeline.loop_stats.jobs);
+  EXPECT_LT(st.candidates, single.result.pipeline.loop_stats.candidates);
+  EXPECT_EQ(st.add_ms.size(), static_cast<size_t>(st.keyframes_seen));
+  int64_t single_first = -1;
+  CorrectionsApplied(single, &single_first);
+  std::printf(
+      "over sequences: ATE %.4f m (single keyframes %.4f m), jobs %d (%d), candidates %d (%d), "
+      "first loop at frame %lld (%lld), %d queries gated\n",
+      sequences.ate_m, single.ate_m, st.jobs, single.result.pipeline.loop_stats.jobs, st.candidates,
+      single.result.pipeline.loop_stats.candidates, static_cast<long long>(first),
+      static_cast<long long>(single_first), st.sequence_gated);
+  EXPECT_LT(sequences.ate_m, 1.5 * single.ate_m);
+}
+
 TEST(LoopClosing, PipelinedRunsTheLoopLaneBesideTrackingAndLosesNoPose) {
   // The loop lane is slowed down: the correction arrives while later frames are being tracked and
   // mapped (it is applied by the mapping node as a delta), and the global BA after it is still

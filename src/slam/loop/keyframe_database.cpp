@@ -1,8 +1,10 @@
 #include "slam/loop/keyframe_database.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <set>
+#include <unordered_map>
 
 #include "slam/common/error.h"
 
@@ -62,6 +64,24 @@ const std::vector<std::pair<KeyframeId, double>>& KeyframeDatabase::KeyframesWit
     WordId word) const {
   static const std::vector<std::pair<KeyframeId, double>> kNone;
   return word < inverted_.size() ? inverted_[word] : kNone;
+}
+
+std::vector<std::pair<KeyframeId, double>> KeyframeDatabase::Scores(const BowVector& bow) const {
+  // Vocabulary::Score sums |a| + |b| - |a - b| over the shared words in increasing word order;
+  // so does this, one keyframe's terms at a time in the order of the query's words.
+  std::unordered_map<KeyframeId, double> sums;
+  for (const auto& [word, weight] : bow.words) {
+    if (word >= inverted_.size()) continue;
+    for (const auto& [keyframe, keyframe_weight] : inverted_[word])
+      sums[keyframe] +=
+          std::abs(weight) + std::abs(keyframe_weight) - std::abs(weight - keyframe_weight);
+  }
+  std::vector<std::pair<KeyframeId, double>> scores;
+  scores.reserve(sums.size());
+  for (const auto& [keyframe, sum] : sums)
+    scores.emplace_back(keyframe, std::clamp(0.5 * sum, 0.0, 1.0));
+  std::sort(scores.begin(), scores.end());
+  return scores;
 }
 
 template <typename Excluded>

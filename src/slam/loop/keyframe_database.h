@@ -54,6 +54,10 @@ class KeyframeDatabase {
   const BowVector* Find(KeyframeId keyframe) const;
   // Keyframes (increasing id) with their weight holding the word; empty for an unknown word.
   const std::vector<std::pair<KeyframeId, double>>& KeyframesWithWord(WordId word) const;
+  // Vocabulary::Score of `bow` against every keyframe of the database that shares a word with it
+  // (the others score 0), increasing id; through the inverted index, so only the shared words
+  // are visited. Bit-identical to Vocabulary::Score (the same terms added in the same order).
+  std::vector<std::pair<KeyframeId, double>> Scores(const BowVector& bow) const;
 
   // Loop candidates of keyframe `query` with bag of words `bow`, ORB-SLAM2's DetectLoopCandidates:
   // 1. keyframes of the database that are in the map and share a word with the query, except the

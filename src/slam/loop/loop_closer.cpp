@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <set>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -14,6 +16,7 @@
 #include "slam/common/timing.h"
 #include "slam/features/orb_extractor.h"
 #include "slam/geometry/se3.h"
+#include "slam/loop/sequence_score.h"
 #include "slam/loop/sim3_ransac.h"
 #include "slam/loop/vocabulary_io.h"
 #include "slam/map/matcher.h"
@@ -75,7 +78,8 @@ bool LoopClosingOptions::IsValid(std::string* why) const {
   if (direct_index_levels_up < 0) return fail("direct_index_levels_up must be >= 0");
   if (min_keyframes < 2) return fail("min_keyframes must be >= 2");
   if (exclude_recent_keyframes < 0) return fail("exclude_recent_keyframes must be >= 0");
-  if (consistency < 0) return fail("consistency must be >= 0");
+  if (consistency < 0 || sequence_consistency < 0)
+    return fail("consistency and sequence_consistency must be >= 0");
   if (min_bow_matches < 3 || min_ransac_inliers < 3 || min_sim3_inliers < 3)
     return fail("min_bow_matches, min_ransac_inliers and min_sim3_inliers must be >= 3");
   if (min_loop_matches < min_sim3_inliers)
@@ -91,6 +95,13 @@ bool LoopClosingOptions::IsValid(std::string* why) const {
   if (global_ba_iterations < 1) return fail("global_ba_iterations must be >= 1");
   if (skip_keyframes_after_loop < 0) return fail("skip_keyframes_after_loop must be >= 0");
   if (max_snapshot_edits < 0) return fail("max_snapshot_edits must be >= 0");
+  if (sequence_length < 0) return fail("sequence_length must be >= 0");
+  if (sequence_length > 0 && (sequence_min_length < 1 || sequence_min_length > sequence_length))
+    return fail("sequence_min_length must be in [1, sequence_length]");
+  if (!(sequence_uniqueness >= 1) || !std::isfinite(sequence_uniqueness))
+    return fail("sequence_uniqueness must be finite and >= 1");
+  if (sequence_window < 0 || sequence_neighbours < 0)
+    return fail("sequence_window and sequence_neighbours must be >= 0");
   return true;
 }
 
@@ -187,19 +198,109 @@ void LoopCloser::OnKeyframe(KeyframeId id, const Map& map) {
     }
     database_.Erase(it->first);
     features_.erase(it->first);
+    sequence_rows_.erase(it->first);
     it = bow_.erase(it);
   }
   const Keyframe* kf = map.keyframe(id);
   if (!kf || bow_.count(id)) return;
+  const auto start = std::chrono::steady_clock::now();
   const std::vector<uint8_t> skip = ExcludedFlags(*kf->frame);
   BowVector bow;
   FeatureVector features;
   vocabulary_->Transform(kf->frame->descriptors(), &skip, options_.direct_index_levels_up, &bow,
                          &features);
+  if (options_.sequence_length > 0) {
+    // Only the last keyframes' rows are read (SequenceCandidates computes a missing one); a few
+    // lengths are kept for keyframes culled among them.
+    const int64_t keep = 3 * static_cast<int64_t>(options_.sequence_length);
+    for (auto it = sequence_rows_.begin(); it != sequence_rows_.end();) {
+      const Keyframe* row_kf = map.keyframe(it->first);
+      it = row_kf && row_kf->index + keep >= kf->index ? std::next(it) : sequence_rows_.erase(it);
+    }
+    sequence_rows_[id] = database_.Scores(bow);
+  }
   database_.Add(id, bow);
   bow_[id] = std::move(bow);
   features_[id] = std::move(features);
   ++stats_.keyframes_seen;
+  stats_.add_ms.push_back(MsSince(start));
+}
+
+std::vector<PlaceCandidate> LoopCloser::SequenceCandidates(KeyframeId query_id, const Map& map) {
+  const Keyframe* query_keyframe = map.keyframe(query_id);
+  if (!IsActive() || !query_keyframe || options_.sequence_length == 0) return {};
+  const Keyframe& query = *query_keyframe;
+  // The keyframes the database holds, in insertion order: the sequences run along it.
+  std::vector<std::pair<int64_t, KeyframeId>> order;
+  for (const auto& [kid, k] : map.keyframes())
+    if (bow_.count(kid)) order.emplace_back(k.index, kid);
+  std::sort(order.begin(), order.end());
+  std::unordered_map<KeyframeId, size_t> position;
+  for (size_t p = 0; p < order.size(); ++p) position.emplace(order[p].second, p);
+  const auto found = position.find(query.id);
+  if (found == position.end()) return {};
+  const size_t q = found->second;
+  // score[k][p]: the (q - k)-th keyframe's score against the p-th (those it came after).
+  const size_t length = std::min(static_cast<size_t>(options_.sequence_length), q + 1);
+  std::vector<std::vector<double>> score(length, std::vector<double>(order.size(), 0.0));
+  for (size_t k = 0; k < length; ++k) {
+    const KeyframeId h = order[q - k].second;
+    auto row = sequence_rows_.find(h);
+    if (row == sequence_rows_.end())  // a loaded map, or rows culled meanwhile
+      row = sequence_rows_.emplace(h, database_.Scores(bow_.at(h))).first;
+    for (const auto& [other, s] : row->second) {
+      const auto p = position.find(other);
+      if (p != position.end()) score[k][p->second] = s;
+    }
+  }
+  // Left out as by KeyframeDatabase::DetectLoopCandidates: the query, its connections and the
+  // keyframes within exclude_recent_keyframes of it.
+  auto excluded = [&](size_t p) {
+    return p == q || query.connections.count(order[p].second) != 0 ||
+           std::llabs(order[p].first - query.index) <=
+               static_cast<long long>(options_.exclude_recent_keyframes);
+  };
+  std::vector<size_t> positions(q + 1);
+  for (size_t p = 0; p <= q; ++p) positions[p] = p;
+  SequenceScoreOptions sequence;
+  sequence.length = options_.sequence_length;
+  sequence.min_length = options_.sequence_min_length;
+  const auto pair_score = [&](size_t a, size_t b) { return score[q - a][b]; };
+  std::vector<double> by_position(order.size(), -1.0);  // -1: excluded or no score
+  std::optional<size_t> best;
+  for (size_t p = 0; p < q; ++p) {
+    if (excluded(p)) continue;
+    const std::optional<double> s =
+        SequenceScore(std::span<const size_t>(positions),
+                      std::span<const size_t>(positions.data(), p + 1), pair_score, sequence);
+    if (!s) continue;
+    by_position[p] = *s;
+    if (!best || *s > by_position[*best]) best = p;
+  }
+  if (!best || !(by_position[*best] > 0)) return {};
+  // Unique: the best further than sequence_window keyframes from it scores clearly less.
+  double elsewhere = 0;
+  for (size_t p = 0; p < by_position.size(); ++p) {
+    const size_t apart = p > *best ? p - *best : *best - p;
+    if (apart > static_cast<size_t>(options_.sequence_window))
+      elsewhere = std::max(elsewhere, by_position[p]);
+  }
+  if (by_position[*best] < options_.sequence_uniqueness * elsewhere) {
+    ++stats_.sequence_gated;
+    return {};
+  }
+  // The answer, then its neighbours in insertion order by their own score: the lane keeps the
+  // one that verifies with the most loop matches (the best sequence need not be the best view).
+  std::vector<PlaceCandidate> candidates{
+      PlaceCandidate{order[*best].second, score[0][*best], score[0][*best], 0}};
+  const size_t reach = static_cast<size_t>(options_.sequence_neighbours);
+  for (size_t p = *best > reach ? *best - reach : 0; p <= *best + reach && p < q; ++p)
+    if (p != *best && !excluded(p))
+      candidates.push_back({order[p].second, score[0][p], score[0][p], 0});
+  std::stable_sort(
+      candidates.begin() + 1, candidates.end(),
+      [](const PlaceCandidate& a, const PlaceCandidate& b) { return a.score > b.score; });
+  return candidates;
 }
 
 uint64_t LoopCloser::VocabularyFingerprint() const {
@@ -275,21 +376,25 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   if (last_loop_index_ >= 0 && kf->index < last_loop_index_ + options_.skip_keyframes_after_loop)
     return nullptr;
   ++stats_.detections;
-  // The lowest similarity to the keyframe's covisible neighbours: a loop candidate must look at
-  // least as much like the query as the keyframes it was just seen with.
-  double min_score = 1.0;
-  bool any = false;
-  for (const auto& [n, w] : kf->covisible) {
-    const auto it = bow_.find(n);
-    if (it == bow_.end()) continue;
-    min_score = std::min(min_score, Vocabulary::Score(own->second, it->second));
-    any = true;
+  std::vector<PlaceCandidate> candidates;
+  if (options_.sequence_length > 0) {
+    candidates = SequenceCandidates(id, map);
+  } else {
+    // The lowest similarity to the keyframe's covisible neighbours: a loop candidate must look
+    // at least as much like the query as the keyframes it was just seen with.
+    double min_score = 1.0;
+    bool any = false;
+    for (const auto& [n, w] : kf->covisible) {
+      const auto it = bow_.find(n);
+      if (it == bow_.end()) continue;
+      min_score = std::min(min_score, Vocabulary::Score(own->second, it->second));
+      any = true;
+    }
+    if (!any) return done(nullptr);
+    LoopQueryOptions query;
+    query.exclude_recent = options_.exclude_recent_keyframes;
+    candidates = database_.DetectLoopCandidates(id, own->second, map, min_score, query);
   }
-  if (!any) return done(nullptr);
-  LoopQueryOptions query;
-  query.exclude_recent = options_.exclude_recent_keyframes;
-  const std::vector<PlaceCandidate> candidates =
-      database_.DetectLoopCandidates(id, own->second, map, min_score, query);
   stats_.candidates += static_cast<int>(candidates.size());
   if (candidates.empty()) {
     groups_.clear();
@@ -297,7 +402,10 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   }
 
   // Consistency: a candidate's group (itself and its connected keyframes) must share a keyframe
-  // with a group that was a candidate of the previous queries, `consistency` times in a row.
+  // with a group that was a candidate of the previous queries, `consistency` times in a row
+  // (sequence_consistency over sequences, whose scores already span several keyframes).
+  const int needed =
+      options_.sequence_length > 0 ? options_.sequence_consistency : options_.consistency;
   std::vector<ConsistentGroup> current;
   std::vector<KeyframeId> consistent;
   std::vector<bool> previous_extended(groups_.size(), false);
@@ -319,10 +427,10 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
         current.push_back({group, consistency});
         previous_extended[g] = true;
       }
-      if (consistency >= options_.consistency) enough = true;
+      if (consistency >= needed) enough = true;
     }
     if (!extended_any) current.push_back({group, 0});
-    if (enough || options_.consistency == 0)
+    if (enough || needed == 0)
       if (std::find(consistent.begin(), consistent.end(), c.keyframe) == consistent.end())
         consistent.push_back(c.keyframe);
   }

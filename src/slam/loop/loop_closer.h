@@ -59,6 +59,21 @@ struct LoopClosingOptions {
   double global_ba_function_tolerance = 1e-8;  // Ceres' relative cost-change stop
   bool global_ba_optimise_twice = false;       // second solve without the first one's outliers
   int skip_keyframes_after_loop = 10;          // no detection right after a correction
+  // Place recognition over sequences (slam/loop/sequence_score.h) instead of ORB-SLAM's
+  // single-frame candidates: 0 off; else the candidate is the keyframe (outside the query's
+  // exclusion) whose last keyframes score best against the query's last sequence_length
+  // keyframes (the map's keyframes in insertion order; mean bag-of-words score, 0.5-2x speed
+  // ratios, at least sequence_min_length terms), kept only when that sequence score is at least
+  // sequence_uniqueness times the best one of the keyframes further than sequence_window
+  // keyframes from it. The candidates are that keyframe and those within sequence_neighbours
+  // of it in insertion order; they must be consistent over sequence_consistency keyframes (as
+  // `consistency` for single frames) and pass the same geometric verification.
+  int sequence_length = 0;
+  int sequence_min_length = 3;
+  double sequence_uniqueness = 1.05;
+  int sequence_window = 10;
+  int sequence_neighbours = 2;
+  int sequence_consistency = 1;
   // A job carries the map edits made since the previous job, replayed on the loop lane's copy
   // (LoopMapReplica), instead of a copy of the whole map made on the owner's (the frames') path:
   // ~25-38 ms a job at 9-21 thousand points on a synthetic loop, growing with the map. The first
@@ -160,7 +175,11 @@ struct LoopStats {
   int map_copies = 0;             // jobs carrying a copy of the map
   int map_edit_jobs = 0;          // jobs carrying the edits since the previous job instead
   int64_t map_edits = 0;          // map deltas those carried
-  std::vector<double> detect_ms;  // per Detect call (bag of words, query, consistency, snapshot)
+  int sequence_gated = 0;         // sequence queries whose best answer was not unique enough
+  std::vector<double> detect_ms;  // per Detect call (query, consistency, precheck, snapshot)
+  // Per keyframe OnKeyframe added: its bag of words, the database entry and, over sequences,
+  // its scores against the keyframes held.
+  std::vector<double> add_ms;
 };
 
 // Loop-closure helpers that are useful on their own (and tested alone).
@@ -226,6 +245,13 @@ class LoopCloser {
   // The owner, once the delta of outcome was applied (or the outcome rejected).
   void OnOutcome(const LoopOutcome& outcome, const Map& map);
 
+  // The loop candidates over sequences (LoopClosingOptions::sequence_length, which Detect uses
+  // when > 0) for keyframe `query` of the map, after OnKeyframe: the best sequence's keyframe,
+  // then its neighbours (sequence_neighbours, outside the exclusion) by decreasing score. None
+  // when no keyframe outside the exclusion has a sequence score or the best is not unique enough
+  // (stats().sequence_gated counts those), and none when sequence_length is 0.
+  std::vector<PlaceCandidate> SequenceCandidates(KeyframeId query, const Map& map);
+
   // Relocalisation: keyframes of the whole map that look like frame (its non-excluded keypoints),
   // best first, at most max_candidates.
   std::vector<KeyframeId> PlaceCandidates(const Frame& frame, const Map& map,
@@ -264,6 +290,9 @@ class LoopCloser {
   KeyframeDatabase database_;
   std::map<KeyframeId, BowVector> bow_;
   std::map<KeyframeId, FeatureVector> features_;
+  // sequence_length > 0: each recent keyframe's bag-of-words scores against the keyframes the
+  // database held when it came (Scores; the others 0), kept for its last keyframes' queries.
+  std::map<KeyframeId, std::vector<std::pair<KeyframeId, double>>> sequence_rows_;
   std::vector<ConsistentGroup> groups_;
   std::vector<std::pair<KeyframeId, KeyframeId>> loop_edges_;
   int64_t next_job_ = 0;

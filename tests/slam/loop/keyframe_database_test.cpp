@@ -6,6 +6,7 @@
 
 #include "slam/common/error.h"
 #include "slam/features/stereo_matcher.h"
+#include "slam/loop/vocabulary.h"
 #include "slam/map/map.h"
 #include "slam/map/scale_pyramid.h"
 #include "slam/map/synthetic_scene.h"
@@ -96,6 +97,28 @@ TEST_F(KeyframeDatabaseTest, InvertedIndex) {
   EXPECT_EQ(with_word_5[3].first, KeyframeId(6));
   EXPECT_DOUBLE_EQ(with_word_5[0].second, 0.1);
   EXPECT_TRUE(database.KeyframesWithWord(99999).empty());
+}
+
+TEST_F(KeyframeDatabaseTest, ScoresThroughTheInvertedIndexAreVocabularyScores) {
+  // Uneven weights, so that |a - b| differs from term to term.
+  BowVector query;
+  for (WordId w = 0; w < 12; ++w) query.words.emplace_back(w, 0.02 + 0.01 * w);
+  query.words.emplace_back(205, 0.1);
+  const std::vector<std::pair<KeyframeId, double>> scores = database.Scores(query);
+  // K0, K1, K5, K6 share words 0..11; K3 word 205; K2 and K4 nothing (left out).
+  std::vector<KeyframeId> ids;
+  for (const auto& [id, score] : scores) ids.push_back(id);
+  EXPECT_EQ(ids, (std::vector<KeyframeId>{KeyframeId(0), KeyframeId(1), KeyframeId(3),
+                                          KeyframeId(5), KeyframeId(6)}));
+  for (const auto& [id, score] : scores) {
+    EXPECT_EQ(score, Vocabulary::Score(query, bows[static_cast<size_t>(id.value)])) << id.value;
+    EXPECT_GT(score, 0.0);
+  }
+  EXPECT_EQ(Vocabulary::Score(query, bows[2]), 0.0);
+  EXPECT_TRUE(database.Scores(Words(5000, 3)).empty());
+  EXPECT_TRUE(database.Scores(BowVector{}).empty());
+  database.Erase(KeyframeId(3));
+  EXPECT_EQ(database.Scores(query).size(), 4u);
 }
 
 TEST_F(KeyframeDatabaseTest, LoopQueryFindsThePlaceAndExcludesConnectedAndRecent) {

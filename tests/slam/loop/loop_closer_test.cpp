@@ -4,6 +4,7 @@
 
 #include "slam/common/error.h"
 #include "slam/common/lie.h"
+#include "slam/loop/vocabulary.h"
 #include "slam/map/scale_pyramid.h"
 #include "slam/map/synthetic_scene.h"
 
@@ -171,6 +172,174 @@ TEST(LoopCloser, WithoutAVocabularyItIsInactiveAndBadOptionsAreRejected) {
   LoopClosingOptions bad;
   bad.min_loop_matches = 5;  // below min_sim3_inliers
   EXPECT_THROW(LoopCloser(bad, nullptr, true), ConfigError);
+}
+
+// Places of a route for the sequence tests: one random descriptor each, and a vocabulary with one
+// word per place (a single level with more branches than places), so that two keyframes score 1
+// when they see the same place and 0 otherwise.
+struct Places {
+  explicit Places(int count) {
+    cv::RNG rng(7);
+    std::vector<cv::Mat> images;
+    for (int p = 0; p < count; ++p) {
+      cv::Mat d(1, 32, CV_8U);
+      rng.fill(d, cv::RNG::UNIFORM, 0, 256);
+      descriptors.push_back(d);
+      images.push_back(d);
+    }
+    VocabularyOptions o;
+    o.branching = count + 1;
+    o.depth = 1;
+    vocabulary = std::make_shared<const Vocabulary>(Vocabulary::Train(images, o));
+  }
+  // A map whose keyframe k sees place route[k] (5 keypoints, no map points), given to `closer`
+  // keyframe after keyframe as local mapping does.
+  Map Drive(const std::vector<int>& route, LoopCloser* closer) const {
+    Map map;
+    for (size_t k = 0; k < route.size(); ++k) {
+      OrbFeatures f;
+      f.descriptors = cv::repeat(descriptors[static_cast<size_t>(route[k])], 5, 1);
+      StereoMatches s;
+      for (int i = 0; i < 5; ++i) {
+        f.keypoints.emplace_back(100.f + 20.f * i, 100.f, 31.f, 0.f, 0.f, 0);
+        s.depth_m.push_back(10.f);
+        s.u_right_px.push_back(f.keypoints.back().pt.x -
+                               static_cast<float>(test::KittiLikeRig().Bf() / 10.0));
+      }
+      MapDelta d;
+      NewKeyframe kf;
+      kf.frame = Frame::Create(static_cast<int64_t>(k), static_cast<int64_t>(k) * 100,
+                               test::KittiLikeRig(), ScalePyramid::Make(1.2, 8), f, s);
+      kf.cam_from_world = Pose(-1.0 * static_cast<double>(k), 0.0);
+      d.new_keyframe = kf;
+      map.Apply(d);
+      closer->OnKeyframe(KeyframeId(static_cast<int64_t>(k)), map);
+    }
+    return map;
+  }
+  std::vector<cv::Mat> descriptors;
+  std::shared_ptr<const Vocabulary> vocabulary;
+};
+
+LoopClosingOptions SequenceOptions() {
+  LoopClosingOptions o;
+  o.sequence_length = 12;
+  o.exclude_recent_keyframes = 5;
+  o.sequence_window = 3;
+  return o;
+}
+
+TEST(LoopCloser, SequenceCandidateIsTheKeyframeWhoseHistoryMatchesNotALookAlike) {
+  const Places places(60);
+  ASSERT_EQ(places.vocabulary->num_words(), 60u);
+  // Keyframes 0..39 see places 0..39, except 35, a look-alike of place 25; keyframes 40..51
+  // drive places 14..25 again. The query, keyframe 51, sees place 25 as keyframes 25 and 35 do.
+  std::vector<int> route;
+  for (int k = 0; k < 40; ++k) route.push_back(k == 35 ? 25 : k);
+  for (int p = 14; p <= 25; ++p) route.push_back(p);
+  LoopCloser closer(SequenceOptions(), places.vocabulary, true);
+  const Map map = places.Drive(route, &closer);
+  const std::vector<PlaceCandidate> found = closer.SequenceCandidates(KeyframeId(51), map);
+  // Keyframe 25, then its neighbours within 2 (scores 0 against the query: in insertion order).
+  std::vector<KeyframeId> ids;
+  for (const PlaceCandidate& c : found) ids.push_back(c.keyframe);
+  EXPECT_EQ(ids, (std::vector<KeyframeId>{KeyframeId(25), KeyframeId(23), KeyframeId(24),
+                                          KeyframeId(26), KeyframeId(27)}));
+  ASSERT_FALSE(found.empty());
+  EXPECT_DOUBLE_EQ(found[0].score, 1.0);  // its own bag-of-words score against the query
+  EXPECT_DOUBLE_EQ(found[1].score, 0.0);
+  EXPECT_EQ(closer.stats().sequence_gated, 0);
+  // Without neighbours, the answer alone.
+  LoopClosingOptions alone = SequenceOptions();
+  alone.sequence_neighbours = 0;
+  LoopCloser lone(alone, places.vocabulary, true);
+  const Map lone_map = places.Drive(route, &lone);
+  ASSERT_EQ(lone.SequenceCandidates(KeyframeId(51), lone_map).size(), 1u);
+
+  // A closer given the saved map's database (no scores kept) computes the query's rows when
+  // asked and finds the same keyframe.
+  LoopCloser loaded(SequenceOptions(), places.vocabulary, true);
+  EXPECT_EQ(loaded.Restore(closer.Archive(map), map), 0);  // every bag of words from the archive
+  const std::vector<PlaceCandidate> again = loaded.SequenceCandidates(KeyframeId(51), map);
+  ASSERT_EQ(again.size(), found.size());
+  for (size_t i = 0; i < found.size(); ++i) EXPECT_EQ(again[i].keyframe, found[i].keyframe);
+
+  // Off, or on a query that is not in the map: nothing.
+  LoopClosingOptions off = SequenceOptions();
+  off.sequence_length = 0;
+  LoopCloser single(off, places.vocabulary, true);
+  const Map same = places.Drive(route, &single);
+  EXPECT_TRUE(single.SequenceCandidates(KeyframeId(51), same).empty());
+  EXPECT_TRUE(closer.SequenceCandidates(KeyframeId(99), map).empty());
+}
+
+TEST(LoopCloser, SequenceCandidateIsGatedWhenNothingTellsTwoPlacesApart) {
+  const Places places(60);
+  // Keyframes 25 and 35 see place 25; the query, keyframe 51, sees it after places 40..50, which
+  // nothing saw before: both look-alikes score the same over sequences.
+  std::vector<int> route;
+  for (int k = 0; k < 40; ++k) route.push_back(k == 35 ? 25 : k);
+  for (int p = 40; p <= 50; ++p) route.push_back(p);
+  route.push_back(25);
+  LoopCloser closer(SequenceOptions(), places.vocabulary, true);
+  const Map map = places.Drive(route, &closer);
+  EXPECT_TRUE(closer.SequenceCandidates(KeyframeId(51), map).empty());
+  EXPECT_EQ(closer.stats().sequence_gated, 1);
+
+  // With one of them gone from the map, the other is unique.
+  Map culled = map;
+  MapDelta cull;
+  cull.removed_keyframes.push_back(KeyframeId(35));
+  culled.Apply(cull);
+  closer.OnKeyframe(KeyframeId(51), culled);  // the database forgets keyframe 35
+  const std::vector<PlaceCandidate> found = closer.SequenceCandidates(KeyframeId(51), culled);
+  ASSERT_FALSE(found.empty());
+  EXPECT_EQ(found[0].keyframe, KeyframeId(25));
+}
+
+TEST(LoopCloser, SequenceCandidatesLeaveOutTheRecentKeyframes) {
+  const Places places(60);
+  std::vector<int> route;  // the revisit of the first test
+  for (int k = 0; k < 40; ++k) route.push_back(k == 35 ? 25 : k);
+  for (int p = 14; p <= 25; ++p) route.push_back(p);
+  // 30 keyframes back from the query (51) excludes keyframes 21..50, both 25 and 35.
+  LoopClosingOptions o = SequenceOptions();
+  o.exclude_recent_keyframes = 30;
+  LoopCloser closer(o, places.vocabulary, true);
+  const Map map = places.Drive(route, &closer);
+  for (const PlaceCandidate& c : closer.SequenceCandidates(KeyframeId(51), map))
+    EXPECT_LE(c.keyframe.value, 20);
+  // Keyframe 20 is what remains of that drive: at half speed its history meets the query's in
+  // two of 12 terms (the query's keyframes 41 and 40 against keyframes 15 and 14: places 15 and
+  // 14), while nothing else ever does.
+  const std::vector<PlaceCandidate> found = closer.SequenceCandidates(KeyframeId(51), map);
+  ASSERT_EQ(found.size(), 3u);  // with its neighbours 18 and 19 (21 and 22 are recent)
+  EXPECT_EQ(found[0].keyframe, KeyframeId(20));
+  EXPECT_DOUBLE_EQ(found[0].score, 0.0);  // place 20 against the query's place 25
+}
+
+TEST(LoopCloser, BadSequenceOptionsAreRejected) {
+  LoopClosingOptions o = SequenceOptions();
+  std::string why;
+  EXPECT_TRUE(o.IsValid(&why)) << why;
+  o.sequence_min_length = 13;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("sequence_min_length"), std::string::npos);
+  o = SequenceOptions();
+  o.sequence_uniqueness = 0.99;
+  EXPECT_THROW(LoopCloser(o, nullptr, true), ConfigError);
+  o = SequenceOptions();
+  o.sequence_length = -1;
+  EXPECT_FALSE(o.IsValid(nullptr));
+  o = SequenceOptions();
+  o.sequence_window = -1;
+  EXPECT_FALSE(o.IsValid(nullptr));
+  o = SequenceOptions();
+  o.sequence_neighbours = -1;
+  EXPECT_FALSE(o.IsValid(nullptr));
+  o = SequenceOptions();
+  o.sequence_consistency = -1;
+  EXPECT_FALSE(o.IsValid(nullptr));
 }
 
 // A keyframe of scene frame `frame` (rendered at true_pose) stored at `stored_pose`, with a map
