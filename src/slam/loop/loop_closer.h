@@ -67,7 +67,10 @@ struct LoopClosingOptions {
   // sequence_uniqueness times the best one of the keyframes further than sequence_window
   // keyframes from it. The candidates are that keyframe and those within sequence_neighbours
   // of it in insertion order; they must be consistent over sequence_consistency keyframes (as
-  // `consistency` for single frames) and pass the same geometric verification.
+  // `consistency` for single frames) and pass the same geometric verification. A keyframe's
+  // scores are kept against the keyframes before it only, so a pair whose database keyframe
+  // came later than the query-side one reads 0: keep exclude_recent_keyframes above
+  // sequence_length (30 and 12 by default) for the sequences to compare like with like.
   int sequence_length = 0;
   int sequence_min_length = 3;
   double sequence_uniqueness = 1.05;
