@@ -174,12 +174,6 @@ std::string VocabularyPath(const std::string& path) {
   return "(none)";
 }
 
-pcr::TimingSummary Summarize(const std::vector<double>& ms) {
-  pcr::TimingSeries series;
-  for (double v : ms) series.Add(v);
-  return series.Summarize();
-}
-
 // --- Synthetic loops -------------------------------------------------------------------------
 
 // "key: value" lines of a synth_options.txt.
@@ -483,8 +477,8 @@ LoopFigures LoopFiguresOf(const pcr::graph::PipelineResult& p) {
   f.jobs_rejected = st.rejected;
   f.candidates_rejected = st.candidates_rejected;
   f.candidates_prechecked = st.candidates_prechecked;
-  f.detect = Summarize(st.detect_ms);
-  f.add = Summarize(st.add_ms);
+  f.detect = pcr::SummarizeTimes(st.detect_ms);
+  f.add = pcr::SummarizeTimes(st.add_ms);
   for (const pcr::LoopEvent& e : p.loop_events) {
     const pcr::LoopOutcome& o = e.outcome;
     if (o.kind == pcr::LoopOutcomeKind::kCorrected) {
@@ -697,7 +691,7 @@ int RunSequences(const Args& args, const std::shared_ptr<const pcr::Vocabulary>&
     const pcr::Dataset d = pcr::OpenDataset(path);
     const pcr::driver::DriverResult run = Run(d, args, policy, vocabulary);
     const pcr::LoopStats& st = run.pipeline.loop_stats;
-    const pcr::TimingSummary detect = Summarize(st.detect_ms);
+    const pcr::TimingSummary detect = pcr::SummarizeTimes(st.detect_ms);
     std::printf(
         "%-28s %6zu %7zu | %5d %7d %6d %6d | %5d %6d %9d %9d | %6d | %7.2f %7.2f | %6.1f%s%s%s\n",
         d.name.c_str(), d.size(), run.summary.tracked.size(), st.keyframes_seen, st.detections,

@@ -172,13 +172,6 @@ std::string FormatPipelineStats(const PipelineStats& s) {
   return o.str();
 }
 
-// Place-recognition times per keyframe (LoopStats), for stats.json and the summary line alike.
-static TimingSummary TimesOf(const std::vector<double>& ms) {
-  TimingSeries series;
-  for (double t : ms) series.Add(t);
-  return series.Summarize();
-}
-
 nlohmann::json LoopToJson(const PipelineResult& result) {
   const LoopStats& st = result.loop_stats;
   TimingSeries verify, correct, graph, ba;
@@ -245,8 +238,8 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
           {"jobs_with_map_edits", st.map_edit_jobs},
           {"map_edits_sent", st.map_edits},
           {"sequence_gated", st.sequence_gated},
-          {"detect_ms", TimingJson(TimesOf(st.detect_ms))},
-          {"add_ms", TimingJson(TimesOf(st.add_ms))},
+          {"detect_ms", TimingJson(SummarizeTimes(st.detect_ms))},
+          {"add_ms", TimingJson(SummarizeTimes(st.add_ms))},
           {"verify_ms", TimingJson(verify.Summarize())},
           {"correct_ms", TimingJson(correct.Summarize())},
           {"pose_graph_ms", TimingJson(graph.Summarize())},
@@ -257,7 +250,7 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
 std::string FormatLoopSummary(const PipelineResult& result) {
   const LoopStats& st = result.loop_stats;
   if (st.keyframes_seen == 0) return "";
-  const TimingSummary d = TimesOf(st.detect_ms);
+  const TimingSummary d = SummarizeTimes(st.detect_ms);
   std::string out = fmt::format(
       "loop closing: {} loops closed, {} global BAs ({} aborted); {} keyframes in the database, "
       "{} queries, {} candidates, {} jobs rejected ({} candidates failed the geometry); "

@@ -29,4 +29,10 @@ TimingSummary TimingSeries::Summarize() const {
   return s;
 }
 
+TimingSummary SummarizeTimes(const std::vector<double>& ms) {
+  TimingSeries series;
+  for (double t : ms) series.Add(t);
+  return series.Summarize();
+}
+
 }  // namespace pcr

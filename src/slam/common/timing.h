@@ -23,6 +23,9 @@ class TimingSeries {
   std::vector<double> samples_ms_;
 };
 
+// The summary of samples already collected elsewhere (e.g. a stats struct's vector).
+TimingSummary SummarizeTimes(const std::vector<double>& ms);
+
 // Named series, e.g. "orb_left", "tracking"; ordered by name for stable output.
 using StageTimings = std::map<std::string, TimingSeries>;
 

@@ -67,21 +67,25 @@ const std::vector<std::pair<KeyframeId, double>>& KeyframeDatabase::KeyframesWit
 }
 
 std::vector<std::pair<KeyframeId, double>> KeyframeDatabase::Scores(const BowVector& bow) const {
-  // Vocabulary::Score sums |a| + |b| - |a - b| over the shared words in increasing word order;
-  // so does this, one keyframe's terms at a time in the order of the query's words.
+  // Vocabulary::Score sums L1ScoreTerm over the shared words in increasing word order; so does
+  // this, one keyframe's terms at a time in the order of the query's words.
   std::unordered_map<KeyframeId, double> sums;
   for (const auto& [word, weight] : bow.words) {
     if (word >= inverted_.size()) continue;
     for (const auto& [keyframe, keyframe_weight] : inverted_[word])
-      sums[keyframe] +=
-          std::abs(weight) + std::abs(keyframe_weight) - std::abs(weight - keyframe_weight);
+      sums[keyframe] += L1ScoreTerm(weight, keyframe_weight);
   }
   std::vector<std::pair<KeyframeId, double>> scores;
   scores.reserve(sums.size());
-  for (const auto& [keyframe, sum] : sums)
-    scores.emplace_back(keyframe, std::clamp(0.5 * sum, 0.0, 1.0));
+  for (const auto& [keyframe, sum] : sums) scores.emplace_back(keyframe, L1ScoreOfSum(sum));
   std::sort(scores.begin(), scores.end());
   return scores;
+}
+
+bool ExcludedFromLoopQuery(const Keyframe& query, KeyframeId id, int64_t index,
+                           int exclude_recent) {
+  return id == query.id || query.connections.count(id) != 0 ||
+         std::llabs(index - query.index) <= static_cast<long long>(exclude_recent);
 }
 
 template <typename Excluded>
@@ -162,10 +166,9 @@ std::vector<PlaceCandidate> KeyframeDatabase::DetectLoopCandidates(
   return Detect(bow, map, min_score, options, [&](KeyframeId id) {
     if (id == query) return true;
     if (query_keyframe == nullptr) return false;
-    if (query_keyframe->connections.count(id) != 0) return true;
     const Keyframe* other = map.keyframe(id);
-    return other != nullptr && std::llabs(other->index - query_keyframe->index) <=
-                                   static_cast<long long>(options.exclude_recent);
+    if (other == nullptr) return query_keyframe->connections.count(id) != 0;  // Detect skips it
+    return ExcludedFromLoopQuery(*query_keyframe, id, other->index, options.exclude_recent);
   });
 }
 

@@ -41,6 +41,12 @@ struct LoopQueryOptions {
   bool IsValid(std::string* why) const;
 };
 
+// Whether a loop query by `query` leaves out the keyframe `id` whose Keyframe::index is `index`:
+// the query itself, its covisibility connections and the keyframes within exclude_recent of its
+// index. The one rule of KeyframeDatabase::DetectLoopCandidates and of the loop closer's
+// candidates over sequences (LoopCloser::SequenceCandidates).
+bool ExcludedFromLoopQuery(const Keyframe& query, KeyframeId id, int64_t index, int exclude_recent);
+
 class KeyframeDatabase {
  public:
   // Adds the keyframe's bag of words (replacing the one it had).

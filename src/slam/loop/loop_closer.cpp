@@ -253,12 +253,10 @@ std::vector<PlaceCandidate> LoopCloser::SequenceCandidates(KeyframeId query_id, 
       if (p != position.end()) score[k][p->second] = s;
     }
   }
-  // Left out as by KeyframeDatabase::DetectLoopCandidates: the query, its connections and the
-  // keyframes within exclude_recent_keyframes of it.
+  // Left out as by KeyframeDatabase::DetectLoopCandidates.
   auto excluded = [&](size_t p) {
-    return p == q || query.connections.count(order[p].second) != 0 ||
-           std::llabs(order[p].first - query.index) <=
-               static_cast<long long>(options_.exclude_recent_keyframes);
+    return ExcludedFromLoopQuery(query, order[p].second, order[p].first,
+                                 options_.exclude_recent_keyframes);
   };
   std::vector<size_t> positions(q + 1);
   for (size_t p = 0; p <= q; ++p) positions[p] = p;

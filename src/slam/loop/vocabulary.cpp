@@ -406,12 +406,12 @@ double Vocabulary::Score(const BowVector& a, const BowVector& b) {
     } else if (j->first < i->first) {
       ++j;
     } else {
-      sum += std::abs(i->second) + std::abs(j->second) - std::abs(i->second - j->second);
+      sum += L1ScoreTerm(i->second, j->second);
       ++i;
       ++j;
     }
   }
-  return std::clamp(0.5 * sum, 0.0, 1.0);
+  return L1ScoreOfSum(sum);
 }
 
 }  // namespace pcr

@@ -16,7 +16,9 @@
 // Pure and deterministic: Train gives bit-identical vocabularies for the same input and options
 // on every platform (its own integer sampling on std::mt19937_64, no floating point in the tree).
 // Thread-compatible: all const methods may be called concurrently.
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <opencv2/core.hpp>
@@ -133,6 +135,16 @@ class Vocabulary {
 
 // Packs a 32-byte descriptor (little-endian 64-bit words).
 Vocabulary::Descriptor PackDescriptor(const uint8_t* bytes);
+
+// The L1 score in two parts, so that a score summed word by word elsewhere
+// (KeyframeDatabase::Scores) stays bit-equal to Vocabulary::Score: one shared word's term, with
+// the two vectors' weights a and b of that word, and the score from the sum of the terms taken
+// in increasing word order.
+inline double L1ScoreTerm(double a, double b) {
+  return std::abs(a) + std::abs(b) - std::abs(a - b);
+}
+inline double L1ScoreOfSum(double sum) { return std::clamp(0.5 * sum, 0.0, 1.0); }
+
 inline int HammingDistance(const Vocabulary::Descriptor& a, const Vocabulary::Descriptor& b) {
   return __builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) +
          __builtin_popcountll(a[2] ^ b[2]) + __builtin_popcountll(a[3] ^ b[3]);

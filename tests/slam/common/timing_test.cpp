@@ -27,5 +27,18 @@ TEST(TimingSeries, Summarizes) {
   EXPECT_DOUBLE_EQ(sum.total_ms, 5050);
 }
 
+TEST(TimingSeries, SummarizeTimesIsTheSeriesSummary) {
+  const std::vector<double> ms = {3.0, 1.0, 7.5, 2.25, 9.0};
+  TimingSeries s;
+  for (double t : ms) s.Add(t);
+  const TimingSummary a = SummarizeTimes(ms), b = s.Summarize();
+  EXPECT_EQ(a.count, 5u);
+  EXPECT_EQ(a.mean_ms, b.mean_ms);
+  EXPECT_EQ(a.p50_ms, 3.0);
+  EXPECT_EQ(a.p99_ms, b.p99_ms);
+  EXPECT_EQ(a.max_ms, 9.0);
+  EXPECT_EQ(SummarizeTimes({}).count, 0u);
+}
+
 }  // namespace
 }  // namespace pcr

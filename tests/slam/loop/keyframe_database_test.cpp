@@ -156,6 +156,18 @@ TEST_F(KeyframeDatabaseTest, LoopQueryFindsThePlaceAndExcludesConnectedAndRecent
   EXPECT_THROW(database.DetectLoopCandidates(query, Words(0, 10), map, 0.0, options), ConfigError);
 }
 
+TEST_F(KeyframeDatabaseTest, TheLoopQueryExclusionRule) {
+  const Keyframe& k7 = *map.keyframe(query);                       // index 7, connected to K6 only
+  EXPECT_TRUE(ExcludedFromLoopQuery(k7, query, 7, 0));             // itself
+  EXPECT_TRUE(ExcludedFromLoopQuery(k7, KeyframeId(6), 6, 0));     // connected
+  EXPECT_TRUE(ExcludedFromLoopQuery(k7, KeyframeId(6), -100, 0));  // connected, whatever index
+  EXPECT_FALSE(ExcludedFromLoopQuery(k7, KeyframeId(5), 5, 1));    // 2 apart
+  EXPECT_TRUE(ExcludedFromLoopQuery(k7, KeyframeId(5), 5, 2));     // recent
+  EXPECT_TRUE(ExcludedFromLoopQuery(k7, KeyframeId(42), 9, 2));    // recent, later
+  EXPECT_FALSE(ExcludedFromLoopQuery(k7, KeyframeId(0), 0, 6));
+  EXPECT_TRUE(ExcludedFromLoopQuery(k7, KeyframeId(0), 0, 7));
+}
+
 TEST_F(KeyframeDatabaseTest, RelocalisationExcludesNothing) {
   const std::vector<PlaceCandidate> candidates =
       database.DetectRelocalisationCandidates(Words(0, 10), map, 10);
