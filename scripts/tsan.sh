@@ -13,7 +13,9 @@
 # PCR_JOBS (build jobs, default nproc),
 # PCR_TSAN_SEQUENCE (a sequence that comes back to its start, e.g. `pcr_orb synth --route loop`
 # output: run it instead of drive 0005, all its frames unless PCR_TSAN_FRAMES is set, without
-# YOLO and the filter, so that loop closing's lane, its corrections and global BA run under TSAN).
+# YOLO and the filter, so that loop closing's lane, its corrections and global BA run under TSAN),
+# PCR_TSAN_SET (space-separated section.key=value settings, each passed as --set, e.g.
+# `loop.sequence_length=12`).
 # oneTBB and OpenCV come from Debian and are not instrumented: scripts/tsan.supp suppresses
 # reports whose frames lie in those libraries only (see the file); reports in our code are not
 # suppressed. Exit status 0 means no report.
@@ -34,6 +36,7 @@ if [ -n "${PCR_TSAN_SEQUENCE:-}" ]; then
   run_args=(--segmenter none --filter off --loop on)
 fi
 [ -n "$frames" ] && run_args+=(--frames "$frames")
+for setting in ${PCR_TSAN_SET:-}; do run_args+=(--set "$setting"); done
 if [ ! -d "$drive" ] || [ ! -f "$model" ]; then
   echo "tsan: needs $drive and $model" >&2
   exit 2
