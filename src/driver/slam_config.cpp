@@ -97,6 +97,7 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("loop", "consistency", &l.consistency,
         "consecutive keyframes whose candidate groups must agree");
   s.Add("loop", "min_bow_matches", &l.min_bow_matches);
+  s.Add("loop", "ransac_precheck", &l.ransac_precheck);
   s.Add("loop", "min_ransac_inliers", &l.min_ransac_inliers);
   s.Add("loop", "min_sim3_inliers", &l.min_sim3_inliers);
   s.Add("loop", "min_loop_matches", &l.min_loop_matches);

@@ -232,6 +232,7 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
           {"jobs_rejected", st.rejected},
           {"candidates_rejected", st.candidates_rejected},
           {"candidates_prechecked", st.candidates_prechecked},
+          {"candidates_ransac_prechecked", st.candidates_ransac_prechecked},
           {"global_bas", st.global_bas},
           {"global_bas_aborted", st.global_bas_aborted},
           {"jobs_with_map_copy", st.map_copies},

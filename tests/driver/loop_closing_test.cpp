@@ -130,6 +130,35 @@ TEST(LoopClosing, OverSequencesTheRevisitIsClosedAsWell) {
   EXPECT_LT(sequences.ate_m, 1.5 * single.ate_m);
 }
 
+TEST(LoopClosing, TheOwnersRansacPrecheckSavesJobsNotTheLoop) {
+  // Few word matches needed and every candidate consistent: many look-alike candidates reach
+  // the Sim(3) RANSAC. With the owner's RANSAC precheck (the default) those it rejects make no
+  // job; without it each is a job that the lane rejects. The loop is closed at the revisit in
+  // both runs.
+  const std::vector<std::string> many = {"loop.consistency=0", "loop.min_bow_matches=5"};
+  std::vector<std::string> without = many;
+  without.push_back("loop.ransac_precheck=false");
+  const LoopRun on = RunLoop(graph::Policy::kSequential, true, {}, many);
+  const LoopRun off = RunLoop(graph::Policy::kSequential, true, {}, without);
+  const LoopStats& a = on.result.pipeline.loop_stats;
+  const LoopStats& b = off.result.pipeline.loop_stats;
+  std::printf(
+      "RANSAC precheck on / off: jobs %d / %d, jobs rejected %d / %d, candidates rejected by the "
+      "owner's RANSAC %d / %d, ATE %.4f / %.4f m\n",
+      a.jobs, b.jobs, a.rejected, b.rejected, a.candidates_ransac_prechecked,
+      b.candidates_ransac_prechecked, on.ate_m, off.ate_m);
+  EXPECT_EQ(b.candidates_ransac_prechecked, 0);
+  EXPECT_GT(a.candidates_ransac_prechecked, 0);
+  EXPECT_LT(a.jobs, b.jobs);
+  EXPECT_LT(a.rejected, b.rejected);
+  for (const LoopRun* run : {&on, &off}) {
+    int64_t first = -1;
+    ASSERT_GE(CorrectionsApplied(*run, &first), 1);
+    EXPECT_GE(first, 150);  // at the revisit, not before
+  }
+  EXPECT_LT(on.ate_m, 1.5 * off.ate_m);
+}
+
 TEST(LoopClosing, PipelinedRunsTheLoopLaneBesideTrackingAndLosesNoPose) {
   // The loop lane is slowed down: the correction arrives while later frames are being tracked and
   // mapped (it is applied by the mapping node as a delta), and the global BA after it is still
@@ -184,7 +213,8 @@ TEST(LoopClosing, PipelinedRunsTheLoopLaneBesideTrackingAndLosesNoPose) {
 }
 
 TEST(LoopClosing, ANewerLoopJobAbortsTheGlobalBundleAdjustment) {
-  // Every candidate is consistent and few word matches are needed, so loop jobs keep coming
+  // Every candidate is consistent, few word matches are needed and the owner runs no RANSAC
+  // before a job (loop.ransac_precheck off), so loop jobs keep coming
   // after the correction. The global BA waits, before it starts, until the mapping node has sent
   // a newer job (a later frame reports one): sending it set the abort flag, so the global BA
   // gives way and its outcome changes nothing.
@@ -218,7 +248,8 @@ TEST(LoopClosing, ANewerLoopJobAbortsTheGlobalBundleAdjustment) {
   };
   const LoopRun on =
       RunLoop(graph::Policy::kPipelined, true, slow_ba,
-              {"loop.skip_keyframes_after_loop=0", "loop.consistency=0", "loop.min_bow_matches=5"},
+              {"loop.skip_keyframes_after_loop=0", "loop.consistency=0", "loop.min_bow_matches=5",
+               "loop.ransac_precheck=false"},
               [=](size_t done, size_t, const graph::FrameRecord& r) {
                 const int64_t since = ba_waiting_since->load();
                 if (r.output.loop_job) jobs_sent->fetch_add(1);

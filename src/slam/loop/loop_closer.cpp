@@ -52,6 +52,42 @@ std::vector<KeyframeId> ConnectedGroup(const Keyframe& kf, const Map& map) {
   return group;
 }
 
+// The word-matched keypoint pairs (query, candidate) as Sim(3) correspondences: each pair's map
+// points in its keyframe's camera, its pixels and its octaves' variances.
+std::vector<Sim3Correspondence> Correspondences(const Map& map, const Keyframe& query,
+                                                const Keyframe& candidate,
+                                                const std::vector<std::pair<int, int>>& pairs) {
+  const Frame& fqf = *query.frame;
+  const Frame& fcf = *candidate.frame;
+  std::vector<Sim3Correspondence> corr;
+  corr.reserve(pairs.size());
+  for (const auto& [i, j] : pairs) {
+    const MapPoint* pq = PointAt(map, query, i);
+    const MapPoint* pc = PointAt(map, candidate, j);
+    Sim3Correspondence c;
+    c.p_in_cam1 = query.cam_from_world * pq->p_in_world;
+    c.p_in_cam2 = candidate.cam_from_world * pc->p_in_world;
+    c.uv1_px = fqf.uv(i);
+    c.uv2_px = fcf.uv(j);
+    c.sigma2_1 = fqf.scale().level_sigma2[fqf.octave(i)];
+    c.sigma2_2 = fcf.scale().level_sigma2[fcf.octave(j)];
+    corr.push_back(c);
+  }
+  return corr;
+}
+
+// The RANSAC of job `job_id` on `candidate`: its seed depends on both only, so that the owner's
+// precheck (LoopCloser::Detect) and the lane's verification of the same job agree.
+Sim3RansacOptions RansacOptionsOf(const LoopClosingOptions& o, bool fix_scale, int64_t job_id,
+                                  KeyframeId candidate) {
+  Sim3RansacOptions ro;
+  ro.min_inliers = o.min_ransac_inliers;
+  ro.max_iterations = o.ransac_iterations;
+  ro.fix_scale = fix_scale;
+  ro.seed = static_cast<uint64_t>(job_id) * 1000003u + static_cast<uint64_t>(candidate.value);
+  return ro;
+}
+
 double TranslationDistance(const SE3& a, const SE3& b) {
   return (a.inverse().translation() - b.inverse().translation()).norm();
 }
@@ -444,13 +480,24 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
     if (!ck || fc == features_.end()) continue;
     auto pairs = MatchByWords(map, *kf, features_.at(id), *ck, fc->second,
                               options_.bow_max_distance, options_.bow_ratio);
-    if (static_cast<int>(pairs.size()) >= options_.min_bow_matches) {
-      plausible.push_back(c);
-      word_matches[c] = std::move(pairs);
-    } else {
+    if (static_cast<int>(pairs.size()) < options_.min_bow_matches) {
       ++stats_.candidates_rejected;
       ++stats_.candidates_prechecked;
+      continue;
     }
+    // The Sim(3) RANSAC too (well under a millisecond when it fails): the lane would run the
+    // same one on the same map with the same seed (the job this would become), so a candidate
+    // it rejects here would be rejected there, after a snapshot brought up to date for it.
+    if (options_.ransac_precheck &&
+        !EstimateSim3Ransac(kf->frame->rig().left, Correspondences(map, *kf, *ck, pairs),
+                            RansacOptionsOf(options_, fix_scale_, next_job_, c))
+             .success) {
+      ++stats_.candidates_rejected;
+      ++stats_.candidates_ransac_prechecked;
+      continue;
+    }
+    plausible.push_back(c);
+    word_matches[c] = std::move(pairs);
   }
   if (plausible.empty()) return done(nullptr);
   consistent = std::move(plausible);
@@ -498,28 +545,10 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
   const std::vector<std::pair<int, int>>& pairs = found->second;
   match->bow_matches = static_cast<int>(pairs.size());
   const Frame& fqf = *query.frame;
-  const Frame& fcf = *candidate.frame;
-  std::vector<Sim3Correspondence> corr;
-  corr.reserve(pairs.size());
-  for (const auto& [i, j] : pairs) {
-    const MapPoint* pq = PointAt(map, query, i);
-    const MapPoint* pc = PointAt(map, candidate, j);
-    Sim3Correspondence c;
-    c.p_in_cam1 = query.cam_from_world * pq->p_in_world;
-    c.p_in_cam2 = candidate.cam_from_world * pc->p_in_world;
-    c.uv1_px = fqf.uv(i);
-    c.uv2_px = fcf.uv(j);
-    c.sigma2_1 = fqf.scale().level_sigma2[fqf.octave(i)];
-    c.sigma2_2 = fcf.scale().level_sigma2[fcf.octave(j)];
-    corr.push_back(c);
-  }
+  const std::vector<Sim3Correspondence> corr = Correspondences(map, query, candidate, pairs);
   const PinholeCamera& camera = fqf.rig().left;
-  Sim3RansacOptions ro;
-  ro.min_inliers = o.min_ransac_inliers;
-  ro.max_iterations = o.ransac_iterations;
-  ro.fix_scale = job.fix_scale;
-  ro.seed = static_cast<uint64_t>(job.id) * 1000003u + static_cast<uint64_t>(candidate.id.value);
-  const Sim3RansacResult ransac = EstimateSim3Ransac(camera, corr, ro);
+  const Sim3RansacResult ransac =
+      EstimateSim3Ransac(camera, corr, RansacOptionsOf(o, job.fix_scale, job.id, candidate.id));
   match->ransac_inliers = ransac.num_inliers;
   if (!ransac.success) {
     *why = "Sim3 RANSAC found " + std::to_string(ransac.num_inliers) + " inliers";

@@ -40,11 +40,14 @@ struct LoopClosingOptions {
   // Keyframes inserted within this many of the query (by insertion index) are never candidates
   // (with its covisible keyframes): a loop means coming back, not standing still.
   int exclude_recent_keyframes = 30;
-  int consistency = 3;                   // consecutive keyframes whose candidate groups must agree
-  int min_bow_matches = 20;              // descriptor matches query <-> candidate to try Sim(3)
-  int bow_max_distance = 50;             // Hamming distance of those matches
-  double bow_ratio = 0.75;               // best / second best
-  int ransac_iterations = 300;           // Sim(3) RANSAC hypotheses
+  int consistency = 3;          // consecutive keyframes whose candidate groups must agree
+  int min_bow_matches = 20;     // descriptor matches query <-> candidate to try Sim(3)
+  int bow_max_distance = 50;    // Hamming distance of those matches
+  double bow_ratio = 0.75;      // best / second best
+  int ransac_iterations = 300;  // Sim(3) RANSAC hypotheses
+  // The owner runs the lane's Sim(3) RANSAC on each candidate before it makes a job (the same
+  // map, the same seed: the same outcome), so candidates it rejects cost no job and no snapshot.
+  bool ransac_precheck = true;
   int min_ransac_inliers = 20;           // Sim(3) RANSAC inliers
   int min_sim3_inliers = 20;             // after refinement
   int min_loop_matches = 40;             // after projecting the loop's map points into the query
@@ -171,8 +174,9 @@ struct LoopStats {
   int rejected = 0;               // jobs whose candidates all failed geometric verification
   int candidates_rejected = 0;    // candidates that failed it (on the lane or by the precheck)
   int candidates_prechecked = 0;  // of those, rejected by the owner's word-match count
-  int corrections = 0;            // loop corrections applied
-  int global_bas = 0;             // global BAs applied
+  int candidates_ransac_prechecked = 0;  // of those, rejected by the owner's Sim3 RANSAC
+  int corrections = 0;                   // loop corrections applied
+  int global_bas = 0;                    // global BAs applied
   int global_bas_aborted = 0;
   int stale_outcomes = 0;         // outcomes dropped because a later correction made them obsolete
   int map_copies = 0;             // jobs carrying a copy of the map
