@@ -95,32 +95,42 @@ std::vector<PlaceCandidate> KeyframeDatabase::Detect(const BowVector& bow, const
                                                      const Excluded& excluded) const {
   std::string why;
   if (!options.IsValid(&why)) throw ConfigError("LoopQueryOptions: " + why);
-  // 1. Keyframes sharing words with the query.
-  std::map<KeyframeId, int> common;
+  // 1. Keyframes sharing words with the query, with their score's sum as Scores() makes it (so
+  // bit for bit Vocabulary::Score's), in one pass over the inverted index.
+  struct Shared {
+    int words = 0;
+    double sum = 0;
+  };
+  std::unordered_map<KeyframeId, Shared> shared;
+  shared.reserve(bows_.size());
   for (const auto& [word, weight] : bow.words) {
     if (word >= inverted_.size()) continue;
-    for (const auto& [keyframe, keyframe_weight] : inverted_[word]) ++common[keyframe];
+    for (const auto& [keyframe, keyframe_weight] : inverted_[word]) {
+      Shared& s = shared[keyframe];
+      ++s.words;
+      s.sum += L1ScoreTerm(weight, keyframe_weight);
+    }
   }
   int max_common = 0;
-  for (auto it = common.begin(); it != common.end();) {
+  for (auto it = shared.begin(); it != shared.end();) {
     if (excluded(it->first) || map.keyframe(it->first) == nullptr) {
-      it = common.erase(it);
+      it = shared.erase(it);
     } else {
-      max_common = std::max(max_common, it->second);
+      max_common = std::max(max_common, it->second.words);
       ++it;
     }
   }
-  if (common.empty()) return {};
-  // 2. Similar keyframes and their scores.
+  if (shared.empty()) return {};
+  // 2. Similar keyframes (in increasing id, as below) and their scores.
   struct Similar {
     double score;
     int common_words;
   };
   const double min_common = options.min_common_words_ratio * max_common;
   std::map<KeyframeId, Similar> similar;
-  for (const auto& [keyframe, count] : common) {
-    if (count < min_common) continue;
-    similar[keyframe] = {Vocabulary::Score(bow, bows_.at(keyframe)), count};
+  for (const auto& [keyframe, s] : shared) {
+    if (s.words < min_common) continue;
+    similar[keyframe] = {L1ScoreOfSum(s.sum), s.words};
   }
   // 3. Covisibility groups of the candidates.
   std::map<KeyframeId, PlaceCandidate> best_of_groups;

@@ -199,20 +199,37 @@ std::vector<std::pair<int, int>> MatchFeaturesByWords(
   return kept;
 }
 
+namespace {
+
+// Which keypoints of kf hold a live map point the dynamic filter did not exclude (PointAt).
+std::vector<uint8_t> KeypointsWithPoints(const Map& map, const Keyframe& kf) {
+  std::vector<uint8_t> usable(static_cast<size_t>(kf.frame->size()), 0);
+  for (int i = 0; i < kf.frame->size(); ++i)
+    usable[static_cast<size_t>(i)] = PointAt(map, kf, i) != nullptr;
+  return usable;
+}
+
+// MatchByWords with a's flags already computed (the loop query's, once for all its candidates).
+std::vector<std::pair<int, int>> MatchByWordsFrom(const Map& map, const Keyframe& a,
+                                                  const FeatureVector& features_a,
+                                                  const std::vector<uint8_t>& usable_a,
+                                                  const Keyframe& b,
+                                                  const FeatureVector& features_b, int max_distance,
+                                                  double ratio) {
+  const std::vector<uint8_t> usable_b = KeypointsWithPoints(map, b);
+  return MatchFeaturesByWords(a.frame->keypoints(), a.frame->descriptors(), features_a, &usable_a,
+                              b.frame->keypoints(), b.frame->descriptors(), features_b, &usable_b,
+                              max_distance, ratio);
+}
+
+}  // namespace
+
 std::vector<std::pair<int, int>> MatchByWords(const Map& map, const Keyframe& a,
                                               const FeatureVector& features_a, const Keyframe& b,
                                               const FeatureVector& features_b, int max_distance,
                                               double ratio) {
-  auto with_points = [&map](const Keyframe& kf) {
-    std::vector<uint8_t> usable(static_cast<size_t>(kf.frame->size()), 0);
-    for (int i = 0; i < kf.frame->size(); ++i)
-      usable[static_cast<size_t>(i)] = PointAt(map, kf, i) != nullptr;
-    return usable;
-  };
-  const std::vector<uint8_t> usable_a = with_points(a), usable_b = with_points(b);
-  return MatchFeaturesByWords(a.frame->keypoints(), a.frame->descriptors(), features_a, &usable_a,
-                              b.frame->keypoints(), b.frame->descriptors(), features_b, &usable_b,
-                              max_distance, ratio);
+  return MatchByWordsFrom(map, a, features_a, KeypointsWithPoints(map, a), b, features_b,
+                          max_distance, ratio);
 }
 
 LoopCloser::LoopCloser(const LoopClosingOptions& options,
@@ -474,12 +491,14 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   // descriptor matches with the query (most look-alike places) never cost a snapshot.
   std::vector<KeyframeId> plausible;
   std::map<KeyframeId, std::vector<std::pair<int, int>>> word_matches;
+  const std::vector<uint8_t> query_usable = KeypointsWithPoints(map, *kf);
+  const FeatureVector& query_features = features_.at(id);
   for (KeyframeId c : consistent) {
     const Keyframe* ck = map.keyframe(c);
     const auto fc = features_.find(c);
     if (!ck || fc == features_.end()) continue;
-    auto pairs = MatchByWords(map, *kf, features_.at(id), *ck, fc->second,
-                              options_.bow_max_distance, options_.bow_ratio);
+    auto pairs = MatchByWordsFrom(map, *kf, query_features, query_usable, *ck, fc->second,
+                                  options_.bow_max_distance, options_.bow_ratio);
     if (static_cast<int>(pairs.size()) < options_.min_bow_matches) {
       ++stats_.candidates_rejected;
       ++stats_.candidates_prechecked;
