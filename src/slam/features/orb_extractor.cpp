@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "slam/common/error.h"
+#include "slam/common/popcount_clones.h"
 
 namespace pcr {
 namespace {
@@ -523,7 +524,7 @@ OrbFeatures OrbExtractor::Extract(const cv::Mat& gray) const {
   return out;
 }
 
-int DescriptorDistance(const std::uint8_t* a, const std::uint8_t* b) {
+PCR_POPCNT_CLONES int DescriptorDistance(const std::uint8_t* a, const std::uint8_t* b) {
   int distance = 0;
   for (int i = 0; i < kOrbDescriptorBytes; i += 8) {
     std::uint64_t wa, wb;
