@@ -115,6 +115,13 @@ TEST_F(KeyframeDatabaseTest, ScoresThroughTheInvertedIndexAreVocabularyScores) {
     EXPECT_GT(score, 0.0);
   }
   EXPECT_EQ(Vocabulary::Score(query, bows[2]), 0.0);
+  // The place queries score in the same pass: their candidates' scores are the same numbers.
+  const std::vector<PlaceCandidate> candidates =
+      database.DetectRelocalisationCandidates(query, map, 0);
+  ASSERT_FALSE(candidates.empty());
+  for (const PlaceCandidate& c : candidates)
+    EXPECT_EQ(c.score, Vocabulary::Score(query, bows[static_cast<size_t>(c.keyframe.value)]))
+        << c.keyframe.value;
   EXPECT_TRUE(database.Scores(Words(5000, 3)).empty());
   EXPECT_TRUE(database.Scores(BowVector{}).empty());
   database.Erase(KeyframeId(3));
