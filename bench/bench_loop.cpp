@@ -564,14 +564,14 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
   if (!ratios.empty()) {
     std::sort(ratios.begin(), ratios.end());
     std::printf("ATE ratio on/off: median %.3f, min %.3f, max %.3f over %zu seeds\n",
-                ratios[ratios.size() / 2], ratios.front(), ratios.back(), ratios.size());
+                pcr::Percentile(ratios, 50), ratios.front(), ratios.back(), ratios.size());
   }
   if (!oracle_ratios.empty()) {
     std::sort(oracle_ratios.begin(), oracle_ratios.end());
     std::printf(
         "ATE ratio oracle/off (the OFF run's drift, pose graph with ground-truth loop edges): "
         "median %.3f, min %.3f, max %.3f\n",
-        oracle_ratios[oracle_ratios.size() / 2], oracle_ratios.front(), oracle_ratios.back());
+        pcr::Percentile(oracle_ratios, 50), oracle_ratios.front(), oracle_ratios.back());
   }
 
   std::printf(
@@ -668,7 +668,7 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
   std::sort(p99_ratios.begin(), p99_ratios.end());
   if (!p99_ratios.empty())
     std::printf("latency p99 on/off: median %.3f over %zu rounds (min %.3f, max %.3f)\n",
-                p99_ratios[p99_ratios.size() / 2], p99_ratios.size(), p99_ratios.front(),
+                pcr::Percentile(p99_ratios, 50), p99_ratios.size(), p99_ratios.front(),
                 p99_ratios.back());
   return failed > 0 ? 1 : 0;
 }
