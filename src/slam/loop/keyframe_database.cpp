@@ -66,18 +66,28 @@ const std::vector<std::pair<KeyframeId, double>>& KeyframeDatabase::KeyframesWit
   return word < inverted_.size() ? inverted_[word] : kNone;
 }
 
-std::vector<std::pair<KeyframeId, double>> KeyframeDatabase::Scores(const BowVector& bow) const {
+std::unordered_map<KeyframeId, KeyframeDatabase::SharedWords> KeyframeDatabase::Shared(
+    const BowVector& bow) const {
   // Vocabulary::Score sums L1ScoreTerm over the shared words in increasing word order; so does
   // this, one keyframe's terms at a time in the order of the query's words.
-  std::unordered_map<KeyframeId, double> sums;
+  std::unordered_map<KeyframeId, SharedWords> shared;
+  shared.reserve(bows_.size());
   for (const auto& [word, weight] : bow.words) {
     if (word >= inverted_.size()) continue;
-    for (const auto& [keyframe, keyframe_weight] : inverted_[word])
-      sums[keyframe] += L1ScoreTerm(weight, keyframe_weight);
+    for (const auto& [keyframe, keyframe_weight] : inverted_[word]) {
+      SharedWords& s = shared[keyframe];
+      ++s.words;
+      s.sum += L1ScoreTerm(weight, keyframe_weight);
+    }
   }
+  return shared;
+}
+
+std::vector<std::pair<KeyframeId, double>> KeyframeDatabase::Scores(const BowVector& bow) const {
+  const std::unordered_map<KeyframeId, SharedWords> shared = Shared(bow);
   std::vector<std::pair<KeyframeId, double>> scores;
-  scores.reserve(sums.size());
-  for (const auto& [keyframe, sum] : sums) scores.emplace_back(keyframe, L1ScoreOfSum(sum));
+  scores.reserve(shared.size());
+  for (const auto& [keyframe, s] : shared) scores.emplace_back(keyframe, L1ScoreOfSum(s.sum));
   std::sort(scores.begin(), scores.end());
   return scores;
 }
@@ -95,22 +105,8 @@ std::vector<PlaceCandidate> KeyframeDatabase::Detect(const BowVector& bow, const
                                                      const Excluded& excluded) const {
   std::string why;
   if (!options.IsValid(&why)) throw ConfigError("LoopQueryOptions: " + why);
-  // 1. Keyframes sharing words with the query, with their score's sum as Scores() makes it (so
-  // bit for bit Vocabulary::Score's), in one pass over the inverted index.
-  struct Shared {
-    int words = 0;
-    double sum = 0;
-  };
-  std::unordered_map<KeyframeId, Shared> shared;
-  shared.reserve(bows_.size());
-  for (const auto& [word, weight] : bow.words) {
-    if (word >= inverted_.size()) continue;
-    for (const auto& [keyframe, keyframe_weight] : inverted_[word]) {
-      Shared& s = shared[keyframe];
-      ++s.words;
-      s.sum += L1ScoreTerm(weight, keyframe_weight);
-    }
-  }
+  // 1. Keyframes sharing words with the query, with their score's sum (Scores()' numbers).
+  std::unordered_map<KeyframeId, SharedWords> shared = Shared(bow);
   int max_common = 0;
   for (auto it = shared.begin(); it != shared.end();) {
     if (excluded(it->first) || map.keyframe(it->first) == nullptr) {

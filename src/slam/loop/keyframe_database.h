@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <map>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -89,6 +90,14 @@ class KeyframeDatabase {
                                                              int max_candidates) const;
 
  private:
+  // Per keyframe sharing a word with `bow`: how many words it shares and the sum of their
+  // L1ScoreTerm, added in the order of bow's words (Vocabulary::Score's order), through the
+  // inverted index. Scores and Detect both score from it.
+  struct SharedWords {
+    int words = 0;
+    double sum = 0;
+  };
+  std::unordered_map<KeyframeId, SharedWords> Shared(const BowVector& bow) const;
   // Steps 1-4 above; `excluded(id)` tells which keyframes step 1 leaves out.
   template <typename Excluded>
   std::vector<PlaceCandidate> Detect(const BowVector& bow, const Map& map, double min_score,
