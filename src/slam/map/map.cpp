@@ -8,6 +8,63 @@
 
 namespace pcr {
 
+PointTable::PointTable(Points points) : points_(std::move(points)) { Reindex(); }
+
+PointTable::PointTable(const PointTable& other) : points_(other.points_) { Reindex(); }
+
+PointTable& PointTable::operator=(const PointTable& other) {
+  if (this != &other) {
+    points_ = other.points_;
+    Reindex();
+  }
+  return *this;
+}
+
+MapPoint& PointTable::at(MapPointId id) {
+  MapPoint* p = find(id);
+  if (!p) throw std::out_of_range("map point " + std::to_string(id.value) + " is not live");
+  return *p;
+}
+
+bool PointTable::emplace(MapPointId id, MapPoint point) {
+  if (!id.valid() || find(id)) return false;
+  MapPoint& stored = points_.emplace(id, std::move(point)).first->second;
+  if (id.value < base_ || index_.empty()) {
+    Reindex();
+    return true;
+  }
+  const auto slot = static_cast<size_t>(id.value - base_);
+  if (slot >= index_.size()) index_.resize(slot + 1, nullptr);
+  index_[slot] = &stored;
+  return true;
+}
+
+void PointTable::erase(MapPointId id) {
+  if (!find(id)) return;
+  index_[static_cast<size_t>(id.value - base_)] = nullptr;
+  points_.erase(id);
+  if (points_.empty()) {
+    index_.clear();
+    base_ = 0;
+    return;
+  }
+  // Amortised: the slots dropped were all erased since the last drop or rebuild.
+  const int64_t first = points_.begin()->first.value - base_;
+  if (first > static_cast<int64_t>(index_.size() / 2)) {
+    index_.erase(index_.begin(), index_.begin() + first);
+    base_ += first;
+  }
+}
+
+void PointTable::Reindex() {
+  index_.clear();
+  base_ = 0;
+  if (points_.empty()) return;
+  base_ = points_.begin()->first.value;
+  index_.assign(static_cast<size_t>(points_.rbegin()->first.value - base_ + 1), nullptr);
+  for (auto& [id, point] : points_) index_[static_cast<size_t>(id.value - base_)] = &point;
+}
+
 std::vector<KeyframeId> Keyframe::BestCovisible(size_t n) const {
   std::vector<KeyframeId> ids;
   for (size_t i = 0; i < covisible.size() && i < n; ++i) ids.push_back(covisible[i].first);
@@ -56,14 +113,11 @@ const Keyframe* Map::keyframe(KeyframeId id) const {
   return it == keyframes_.end() ? nullptr : &it->second;
 }
 
-const MapPoint* Map::point(MapPointId id) const {
-  const auto it = points_.find(id);
-  return it == points_.end() ? nullptr : &it->second;
-}
+const MapPoint* Map::point(MapPointId id) const { return points_.find(id); }
 
 MapPointId Map::Resolve(MapPointId id) const {
   for (int hops = 0; id.valid() && hops < 1000; ++hops) {
-    if (points_.count(id)) return id;
+    if (points_.find(id)) return id;
     const auto it = replaced_by_.find(id);
     if (it == replaced_by_.end()) return MapPointId();
     id = it->second;
@@ -212,7 +266,7 @@ Map Map::Restore(std::map<KeyframeId, Keyframe> keyframes, std::map<MapPointId, 
 
   Map map;
   map.keyframes_ = std::move(keyframes);
-  map.points_ = std::move(points);
+  map.points_ = PointTable(std::move(points));
   map.replaced_by_.insert(b.replaced_by.begin(), b.replaced_by.end());
   map.replacements_after_compaction_ = map.replaced_by_.size();
   map.erased_keyframes_ = std::move(bookkeeping.erased_keyframes);
@@ -224,29 +278,29 @@ Map Map::Restore(std::map<KeyframeId, Keyframe> keyframes, std::map<MapPointId, 
 }
 
 void Map::AddObservation(MapPointId point_id, KeyframeId keyframe_id, int keypoint) {
-  auto pit = points_.find(point_id);
+  MapPoint* point = points_.find(point_id);
   auto kit = keyframes_.find(keyframe_id);
-  if (pit == points_.end() || kit == keyframes_.end()) return;
+  if (!point || kit == keyframes_.end()) return;
   Keyframe& kf = kit->second;
   if (keypoint < 0 || keypoint >= static_cast<int>(kf.points.size())) return;
-  if (kf.points[keypoint].valid() || pit->second.observations.count(keyframe_id)) return;
+  if (kf.points[keypoint].valid() || point->observations.count(keyframe_id)) return;
   kf.points[keypoint] = point_id;
-  pit->second.observations[keyframe_id] = keypoint;
+  point->observations[keyframe_id] = keypoint;
   touched_points_.insert(point_id);
   touched_keyframes_.insert(keyframe_id);
 }
 
 bool Map::RemoveObservation(MapPointId point_id, KeyframeId keyframe_id) {
-  auto pit = points_.find(point_id);
-  if (pit == points_.end()) return false;
-  auto oit = pit->second.observations.find(keyframe_id);
-  if (oit == pit->second.observations.end()) return false;
+  MapPoint* point = points_.find(point_id);
+  if (!point) return false;
+  auto oit = point->observations.find(keyframe_id);
+  if (oit == point->observations.end()) return false;
   auto kit = keyframes_.find(keyframe_id);
   if (kit != keyframes_.end() && oit->second >= 0 &&
       oit->second < static_cast<int>(kit->second.points.size()) &&
       kit->second.points[oit->second] == point_id)
     kit->second.points[oit->second] = MapPointId();
-  pit->second.observations.erase(oit);
+  point->observations.erase(oit);
   touched_points_.insert(point_id);
   touched_keyframes_.insert(keyframe_id);
   return true;
@@ -262,15 +316,15 @@ int Map::WeightedObservations(const MapPoint& point) const {
 }
 
 void Map::ErasePoint(MapPointId id) {
-  auto pit = points_.find(id);
-  if (pit == points_.end()) return;
-  for (const auto& [kf_id, kp] : pit->second.observations) {
+  const MapPoint* point = points_.find(id);
+  if (!point) return;
+  for (const auto& [kf_id, kp] : point->observations) {
     auto kit = keyframes_.find(kf_id);
     if (kit == keyframes_.end()) continue;
     if (kit->second.points[kp] == id) kit->second.points[kp] = MapPointId();
     touched_keyframes_.insert(kf_id);
   }
-  points_.erase(pit);
+  points_.erase(id);
   touched_points_.erase(id);
 }
 
@@ -571,8 +625,7 @@ MapApplyResult Map::Apply(const MapDelta& delta) {
   }
 
   for (MapPointId id : touched_points_) {
-    auto pit = points_.find(id);
-    if (pit != points_.end()) RefreshPoint(pit->second);
+    if (MapPoint* point = points_.find(id)) RefreshPoint(*point);
   }
   for (KeyframeId id : touched_keyframes_) UpdateConnections(id);
   // Spanning tree: a new keyframe hangs from its strongest connection.

@@ -342,5 +342,111 @@ TEST(MapReplacements, MergedIdsOfErasedPointsAreForgotten) {
   EXPECT_GE(map.num_replacements(), static_cast<size_t>(kPairs));
 }
 
+MapPoint TablePoint(int64_t id) {
+  MapPoint p;
+  p.id = MapPointId(id);
+  p.p_in_world = Eigen::Vector3d(static_cast<double>(id), 0, 0);
+  return p;
+}
+
+TEST(PointTable, FindsEveryLivePointAndNothingElse) {
+  PointTable table;
+  std::map<MapPointId, MapPoint> reference;
+  std::mt19937 rng(5);
+  int64_t next = 0;
+  // Points are made in increasing id order and erased in any order, as the map does: the old
+  // ones mostly (a long run's first streets), some new ones too.
+  auto make = [&](int n) {
+    for (int i = 0; i < n; ++i) {
+      const MapPointId id(next++);
+      ASSERT_TRUE(table.emplace(id, TablePoint(id.value)));
+      reference.emplace(id, TablePoint(id.value));
+    }
+  };
+  auto erase = [&](int n) {
+    for (int i = 0; i < n && !reference.empty(); ++i) {
+      auto it = reference.begin();
+      const size_t window = rng() % 4 == 0 ? reference.size() : 50;
+      std::advance(it, rng() % std::min(reference.size(), window));
+      table.erase(it->first);
+      reference.erase(it);
+    }
+  };
+  for (int round = 0; round < 4; ++round) {
+    make(5000);
+    erase(4000);
+  }
+  make(2000);
+  ASSERT_EQ(table.size(), reference.size());
+  for (int64_t id = -3; id < next + 3; ++id) {
+    const MapPoint* p = table.find(MapPointId(id));
+    const bool live = reference.count(MapPointId(id)) > 0;
+    ASSERT_EQ(p != nullptr, live) << "id " << id;
+    if (live) {
+      EXPECT_EQ(p->id.value, id);
+      EXPECT_EQ(p, &table.all().at(MapPointId(id)));  // the ordered map's own node
+    }
+  }
+  // The index follows the live ids: at most twice the span from the first live id to the last,
+  // which is well below the ids made.
+  const int64_t span = reference.rbegin()->first.value - reference.begin()->first.value + 1;
+  ASSERT_LT(2 * span, next);
+  EXPECT_LE(table.index_slots(), static_cast<size_t>(2 * span));
+  EXPECT_FALSE(table.emplace(reference.begin()->first, TablePoint(0)));  // live already
+  EXPECT_FALSE(table.emplace(MapPointId(), TablePoint(0)));              // invalid
+  EXPECT_THROW(table.at(MapPointId(next)), std::out_of_range);
+  table.erase(MapPointId(next + 100));  // not live: nothing happens
+  EXPECT_EQ(table.size(), reference.size());
+}
+
+TEST(PointTable, ACopyFindsItsOwnPointsAndAMoveKeepsThem) {
+  PointTable table(std::map<MapPointId, MapPoint>{{MapPointId(7), TablePoint(7)},
+                                                  {MapPointId(9), TablePoint(9)}});
+  ASSERT_NE(table.find(MapPointId(7)), nullptr);
+  EXPECT_EQ(table.find(MapPointId(8)), nullptr);
+
+  PointTable copy = table;
+  ASSERT_NE(copy.find(MapPointId(9)), nullptr);
+  EXPECT_NE(copy.find(MapPointId(9)), table.find(MapPointId(9)));
+  copy.at(MapPointId(9)).p_in_world.x() = -1;
+  EXPECT_EQ(table.find(MapPointId(9))->p_in_world.x(), 9);
+  EXPECT_EQ(copy.find(MapPointId(9)), &copy.all().at(MapPointId(9)));
+
+  PointTable assigned;
+  assigned = copy;
+  EXPECT_EQ(assigned.find(MapPointId(9)), &assigned.all().at(MapPointId(9)));
+  EXPECT_EQ(assigned.find(MapPointId(9))->p_in_world.x(), -1);
+
+  const MapPoint* before = table.find(MapPointId(7));
+  PointTable moved = std::move(table);
+  EXPECT_EQ(moved.find(MapPointId(7)), before);
+  PointTable move_assigned;
+  move_assigned = std::move(moved);
+  EXPECT_EQ(move_assigned.find(MapPointId(7)), before);
+  EXPECT_EQ(move_assigned.find(MapPointId(7)), &move_assigned.all().at(MapPointId(7)));
+
+  // A point older than the index's first slot (a restored map's order) is indexed too.
+  PointTable later(std::map<MapPointId, MapPoint>{{MapPointId(50), TablePoint(50)}});
+  ASSERT_TRUE(later.emplace(MapPointId(3), TablePoint(3)));
+  EXPECT_EQ(later.find(MapPointId(3)), &later.all().at(MapPointId(3)));
+  EXPECT_EQ(later.find(MapPointId(50)), &later.all().at(MapPointId(50)));
+}
+
+TEST_F(ThreeKeyframeMap, ACopyOfTheMapLooksUpItsOwnPoints) {
+  const MapPointId id = map.points().begin()->first;
+  Map copy = map;
+  ASSERT_NE(copy.point(id), nullptr);
+  EXPECT_EQ(copy.point(id), &copy.points().at(id));
+  EXPECT_NE(copy.point(id), map.point(id));
+  MapDelta d;
+  d.removed_points.push_back(id);
+  copy.Apply(d);
+  EXPECT_EQ(copy.point(id), nullptr);
+  EXPECT_NE(map.point(id), nullptr);
+  const Map restored = Map::Restore(map.keyframes(), map.points(), map.bookkeeping());
+  for (const auto& [pid, p] : map.points())
+    EXPECT_EQ(restored.point(pid), &restored.points().at(pid));
+}
+
 }  // namespace
 }  // namespace pcr
