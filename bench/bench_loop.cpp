@@ -53,7 +53,7 @@
 //              and the relocalisation counters. A clip with another camera is warped into the
 //              map's camera (pinhole to pinhole, same orientation; images under WORK/cross/).
 //
-//   bench_loop [--seeds 1,2,3] [--frames 600] [--speed 8] [--movers 6] [--work DIR]
+//   bench_loop [--seeds 1,2,3] [--frames 600] [--laps 1.15] [--speed 8] [--movers 6] [--work DIR]
 //              [--policy sequential|pipelined] [--mode stereo|mono] [--vocabulary FILE]
 //   bench_loop --latency [--seeds 1] [--repeat 2]
 //   bench_loop --sequence DIR... [--mode mono]
@@ -63,8 +63,9 @@
 //
 // Work directory: seed S is looked up as WORK/loopS/ (the layout of `pcr_orb synth --out
 // WORK/loopS`: WORK/loopS/sequences/00, WORK/loopS/poses/00.txt) and as
-// WORK/loop_sS_vSPEED_mMOVERS_fFRAMES/; a directory is reused when its synth_options.txt has the
-// same frames, seed, movers, speed and route and its times.txt all the frames; otherwise the
+// WORK/loop_sS_vSPEED_mMOVERS_fFRAMES/ (_lLAPS appended for --laps other than 1.15); a directory is
+// reused when its synth_options.txt has the same frames, seed, movers, speed, laps (renders
+// without a laps line drove 1.15) and route and its times.txt all the frames; otherwise the
 // sequence is rendered into the second name (600 full-size frames: ~80 s on 2 cores, 7.7
 // frames/s, 2026-12-04).
 // `--work /tmp/lc` reuses /tmp/lc/loop1..3.
@@ -132,6 +133,7 @@ constexpr size_t kScaleWindow = 100;     // mono end-of-route figures: tracked f
 struct Args {
   std::string seeds = "1,2,3";
   int frames = 600;
+  double laps = 1.15;  // times round the loop (pcr_orb synth --laps)
   double speed_mps = 8;
   int movers = 6;
   std::string work = "/tmp/pcr_bench_loop";
@@ -208,7 +210,8 @@ bool HoldsSequence(const fs::path& out_dir, const pcr::sim::SynthOptions& o) {
   };
   return number("frames") == o.frames && number("seed") == static_cast<double>(o.seed) &&
          number("num_movers") == o.num_movers && number("speed_mps") == o.speed_mps &&
-         kv["route"] == "loop" && CountLines(seq / "times.txt") == static_cast<size_t>(o.frames);
+         (kv.count("laps") ? number("laps") : 1.15) == o.laps && kv["route"] == "loop" &&
+         CountLines(seq / "times.txt") == static_cast<size_t>(o.frames);
 }
 
 // The sequence directory of a loop route: reused (see the file comment) or written.
@@ -219,8 +222,10 @@ std::string LoopSequence(const Args& args, uint64_t seed) {
   o.speed_mps = args.speed_mps;
   o.num_movers = args.movers;
   o.route = pcr::sim::RouteKind::kLoop;
-  const fs::path written = fmt::format("{}/loop_s{}_v{}_m{}_f{}", args.work, seed, args.speed_mps,
-                                       args.movers, args.frames);
+  o.laps = args.laps;
+  const fs::path written =
+      fmt::format("{}/loop_s{}_v{}_m{}_f{}{}", args.work, seed, args.speed_mps, args.movers,
+                  args.frames, args.laps == 1.15 ? "" : fmt::format("_l{}", args.laps));
   for (const fs::path& dir : {fs::path(fmt::format("{}/loop{}", args.work, seed)), written})
     if (HoldsSequence(dir, o)) return (dir / "sequences" / o.sequence).string();
   std::printf("writing %s (%d frames, ~0.15 s a frame on 2 cores) ...\n", written.c_str(),
@@ -1537,6 +1542,9 @@ int main(int argc, char** argv) {
   app.add_option("--seeds", a.seeds, "synthetic loops' seeds (--latency: the first)")
       ->capture_default_str();
   app.add_option("--frames", a.frames, "frames of each synthetic loop")->capture_default_str();
+  app.add_option("--laps", a.laps, "times round each synthetic loop (pcr_orb synth --laps)")
+      ->check(CLI::Range(1.05, 20.0))
+      ->capture_default_str();
   app.add_option("--speed", a.speed_mps, "ego speed, m/s")->capture_default_str();
   app.add_option("--movers", a.movers, "moving objects per loop")->capture_default_str();
   app.add_option("--work", a.work, "where loops are found or written (WORK/loopS reused)")

@@ -737,7 +737,7 @@ Scene BuildScene(const SynthOptions& opt) {
     scene.ego_s0_m = kStreetBehindM;
   } else {
     // Rounded rectangle of streets, driven with left turns; the ego lane is on the outside.
-    const double perimeter = std::max(travel / 1.15, 1.0);
+    const double perimeter = std::max(travel / opt.laps, 1.0);
     const double lx = std::max(40.0, perimeter / 5.2), lz = 1.6 * lx;
     constexpr double kExt = 40.0;
     scene.ground.streets.push_back({{0.0, -kExt}, 0.0, lz + 2 * kExt});

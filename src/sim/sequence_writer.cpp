@@ -57,7 +57,7 @@ std::string OptionsText(const SynthOptions& o) {
   s.precision(10);
   s << "frames: " << o.frames << "\nseed: " << o.seed << "\nnum_movers: " << o.num_movers
     << "\nnum_parked: " << o.num_parked << "\nlead_gap_m: " << o.lead_gap_m
-    << "\nspeed_mps: " << o.speed_mps << "\nroute: " << RouteName(o.route)
+    << "\nspeed_mps: " << o.speed_mps << "\nroute: " << RouteName(o.route) << "\nlaps: " << o.laps
     << "\nwidth_px: " << o.width_px << "\nheight_px: " << o.height_px << "\nfx: " << o.fx
     << "\nfy: " << o.fy << "\ncx: " << o.cx << "\ncy: " << o.cy << "\nbaseline_m: " << o.baseline_m
     << "\nrate_hz: " << o.rate_hz << "\ncamera_height_m: " << o.camera_height_m

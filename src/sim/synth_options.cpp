@@ -24,6 +24,7 @@ bool SynthOptions::IsValid(std::string* why) const {
   if (!(lead_gap_m == 0 || (lead_gap_m >= 5 && lead_gap_m <= 100))) {
     return Fail(why, "lead_gap_m must be 0 or in [5, 100]");
   }
+  if (!(laps >= 1.05 && laps <= 20)) return Fail(why, "laps must be in [1.05, 20]");
   if (width_px < 16 || width_px > 8192 || height_px < 16 || height_px > 8192)
     return Fail(why, "image size must be in [16, 8192] pixels");
   if (!(fx > 0 && fy > 0 && std::isfinite(fx) && std::isfinite(fy)))

@@ -334,6 +334,9 @@ TEST(WorldOptionsTest, InvalidOptionsAreRejected) {
   options = SynthOptions{};
   options.cx = 5000;
   EXPECT_FALSE(options.IsValid(nullptr));
+  options = SynthOptions{};
+  options.laps = 1.0;
+  EXPECT_FALSE(options.IsValid(nullptr));
   EXPECT_EQ(ParseRoute("loop"), RouteKind::kLoop);
   EXPECT_THROW(ParseRoute("circle"), ConfigError);
   const SyntheticWorld world(SynthOptions{}.Scaled(0.25));
@@ -372,6 +375,34 @@ TEST(WorldLoopTest, LoopRouteReturnsToItsStart) {
   std::vector<cv::KeyPoint> keypoints;
   orb->detect(f.left, keypoints);
   EXPECT_GE(keypoints.size(), 1000u);
+}
+
+TEST(WorldLoopTest, LapsDriveTheSameLoopAgain) {
+  // 2.15 laps in 860 frames: the loop of the default 1.15 laps in 460 frames (320 m round, as
+  // its streets' rectangle), driven twice. The second lap passes the first lap's poses (same
+  // loop, same start), and returns to the start twice.
+  SynthOptions once;
+  once.route = RouteKind::kLoop;
+  once.frames = 460;
+  SynthOptions twice = once;
+  twice.frames = 860;
+  twice.laps = 2.15;
+  const Trajectory a = SyntheticWorld(once).GroundTruth();
+  const Trajectory b = SyntheticWorld(twice).GroundTruth();
+  ASSERT_EQ(b.size(), 860u);
+  for (size_t i = 0; i < a.size(); ++i)
+    ASSERT_LT((a[i].world_from_cam.translation() - b[i].world_from_cam.translation()).norm(), 1e-6)
+        << i;
+  std::vector<size_t> returns;  // frames nearest the start, away from it before
+  for (size_t i = 1; i + 1 < b.size(); ++i) {
+    const double d = b[i].world_from_cam.translation().norm();
+    if (d < 1.0 && d <= b[i - 1].world_from_cam.translation().norm() &&
+        d < b[i + 1].world_from_cam.translation().norm())
+      returns.push_back(i);
+  }
+  ASSERT_EQ(returns.size(), 2u);
+  EXPECT_NEAR(static_cast<double>(returns[1]), 2.0 * static_cast<double>(returns[0]), 2.0);
+  EXPECT_LT(b[returns[1]].world_from_cam.translation().norm(), 0.6);
 }
 
 }  // namespace
