@@ -28,8 +28,9 @@ struct SynthOptions {
   // Heavy traffic: > 0 puts the first car ahead lead_gap_m (+0..2 m) in front of the ego at
   // nearly the ego's speed (a close lead car, as in a queue); 0 keeps the default drifting one.
   double lead_gap_m = 0.0;
-  // Loop route: times round the loop in `frames` (the loop's length is the travel over laps).
-  // The default drives once round and 15% of the loop again; 2.15 drives the same loop twice.
+  // Loop route: times round the loop in `frames` (the loop's streets measure the travel over
+  // laps round, 208 m at least, so a short travel drives fewer laps). The default drives once
+  // round and 15% of the loop again; 2.15 drives the same loop twice.
   double laps = 1.15;
 
   int width_px = 1241;
