@@ -63,10 +63,10 @@
 //
 // Work directory: seed S is looked up as WORK/loopS/ (the layout of `pcr_orb synth --out
 // WORK/loopS`: WORK/loopS/sequences/00, WORK/loopS/poses/00.txt) and as
-// WORK/loop_sS_vSPEED_mMOVERS_fFRAMES/ (_lLAPS appended for --laps other than 1.15); a directory is
-// reused when its synth_options.txt has the same frames, seed, movers, speed, laps (renders
-// without a laps line drove 1.15) and route and its times.txt all the frames; otherwise the
-// sequence is rendered into the second name (600 full-size frames: ~80 s on 2 cores, 7.7
+// WORK/loop_sS_vSPEED_mMOVERS_fFRAMES/ (_lLAPS appended for --laps other than synth's default); a
+// directory is reused when its synth_options.txt has the same frames, seed, movers, speed, laps
+// (renders without a laps line drove 1.15) and route and its times.txt all the frames; otherwise
+// the sequence is rendered into the second name (600 full-size frames: ~80 s on 2 cores, 7.7
 // frames/s, 2026-12-04).
 // `--work /tmp/lc` reuses /tmp/lc/loop1..3.
 //
@@ -133,7 +133,7 @@ constexpr size_t kScaleWindow = 100;     // mono end-of-route figures: tracked f
 struct Args {
   std::string seeds = "1,2,3";
   int frames = 600;
-  double laps = 1.15;  // times round the loop (pcr_orb synth --laps)
+  double laps = pcr::sim::SynthOptions{}.laps;  // times round the loop (pcr_orb synth --laps)
   double speed_mps = 8;
   int movers = 6;
   std::string work = "/tmp/pcr_bench_loop";
@@ -178,6 +178,10 @@ std::string VocabularyPath(const std::string& path) {
 
 // --- Synthetic loops -------------------------------------------------------------------------
 
+// The laps of a render whose synth_options.txt has no laps line: it was written before the option
+// existed, when every loop drove 1.15 laps.
+constexpr double kLapsOfOldRenders = 1.15;
+
 // "key: value" lines of a synth_options.txt.
 std::map<std::string, std::string> ReadKeyValues(const fs::path& path) {
   std::map<std::string, std::string> out;
@@ -210,8 +214,8 @@ bool HoldsSequence(const fs::path& out_dir, const pcr::sim::SynthOptions& o) {
   };
   return number("frames") == o.frames && number("seed") == static_cast<double>(o.seed) &&
          number("num_movers") == o.num_movers && number("speed_mps") == o.speed_mps &&
-         (kv.count("laps") ? number("laps") : 1.15) == o.laps && kv["route"] == "loop" &&
-         CountLines(seq / "times.txt") == static_cast<size_t>(o.frames);
+         (kv.count("laps") ? number("laps") : kLapsOfOldRenders) == o.laps &&
+         kv["route"] == "loop" && CountLines(seq / "times.txt") == static_cast<size_t>(o.frames);
 }
 
 // The sequence directory of a loop route: reused (see the file comment) or written.
@@ -223,9 +227,9 @@ std::string LoopSequence(const Args& args, uint64_t seed) {
   o.num_movers = args.movers;
   o.route = pcr::sim::RouteKind::kLoop;
   o.laps = args.laps;
-  const fs::path written =
-      fmt::format("{}/loop_s{}_v{}_m{}_f{}{}", args.work, seed, args.speed_mps, args.movers,
-                  args.frames, args.laps == 1.15 ? "" : fmt::format("_l{}", args.laps));
+  const fs::path written = fmt::format(
+      "{}/loop_s{}_v{}_m{}_f{}{}", args.work, seed, args.speed_mps, args.movers, args.frames,
+      args.laps == pcr::sim::SynthOptions{}.laps ? "" : fmt::format("_l{}", args.laps));
   for (const fs::path& dir : {fs::path(fmt::format("{}/loop{}", args.work, seed)), written})
     if (HoldsSequence(dir, o)) return (dir / "sequences" / o.sequence).string();
   std::printf("writing %s (%d frames, ~0.15 s a frame on 2 cores) ...\n", written.c_str(),
