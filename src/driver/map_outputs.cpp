@@ -1,5 +1,7 @@
 #include "driver/map_outputs.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <bit>
 #include <cstring>
@@ -9,6 +11,7 @@
 
 #include "io/trajectory_io.h"
 #include "slam/common/error.h"
+#include "slam/geometry/ground_height.h"
 
 namespace pcr::driver {
 namespace {
@@ -103,6 +106,44 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
 
 }  // namespace
 
+nlohmann::json GroundScaleJson(const graph::MapSnapshot& map,
+                               const std::optional<eval::EvalResult>& evaluation) {
+  std::vector<Eigen::Vector3d> points;
+  points.reserve(map.points.size());
+  for (const graph::MapCloudPoint& p : map.points) points.push_back(p.p_in_world);
+  std::vector<SE3> keyframes;
+  keyframes.reserve(map.keyframes.size());
+  for (const StampedPose& k : map.keyframes) keyframes.push_back(k.world_from_cam);
+  const MapGroundScale s =
+      EstimateMapGroundScale(points, keyframes, kRoadCameraHeightM, GroundHeightOptions{});
+  nlohmann::json j = {{"camera_height_m", kRoadCameraHeightM},
+                      {"keyframes", keyframes.size()},
+                      {"estimated", s.estimated}};
+  if (s.estimated > 0) {
+    j["median_height"] = s.median_height;
+    j["metres_per_unit"] = s.metres_per_unit;
+    j["metres_per_unit_p10"] = s.p10;
+    j["metres_per_unit_p90"] = s.p90;
+  }
+  // The scale that aligns the trajectory to the ground truth: what the road's should be.
+  if (evaluation && s.estimated > 0) {
+    j["truth_metres_per_unit"] = evaluation->alignment.scale;
+    j["ratio_to_truth"] = s.metres_per_unit / evaluation->alignment.scale;
+  }
+  if (s.estimated > 0)
+    spdlog::info(
+        "the road under {} of {} keyframes: {:.4g} m per map unit (keyframes' p10-p90 "
+        "{:.4g}-{:.4g}){}",
+        s.estimated, keyframes.size(), s.metres_per_unit, s.p10, s.p90,
+        evaluation ? fmt::format("; the alignment to the ground truth: {:.4g} ({:.3f}x)",
+                                 evaluation->alignment.scale,
+                                 s.metres_per_unit / evaluation->alignment.scale)
+                   : "");
+  else
+    spdlog::info("no road found under the {} keyframes", keyframes.size());
+  return j;
+}
+
 nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnapshot& map,
                                const RunSummary& summary) {
   CreateOutputDirectory(out_dir);
@@ -136,6 +177,7 @@ nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnaps
                                  {"removed_by_truth", by_truth},
                                  {"keyframes", map.keyframes.size()}};
   summary_json["loops"] = map.loops;
+  summary_json["ground"] = GroundScaleJson(map, summary.evaluation);
   return summary_json;
 }
 

@@ -13,10 +13,22 @@
 
 namespace pcr::driver {
 
+// KITTI's camera height above the road (the synthetic sequences' default too).
+inline constexpr double kRoadCameraHeightM = 1.65;
+
+// The map's scale from the road under its keyframes (slam/geometry/ground_height.h): "keyframes",
+// "estimated" (those with a road), and where any has one "median_height" (map units),
+// "metres_per_unit" (kRoadCameraHeightM over it: ~1 on a stereo map, the monocular map's scale
+// otherwise) with the keyframes' 10th-90th percentiles; with an evaluation also the alignment's
+// scale ("truth_metres_per_unit"; 1 for SE(3)) and "ratio_to_truth".
+nlohmann::json GroundScaleJson(const graph::MapSnapshot& map,
+                               const std::optional<eval::EvalResult>& evaluation);
+
 // Writes the four files into out_dir (created if needed); returns their summary for stats.json
 // ("points", "removed_points", "removed_by_reason", "removed_by_truth": moving / parked / static
 // against the dataset's ground truth where it has one, "keyframes", "loops": [query, match]
-// pairs of keyframe indices, i.e. of keyframes.txt's pose lines). Throws InputError naming the
+// pairs of keyframe indices, i.e. of keyframes.txt's pose lines, "ground": GroundScaleJson).
+// Throws InputError naming the
 // file when one cannot be written.
 nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnapshot& map,
                                const RunSummary& summary);
