@@ -44,7 +44,12 @@
 //              own clip outside the answer's window), with a sweep of that gate. --held-out adds
 //              (1), (3) and (4) for each clip's queries under a vocabulary trained like the given
 //              one on the other clips' frames only (the shipped one is trained on these clips),
-//              beside the given one's.
+//              beside the given one's. --map-distance adds (5): (4) where the query's own clip,
+//              mapped by the system (stereo where it has a right camera, else mono in the road's
+//              scale: slam/geometry/ground_height.h, KITTI's 1.65 m camera height), does not place
+//              the answer further than 10 m from it: the distance a map knows without ground
+//              truth, for answers of the query's own clip (other clips share no map); with
+//              --held-out also under the held-out vocabularies.
 //
 //  --cross     place recognition through the whole system: each clip is mapped alone (mono,
 //              sequential), then every clip runs in that map in localisation mode, where each
@@ -60,6 +65,7 @@
 //   bench_loop --cross DIR... [--work DIR]
 //   bench_loop --place DIR... [--place-stride 2] [--window 10] [--thresholds 0,0.02,...]
 //              [--sequence-length 12] [--sequence-min 3] [--uniqueness 1.05] [--held-out]
+//              [--map-distance]
 //
 // Work directory: seed S is looked up as WORK/loopS/ (the layout of `pcr_orb synth --out
 // WORK/loopS`: WORK/loopS/sequences/00, WORK/loopS/poses/00.txt) and as
@@ -105,6 +111,7 @@
 #include "bench_args.h"
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
+#include "driver/map_outputs.h"
 #include "eval/association.h"
 #include "eval/evaluation.h"
 #include "eval/statistics.h"
@@ -115,6 +122,7 @@
 #include "slam/common/lie.h"
 #include "slam/common/timing.h"
 #include "slam/features/orb_extractor.h"
+#include "slam/geometry/ground_height.h"
 #include "slam/geometry/se3.h"
 #include "slam/loop/keyframe_database.h"
 #include "slam/loop/loop_closer.h"
@@ -150,6 +158,7 @@ struct Args {
   int window = 10;
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
   bool held_out = false;
+  bool map_distance = false;           // --place: the clips' own maps place the answers
   pcr::SequenceScoreOptions sequence;  // --place: answer (4)
   double uniqueness = 1.05;            // --place: answer (4)'s gate
   std::vector<std::string> settings;   // --set: "section.key=value" for every run
@@ -991,9 +1000,12 @@ PlaceRow RowOf(const PlacePool& pool, int clip, const GeometryAnswers& by_geomet
 // other clips' frames of the pool only, so that none of the clip's own descriptors shaped the
 // words (the shipped vocabulary is trained on these very clips), beside the same queries under
 // `given` (whose answers by geometry and over sequences are given_by_geometry and
-// given_by_sequence). Leaves the pool under the last held-out vocabulary.
+// given_by_sequence). Leaves the pool under the last held-out vocabulary; each query's answer
+// over sequences under its clip's held-out vocabulary in *held_out_by_sequence.
 void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_geometry,
-                  const SequenceAnswers& given_by_sequence, const Args& args, PlacePool* pool) {
+                  const SequenceAnswers& given_by_sequence, const Args& args, PlacePool* pool,
+                  SequenceAnswers* held_out_by_sequence) {
+  held_out_by_sequence->assign(pool->size(), std::nullopt);
   const pcr::VocabularyOptions& options = given.options();
   std::printf(
       "\nplace recognition on unseen clips (--held-out): each clip's queries under a vocabulary "
@@ -1050,6 +1062,7 @@ void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_
       if (pool->image(q).clip == c) {
         by_geometry[q] = pool->BestByGeometry(q);
         by_sequence[q] = pool->BestBySequence(q, args.sequence);
+        (*held_out_by_sequence)[q] = by_sequence[q];
       }
     const PlaceRow row = RowOf(*pool, c, by_geometry, by_sequence, args.uniqueness);
     const std::string& name = pool->names()[static_cast<size_t>(c)];
@@ -1069,7 +1082,91 @@ void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_
       kPlaceVerifyTopK, args.sequence.length, args.uniqueness);
 }
 
-int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
+// --place --map-distance: each clip mapped by the system (sequential; stereo where it has a right
+// camera, else mono, scaled by the road under its keyframes), printed as a table; per image of
+// the pool its mapped position in metres (none where its frame was not tracked or its mono map
+// found no road).
+std::vector<std::optional<Eigen::Vector3d>> MapPositions(
+    const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary,
+    const PlacePool& pool) {
+  std::vector<std::optional<Eigen::Vector3d>> mapped(pool.size());
+  std::printf(
+      "\nthe clips mapped by the system (sequential; mono maps in metres by the road under their "
+      "keyframes, camera %.2f m above it):\n%-28s %6s %7s %9s %12s %10s %12s\n",
+      pcr::driver::kRoadCameraHeightM, "clip", "mode", "tracked", "keyframes", "m per unit",
+      "truth's", "road under");
+  for (size_t c = 0; c < args.place.size(); ++c) {
+    const pcr::Dataset d = pcr::OpenDataset(args.place[c]);
+    Args clip_args = args;
+    clip_args.mode = d.right_paths.empty() ? "mono" : "stereo";
+    const pcr::driver::DriverResult r =
+        Run(d, clip_args, pcr::graph::Policy::kSequential, vocabulary);
+    const bool mono = clip_args.mode == "mono";
+    std::vector<Eigen::Vector3d> points;
+    for (const pcr::graph::MapCloudPoint& p : r.pipeline.map.points) points.push_back(p.p_in_world);
+    std::vector<pcr::SE3> keyframes;
+    for (const pcr::StampedPose& k : r.pipeline.map.keyframes)
+      keyframes.push_back(k.world_from_cam);
+    const pcr::MapGroundScale road = pcr::EstimateMapGroundScale(
+        points, keyframes, pcr::driver::kRoadCameraHeightM, pcr::GroundHeightOptions{});
+    // A stereo map is metric already; a mono one without a road has no metres.
+    const double metres_per_unit = mono ? road.metres_per_unit : 1.0;
+    const double truth = r.summary.evaluation ? r.summary.evaluation->alignment.scale : kNaN;
+    std::printf("%-28s %6s %3zu/%-3zu %9zu %12.4g %10.4g %5d of %-4zu\n", d.name.c_str(),
+                clip_args.mode.c_str(), r.summary.frames_tracked, d.size(), keyframes.size(),
+                metres_per_unit, mono ? truth : 1.0, road.estimated, keyframes.size());
+    if (!(metres_per_unit > 0)) continue;
+    for (size_t i = 0; i < pool.size(); ++i) {
+      const PlaceImage& image = pool.image(i);
+      if (image.clip != static_cast<int>(c)) continue;
+      const size_t f = static_cast<size_t>(image.frame);
+      if (f < r.summary.frame_tracked.size() && r.summary.frame_tracked[f])
+        mapped[i] = r.summary.per_frame[f].world_from_cam.translation() * metres_per_unit;
+    }
+  }
+  std::printf(
+      "(m per unit: the mono map's metres per unit from the road; truth's: the scale of its "
+      "Sim(3) alignment to the ground truth, for comparison; road under: keyframes with a road)\n");
+  return mapped;
+}
+
+// The answers over sequences (4) that pass the uniqueness gate, declined where the query's clip
+// places the answer further than kPlaceRadiusM from the query (`mapped`, MapPositions). Answers
+// of another clip have no map distance and are kept.
+void PrintMapGate(const char* label, const PlacePool& pool, const SequenceAnswers& by_sequence,
+                  const std::vector<std::optional<Eigen::Vector3d>>& mapped, double uniqueness) {
+  const size_t n = pool.size();
+  int revisits = 0;
+  for (size_t q = 0; q < n; ++q) revisits += pool.HasNear(q);
+  std::array<int, 3> kept{}, declined{};
+  std::vector<double> ratio;  // map distance / true distance of the same-clip answers
+  for (size_t q = 0; q < n; ++q) {
+    if (!by_sequence[q] || by_sequence[q]->uniqueness < uniqueness) continue;
+    const size_t a = by_sequence[q]->frame;
+    const int v = static_cast<int>(pool.VerdictOf(q, a));
+    const bool known = mapped[q] && mapped[a] && pool.image(q).clip == pool.image(a).clip;
+    const double d = known ? (*mapped[q] - *mapped[a]).norm() : kNaN;
+    if (known) ratio.push_back(d / (pool.image(q).position - pool.image(a).position).norm());
+    ++(known && d > kPlaceRadiusM ? declined : kept)[v];
+  }
+  const int answered = kept[0] + kept[1] + kept[2];
+  std::printf(
+      "%s: over sequences (uniqueness >= %.2f), declined where the query's clip places the answer "
+      "further than %.0f m: answered %d, correct %d, same far %d, other %d, precision %.3f, recall "
+      "%.3f; declined %d (correct %d, same far %d, other %d); the map's distance over the true one "
+      "for the %zu answers of the query's own clip with both frames mapped: min %.3f / median "
+      "%.3f / max %.3f\n",
+      label, uniqueness, kPlaceRadiusM, answered, kept[0], kept[1], kept[2],
+      answered > 0 ? static_cast<double>(kept[0]) / answered : kNaN,
+      revisits > 0 ? static_cast<double>(kept[0]) / revisits : kNaN,
+      declined[0] + declined[1] + declined[2], declined[0], declined[1], declined[2], ratio.size(),
+      ratio.empty() ? kNaN : *std::min_element(ratio.begin(), ratio.end()),
+      ratio.empty() ? kNaN : pcr::Percentile(ratio, 50),
+      ratio.empty() ? kNaN : *std::max_element(ratio.begin(), ratio.end()));
+}
+
+int RunPlace(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& shared_vocabulary) {
+  const pcr::Vocabulary& vocabulary = *shared_vocabulary;
   PlacePool pool(args);
   pool.Apply(vocabulary);
   const size_t n = pool.size();
@@ -1442,7 +1539,15 @@ int RunPlace(const Args& args, const pcr::Vocabulary& vocabulary) {
                 counts[2], answered > 0 ? static_cast<double>(counts[0]) / answered : kNaN,
                 revisits > 0 ? static_cast<double>(counts[0]) / revisits : kNaN);
   }
-  if (args.held_out) PrintHeldOut(vocabulary, by_geometry, by_sequence, args, &pool);
+  SequenceAnswers held_out_by_sequence;
+  if (args.held_out)
+    PrintHeldOut(vocabulary, by_geometry, by_sequence, args, &pool, &held_out_by_sequence);
+  if (args.map_distance) {
+    const auto mapped = MapPositions(args, shared_vocabulary, pool);
+    PrintMapGate("given vocabulary", pool, by_sequence, mapped, args.uniqueness);
+    if (args.held_out)
+      PrintMapGate("held out", pool, held_out_by_sequence, mapped, args.uniqueness);
+  }
   return 0;
 }
 
@@ -1582,6 +1687,9 @@ int main(int argc, char** argv) {
   app.add_option("--uniqueness", a.uniqueness,
                  "--place: answer 4's best over the best elsewhere, at least")
       ->capture_default_str();
+  app.add_flag("--map-distance", a.map_distance,
+               "--place: also decline answers that the query's clip, mapped by the system, places "
+               "further than 10 m from it");
   app.add_flag(
       "--held-out", a.held_out,
       "--place: also each clip under a vocabulary trained without it (the others' frames)");
@@ -1602,7 +1710,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "no vocabulary: give --vocabulary FILE\n");
       return 1;
     }
-    if (!a.place.empty()) return RunPlace(a, *vocabulary);
+    if (!a.place.empty()) return RunPlace(a, vocabulary);
     if (!a.cross.empty()) return RunCross(a, vocabulary);
     if (!a.sequences.empty()) return RunSequences(a, vocabulary);
     if (a.latency) return RunLatency(a, vocabulary);
