@@ -51,6 +51,13 @@ def main(out):
     assert len(keyframes) == stats["keyframes"] == stats["map"]["keyframes"]
     # KITTI 06's first frames revisit nothing: no loop (each would be [query, earlier match]).
     assert stats["map"]["loops"] == [], stats["map"]["loops"]
+    # The road under the keyframes: counted for every keyframe; where found, a stereo map's
+    # metres per map unit are about 1.
+    ground = stats["map"]["ground"]
+    assert ground["camera_height_m"] == 1.65 and ground["keyframes"] == len(keyframes), ground
+    assert 0 <= ground["estimated"] <= ground["keyframes"], ground
+    if ground["estimated"] > 0:
+        assert 0.8 < ground["metres_per_unit"] < 1.25, ground
     print(f"map.ply {len(kept)} points, map_removed.ply {len(removed)} points, "
           f"{len(keyframes)} keyframes: ok")
 

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "driver/map_outputs.h"
 #include "driver/traffic_street.h"
 #include "support/data_paths.h"
 
@@ -168,6 +169,30 @@ TEST(Driver, FilterAndTrackerSeeTheConfiguredCamera) {
   const RunSummary d =
       RunDataset(original, none, range, WithPolicy(graph::Policy::kSequential)).summary;
   EXPECT_NE(a.filter_dump, d.filter_dump);
+}
+
+// The road under the keyframes gives a monocular map its metres (KITTI's camera is 1.65 m above
+// the road): within 7% of the scale that aligns the run to the ground truth, and about 1 on a
+// stereo map, which is metric already.
+TEST(Driver, TheRoadGivesTheMonocularMapItsScale) {
+  const Dataset kitti00 = OpenDataset(test::SharedPath("data/kitti/sequences/00"));
+  const DriverResult mono = RunDataset(
+      kitti00, RunConfig{}, {0, 50}, WithPolicy(graph::Policy::kSequential, SlamMode::kMonocular));
+  ASSERT_TRUE(mono.summary.error.empty()) << mono.summary.error;
+  const nlohmann::json m = GroundScaleJson(mono.pipeline.map, mono.summary.evaluation);
+  EXPECT_GE(m["estimated"].get<int>(), m["keyframes"].get<int>() / 2) << m.dump();
+  ASSERT_TRUE(m.contains("ratio_to_truth")) << m.dump();
+  EXPECT_GT(m["truth_metres_per_unit"].get<double>(), 5.0) << m.dump();  // not metric
+  EXPECT_NEAR(m["ratio_to_truth"].get<double>(), 1.0, 0.07) << m.dump();
+
+  const Dataset drive =
+      OpenDataset(test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"));
+  const DriverResult stereo =
+      RunDataset(drive, RunConfig{}, {0, drive.size()}, WithPolicy(graph::Policy::kSequential));
+  ASSERT_TRUE(stereo.summary.error.empty()) << stereo.summary.error;
+  const nlohmann::json s = GroundScaleJson(stereo.pipeline.map, stereo.summary.evaluation);
+  ASSERT_GT(s["estimated"].get<int>(), 0) << s.dump();
+  EXPECT_NEAR(s["metres_per_unit"].get<double>(), 1.0, 0.07) << s.dump();
 }
 
 }  // namespace
