@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "eval/association.h"
 #include "io/trajectory_io.h"
 #include "slam/common/error.h"
 #include "slam/geometry/ground_height.h"
@@ -106,8 +107,8 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
 
 }  // namespace
 
-nlohmann::json GroundScaleJson(const graph::MapSnapshot& map,
-                               const std::optional<eval::EvalResult>& evaluation) {
+nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& summary) {
+  const std::optional<eval::EvalResult>& evaluation = summary.evaluation;
   std::vector<Eigen::Vector3d> points;
   points.reserve(map.points.size());
   for (const graph::MapCloudPoint& p : map.points) points.push_back(p.p_in_world);
@@ -130,6 +131,22 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map,
     j["truth_metres_per_unit"] = evaluation->alignment.scale;
     j["ratio_to_truth"] = s.metres_per_unit / evaluation->alignment.scale;
   }
+  // A monocular run in the road's metres, aligned by rotation and translation only: its error
+  // without the ground truth's scale (against the Sim(3) alignment's, which takes that scale).
+  if (evaluation && s.estimated > 0 && evaluation->align_mode == eval::AlignMode::kSim3) {
+    Trajectory metric = summary.tracked;
+    for (StampedPose& p : metric) p.world_from_cam.translation() *= s.metres_per_unit;
+    eval::EvalOptions se3 = summary.eval_options;
+    se3.alignment.mode = eval::AlignMode::kSe3;
+    try {
+      const eval::EvalResult e =
+          eval::Evaluate(eval::AssociateByFrameIndex(summary.ground_truth, metric), se3);
+      j["ate_m_road_scale_se3"] = e.ape.trans_m.rmse;
+      j["ate_m_sim3"] = evaluation->ape.trans_m.rmse;
+    } catch (const std::exception& e) {
+      spdlog::warn("evaluation in the road's scale skipped: {}", e.what());
+    }
+  }
   if (s.estimated > 0)
     spdlog::info(
         "the road under {} of {} keyframes: {:.4g} m per map unit (keyframes' p10-p90 "
@@ -141,6 +158,9 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map,
                    : "");
   else
     spdlog::info("no road found under the {} keyframes", keyframes.size());
+  if (j.contains("ate_m_road_scale_se3"))
+    spdlog::info("ATE in the road's metres, SE(3)-aligned: {:.4f} m (Sim(3)-aligned: {:.4f} m)",
+                 j["ate_m_road_scale_se3"].get<double>(), j["ate_m_sim3"].get<double>());
   return j;
 }
 
@@ -177,7 +197,7 @@ nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnaps
                                  {"removed_by_truth", by_truth},
                                  {"keyframes", map.keyframes.size()}};
   summary_json["loops"] = map.loops;
-  summary_json["ground"] = GroundScaleJson(map, summary.evaluation);
+  summary_json["ground"] = GroundScaleJson(map, summary);
   return summary_json;
 }
 

@@ -179,20 +179,25 @@ TEST(Driver, TheRoadGivesTheMonocularMapItsScale) {
   const DriverResult mono = RunDataset(
       kitti00, RunConfig{}, {0, 50}, WithPolicy(graph::Policy::kSequential, SlamMode::kMonocular));
   ASSERT_TRUE(mono.summary.error.empty()) << mono.summary.error;
-  const nlohmann::json m = GroundScaleJson(mono.pipeline.map, mono.summary.evaluation);
+  const nlohmann::json m = GroundScaleJson(mono.pipeline.map, mono.summary);
   EXPECT_GE(m["estimated"].get<int>(), m["keyframes"].get<int>() / 2) << m.dump();
   ASSERT_TRUE(m.contains("ratio_to_truth")) << m.dump();
   EXPECT_GT(m["truth_metres_per_unit"].get<double>(), 5.0) << m.dump();  // not metric
   EXPECT_NEAR(m["ratio_to_truth"].get<double>(), 1.0, 0.07) << m.dump();
+  // In those metres, aligned without a scale, the run errs about as much as with the truth's.
+  ASSERT_TRUE(m.contains("ate_m_road_scale_se3")) << m.dump();
+  EXPECT_LT(m["ate_m_road_scale_se3"].get<double>(), 2.0 * m["ate_m_sim3"].get<double>())
+      << m.dump();
 
   const Dataset drive =
       OpenDataset(test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"));
   const DriverResult stereo =
       RunDataset(drive, RunConfig{}, {0, drive.size()}, WithPolicy(graph::Policy::kSequential));
   ASSERT_TRUE(stereo.summary.error.empty()) << stereo.summary.error;
-  const nlohmann::json s = GroundScaleJson(stereo.pipeline.map, stereo.summary.evaluation);
+  const nlohmann::json s = GroundScaleJson(stereo.pipeline.map, stereo.summary);
   ASSERT_GT(s["estimated"].get<int>(), 0) << s.dump();
   EXPECT_NEAR(s["metres_per_unit"].get<double>(), 1.0, 0.07) << s.dump();
+  EXPECT_FALSE(s.contains("ate_m_road_scale_se3")) << s.dump();  // a stereo run is metric
 }
 
 }  // namespace
