@@ -122,7 +122,6 @@
 #include "slam/common/lie.h"
 #include "slam/common/timing.h"
 #include "slam/features/orb_extractor.h"
-#include "slam/geometry/ground_height.h"
 #include "slam/geometry/se3.h"
 #include "slam/loop/keyframe_database.h"
 #include "slam/loop/loop_closer.h"
@@ -1102,19 +1101,14 @@ std::vector<std::optional<Eigen::Vector3d>> MapPositions(
     const pcr::driver::DriverResult r =
         Run(d, clip_args, pcr::graph::Policy::kSequential, vocabulary);
     const bool mono = clip_args.mode == "mono";
-    std::vector<Eigen::Vector3d> points;
-    for (const pcr::graph::MapCloudPoint& p : r.pipeline.map.points) points.push_back(p.p_in_world);
-    std::vector<pcr::SE3> keyframes;
-    for (const pcr::StampedPose& k : r.pipeline.map.keyframes)
-      keyframes.push_back(k.world_from_cam);
-    const pcr::MapGroundScale road = pcr::EstimateMapGroundScale(
-        points, keyframes, pcr::driver::kRoadCameraHeightM, pcr::GroundHeightOptions{});
+    const pcr::MapGroundScale road = pcr::driver::RoadScale(r.pipeline.map);
+    const size_t keyframes = r.pipeline.map.keyframes.size();
     // A stereo map is metric already; a mono one without a road has no metres.
     const double metres_per_unit = mono ? road.metres_per_unit : 1.0;
     const double truth = r.summary.evaluation ? r.summary.evaluation->alignment.scale : kNaN;
     std::printf("%-28s %6s %3zu/%-3zu %9zu %12.4g %10.4g %5d of %-4zu\n", d.name.c_str(),
-                clip_args.mode.c_str(), r.summary.frames_tracked, d.size(), keyframes.size(),
-                metres_per_unit, mono ? truth : 1.0, road.estimated, keyframes.size());
+                clip_args.mode.c_str(), r.summary.frames_tracked, d.size(), keyframes,
+                metres_per_unit, mono ? truth : 1.0, road.estimated, keyframes);
     if (!(metres_per_unit > 0)) continue;
     for (size_t i = 0; i < pool.size(); ++i) {
       const PlaceImage& image = pool.image(i);

@@ -107,18 +107,22 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
 
 }  // namespace
 
-nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& summary) {
-  const std::optional<eval::EvalResult>& evaluation = summary.evaluation;
+MapGroundScale RoadScale(const graph::MapSnapshot& map) {
   std::vector<Eigen::Vector3d> points;
   points.reserve(map.points.size());
   for (const graph::MapCloudPoint& p : map.points) points.push_back(p.p_in_world);
   std::vector<SE3> keyframes;
   keyframes.reserve(map.keyframes.size());
   for (const StampedPose& k : map.keyframes) keyframes.push_back(k.world_from_cam);
-  const MapGroundScale s =
-      EstimateMapGroundScale(points, keyframes, kRoadCameraHeightM, GroundHeightOptions{});
+  return EstimateMapGroundScale(points, keyframes, kRoadCameraHeightM, GroundHeightOptions{});
+}
+
+nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& summary) {
+  const std::optional<eval::EvalResult>& evaluation = summary.evaluation;
+  const MapGroundScale s = RoadScale(map);
+  const size_t keyframes = map.keyframes.size();
   nlohmann::json j = {{"camera_height_m", kRoadCameraHeightM},
-                      {"keyframes", keyframes.size()},
+                      {"keyframes", keyframes},
                       {"estimated", s.estimated}};
   if (s.estimated > 0) {
     j["median_height"] = s.median_height;
@@ -151,13 +155,13 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
     spdlog::info(
         "the road under {} of {} keyframes: {:.4g} m per map unit (keyframes' p10-p90 "
         "{:.4g}-{:.4g}){}",
-        s.estimated, keyframes.size(), s.metres_per_unit, s.p10, s.p90,
+        s.estimated, keyframes, s.metres_per_unit, s.p10, s.p90,
         evaluation ? fmt::format("; the alignment to the ground truth: {:.4g} ({:.3f}x)",
                                  evaluation->alignment.scale,
                                  s.metres_per_unit / evaluation->alignment.scale)
                    : "");
   else
-    spdlog::info("no road found under the {} keyframes", keyframes.size());
+    spdlog::info("no road found under the {} keyframes", keyframes);
   if (j.contains("ate_m_road_scale_se3"))
     spdlog::info("ATE in the road's metres, SE(3)-aligned: {:.4f} m (Sim(3)-aligned: {:.4f} m)",
                  j["ate_m_road_scale_se3"].get<double>(), j["ate_m_sim3"].get<double>());

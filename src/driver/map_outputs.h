@@ -10,11 +10,15 @@
 
 #include "driver/run_slam.h"
 #include "graph/pipeline.h"
+#include "slam/geometry/ground_height.h"
 
 namespace pcr::driver {
 
 // KITTI's camera height above the road (the synthetic sequences' default too).
 inline constexpr double kRoadCameraHeightM = 1.65;
+
+// The road under the map's keyframes (slam/geometry/ground_height.h) at kRoadCameraHeightM.
+MapGroundScale RoadScale(const graph::MapSnapshot& map);
 
 // The map's scale from the road under its keyframes (slam/geometry/ground_height.h): "keyframes",
 // "estimated" (those with a road), and where any has one "median_height" (map units),

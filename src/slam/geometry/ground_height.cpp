@@ -4,19 +4,11 @@
 #include <cmath>
 
 #include "slam/common/error.h"
+#include "slam/common/timing.h"
 #include "slam/common/validation.h"
 #include "slam/geometry/plane.h"
 
 namespace pcr {
-namespace {
-
-double Percentile(std::vector<double> v, double q) {
-  std::sort(v.begin(), v.end());
-  const size_t i = static_cast<size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
-  return v[std::min(i, v.size() - 1)];
-}
-
-}  // namespace
 
 bool GroundHeightOptions::IsValid(std::string* why) const {
   if (!(min_below_horizon > 0.0 && min_below_horizon < 1.0))
@@ -54,7 +46,7 @@ GroundHeight EstimateGroundHeight(const std::vector<Eigen::Vector3d>& points_in_
   std::vector<double> ys;
   ys.reserve(region.size());
   for (const Eigen::Vector3d& p : region) ys.push_back(p.y());
-  const double unit = Percentile(ys, 0.5);
+  const double unit = Percentile(ys, 50);
   for (Eigen::Vector3d& p : region) p /= unit;
 
   PlaneRansacOptions ransac;
@@ -102,12 +94,12 @@ MapGroundScale EstimateMapGroundScale(const std::vector<Eigen::Vector3d>& points
   }
   out.estimated = static_cast<int>(heights.size());
   if (heights.empty()) return out;
-  out.median_height = Percentile(heights, 0.5);
+  out.median_height = Percentile(heights, 50);
   out.metres_per_unit = camera_height_m / out.median_height;
   // A keyframe's metres per unit falls as its height rises: its 10th percentile is the 90th
   // percentile of the heights.
-  out.p10 = camera_height_m / Percentile(heights, 0.9);
-  out.p90 = camera_height_m / Percentile(heights, 0.1);
+  out.p10 = camera_height_m / Percentile(heights, 90);
+  out.p90 = camera_height_m / Percentile(heights, 10);
   return out;
 }
 
