@@ -8,17 +8,19 @@
 //              ATE (SE(3); Sim(3) with --mode mono) off/on, as % of the path, ratio on/off, the
 //              end-of-route error off/on (last tracked frame against ground truth, no alignment:
 //              both start at the identity; mono: relative to the first tracked frame with the
-//              scale of the first 100 tracked frames, plus the scale drift of the last 100), loops
-//              closed, the first correction (frame, metres, mono scale), candidates rejected
-//              (and of those, by the owner's word-match precheck), detection p50/p99 and the loop
-//              lane's times (verify + correct + pose graph of the corrections; global BA).
-//              Stereo also prints an oracle: the OFF run's own drift corrected by a pose graph
-//              with perfect loops (ground-truth loop edges at every revisit frame, OracleOf),
-//              the best any loop correction of that drift can do without re-estimating the
-//              structure, so ATE on/off can be read against ATE oracle/off of the same run.
-//              Then where the error lies, off and on: the aligned error's RMS along the direction
-//              of travel, across it and vertical, and the scale error of 40-frame windows on
-//              straights (RMS, and the correlation of the same windows' errors off and on).
+//              scale of the first 100 tracked frames, plus the scale drift of the last 100; mono
+//              also the road's metres per unit over the ground truth's Sim(3) scale and the ATE
+//              in those metres aligned by SE(3): driver::GroundScaleJson), loops closed, the first
+//              correction (frame, metres, mono scale), candidates rejected (and of those, by the
+//              owner's word-match precheck), detection p50/p99 and the loop lane's times (verify +
+//              correct + pose graph of the corrections; global BA). Stereo also prints an oracle:
+//              the OFF run's own drift corrected by a pose graph with perfect loops (ground-truth
+//              loop edges at every revisit frame, OracleOf), the best any loop correction of that
+//              drift can do without re-estimating the structure, so ATE on/off can be read against
+//              ATE oracle/off of the same run. Then where the error lies, off and on: the aligned
+//              error's RMS along the direction of travel, across it and vertical, and the scale
+//              error of 40-frame windows on straights (RMS, and the correlation of the same
+//              windows' errors off and on).
 //  --latency   one seed, pipelined policy: ON/OFF/ON/OFF... for --repeat rounds; tracking latency
 //              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages.
 //  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
@@ -336,6 +338,9 @@ struct Figures {
   ErrorSplit split;
   double end_m = kNaN;          // last tracked frame's position error, see EndOfRoute
   double end_scale_pct = kNaN;  // mono: scale of the last kScaleWindow frames against the first
+  // Mono: the map's metres per unit from the road over the ground truth's Sim(3) scale, and the
+  // ATE in those metres aligned by SE(3) (driver::GroundScaleJson); NaN without a road.
+  double road_ratio = kNaN, road_ate_m = kNaN;
   double wall_s = 0;
   std::string error;  // the run stopped early
 };
@@ -356,6 +361,11 @@ Figures Measure(const pcr::Dataset& d, const pcr::driver::DriverResult& run, boo
     f.split = SplitOf(e);
   } catch (const std::exception& e) {
     spdlog::warn("ATE: {}", e.what());
+  }
+  if (mono) {
+    const nlohmann::json road = pcr::driver::GroundScaleJson(run.pipeline.map, run.summary);
+    f.road_ratio = road.value("ratio_to_truth", kNaN);
+    f.road_ate_m = road.value("ate_m_road_scale_se3", kNaN);
   }
   // End of route, no alignment: the last tracked position relative to the first tracked frame
   // (the identity in stereo, where tracking starts at frame 0) against the ground truth's; mono
@@ -561,7 +571,9 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
   std::printf("%4s %6s %8s | %7s %7s | %8s %8s | %7s %7s | %6s | %8s %8s | %8s %7s %6s", "seed",
               "frames", "path m", "trk off", "trk on", "ATE off", "ATE on", "% off", "% on",
               "on/off", "end off", "end on", "ATE orc", "orc/off", "edges");
-  if (mono) std::printf(" | %8s %8s", "scl% off", "scl% on");
+  if (mono)
+    std::printf(" | %8s %8s | %8s %8s %7s %7s", "scl% off", "scl% on", "road off", "road on",
+                "rATE off", "rATE on");
   std::printf("\n");
   std::vector<double> ratios, oracle_ratios;
   for (const Row& r : rows) {
@@ -575,7 +587,10 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
                 ratio, r.off.end_m, r.on.end_m);
     std::printf(" | %8.3f %7.3f %6d", r.oracle.ate_m, r.oracle.ate_m / r.off.ate_m,
                 r.oracle.loop_edges);
-    if (mono) std::printf(" | %+8.2f %+8.2f", r.off.end_scale_pct, r.on.end_scale_pct);
+    if (mono)
+      std::printf(" | %+8.2f %+8.2f | %7.3fx %7.3fx %7.3f %7.3f", r.off.end_scale_pct,
+                  r.on.end_scale_pct, r.off.road_ratio, r.on.road_ratio, r.off.road_ate_m,
+                  r.on.road_ate_m);
     std::printf("\n");
   }
   if (!ratios.empty()) {
