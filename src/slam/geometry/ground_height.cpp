@@ -53,7 +53,7 @@ GroundHeight EstimateGroundHeight(const std::vector<Eigen::Vector3d>& points_in_
   ransac.inlier_threshold_m = options.relative_threshold;
   ransac.max_iterations = options.max_iterations;
   ransac.min_iterations = std::min(50, options.max_iterations);
-  ransac.min_inliers = options.min_inliers;
+  ransac.min_inliers = options.min_inliers;  // the fit fails with fewer inliers
   ransac.seed = options.seed;
   const PlaneFitResult fit = FitPlaneRansac(region, ransac);
   if (!fit.success) {
@@ -64,10 +64,6 @@ GroundHeight EstimateGroundHeight(const std::vector<Eigen::Vector3d>& points_in_
   result.tilt_deg = std::acos(std::clamp(-fit.plane.normal.y(), -1.0, 1.0)) * 180.0 / M_PI;
   result.inliers = fit.num_inliers;
   result.height = fit.plane.d * unit;
-  if (result.inliers < options.min_inliers) {
-    result.failure_reason = "too few inliers (" + std::to_string(result.inliers) + ")";
-    return result;
-  }
   if (result.tilt_deg > options.max_tilt_deg) {
     result.failure_reason =
         "the plane is no road: tilted " + std::to_string(result.tilt_deg) + " deg";
