@@ -1141,12 +1141,12 @@ std::vector<std::optional<Eigen::Vector3d>> MapPositions(
 
 // The answers over sequences (4) that pass the uniqueness gate, declined where the query's clip
 // places the answer further than kPlaceRadiusM from the query (`mapped`, MapPositions). Answers
-// of another clip have no map distance and are kept.
+// of another clip have no map distance and are kept. Recall is over `revisits`, the queries with a
+// frame within kPlaceRadiusM in their database.
 void PrintMapGate(const char* label, const PlacePool& pool, const SequenceAnswers& by_sequence,
-                  const std::vector<std::optional<Eigen::Vector3d>>& mapped, double uniqueness) {
+                  const std::vector<std::optional<Eigen::Vector3d>>& mapped, double uniqueness,
+                  int revisits) {
   const size_t n = pool.size();
-  int revisits = 0;
-  for (size_t q = 0; q < n; ++q) revisits += pool.HasNear(q);
   std::array<int, 3> kept{}, declined{};
   std::vector<double> ratio;  // map distance / true distance of the same-clip answers
   for (size_t q = 0; q < n; ++q) {
@@ -1553,9 +1553,9 @@ int RunPlace(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& sha
     PrintHeldOut(vocabulary, by_geometry, by_sequence, args, &pool, &held_out_by_sequence);
   if (args.map_distance) {
     const auto mapped = MapPositions(args, shared_vocabulary, pool);
-    PrintMapGate("given vocabulary", pool, by_sequence, mapped, args.uniqueness);
+    PrintMapGate("given vocabulary", pool, by_sequence, mapped, args.uniqueness, revisits);
     if (args.held_out)
-      PrintMapGate("held out", pool, held_out_by_sequence, mapped, args.uniqueness);
+      PrintMapGate("held out", pool, held_out_by_sequence, mapped, args.uniqueness, revisits);
   }
   return 0;
 }

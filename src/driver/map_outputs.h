@@ -26,7 +26,7 @@ MapGroundScale RoadScale(const graph::MapSnapshot& map);
 // otherwise) with the keyframes' 10th-90th percentiles; with an evaluation also the alignment's
 // scale ("truth_metres_per_unit"; 1 for SE(3)) and "ratio_to_truth", and for a monocular run
 // "ate_m_road_scale_se3": the ATE RMSE of its trajectory in the road's metres, aligned by SE(3)
-// (beside "ate_m_sim3", the Sim(3)-aligned one).
+// (stats.json's "ate_m" is the Sim(3)-aligned one).
 nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& summary);
 
 // Writes the four files into out_dir (created if needed); returns their summary for stats.json
