@@ -130,6 +130,7 @@
 #include "slam/loop/sequence_score.h"
 #include "slam/loop/vocabulary.h"
 #include "slam/optim/pose_graph.h"
+#include "slam/system/map_archive.h"
 
 namespace {
 
@@ -163,6 +164,7 @@ struct Args {
   pcr::SequenceScoreOptions sequence;  // --place: answer (4)
   double uniqueness = 1.05;            // --place: answer (4)'s gate
   std::vector<std::string> settings;   // --set: "section.key=value" for every run
+  bool floor = false;                  // loops: the measurements' own floor (FloorOf)
 };
 
 using pcr::bench::ParseList;
@@ -484,6 +486,111 @@ Oracle OracleOf(const pcr::Dataset& d, const pcr::Trajectory& tracked) {
   return out;
 }
 
+// --floor: what the measurements themselves allow. The keyframes' SE(3) ATE of a run's final map,
+// and of the ON run's map after a global bundle adjustment run to convergence
+// (LoopCloser::GlobalBundleAdjustment with the run's loop options, kFloorIterations iterations,
+// tolerance kFloorTolerance) from two starts: the map's own estimate, and the ground truth
+// (every keyframe moved to its true pose, expressed in the map's world through the first
+// keyframe, its points carried along as in a loop correction). Started at the truth, the solve
+// ends at the maximum-likelihood estimate nearest to it: the error that the map's observations
+// and associations leave to any back end, loop correction included.
+constexpr int kFloorIterations = 100;
+constexpr double kFloorTolerance = 1e-10;
+
+struct Floor {
+  int keyframes = 0;
+  double kf_off_m = kNaN;          // keyframes of the OFF run's final map
+  double kf_on_m = kNaN;           // keyframes of the ON run's final map
+  double start_m = kNaN;           // ON map's keyframes at the truth, before the solve (~0)
+  double converged_m = kNaN;       // ON map, converged from its own estimate
+  double from_truth_m = kNaN;      // ON map, converged from the truth
+  double off_from_truth_m = kNaN;  // OFF map, converged from the truth (its own floor)
+  double ba_s = 0;                 // the three solves
+};
+
+using KeyframePoses = std::map<pcr::KeyframeId, pcr::Sim3>;  // cam_from_world
+
+KeyframePoses PosesOf(const pcr::Map& map) {
+  KeyframePoses poses;
+  for (const auto& [id, kf] : map.keyframes()) poses[id] = pcr::Sim3::FromSE3(kf.cam_from_world);
+  return poses;
+}
+
+// SE(3) ATE of keyframe poses (keyframe ids are frame indices) against the ground truth.
+double KeyframeAte(const pcr::Dataset& d, const KeyframePoses& poses) {
+  pcr::Trajectory t;
+  for (const auto& [id, cam_from_world] : poses)
+    t.push_back({0, id.value, cam_from_world.Inverse().ToSE3()});
+  pcr::eval::EvalOptions eval;
+  eval.alignment.mode = pcr::eval::AlignMode::kSe3;
+  try {
+    return pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(*d.ground_truth, t), eval)
+        .ape.trans_m.rmse;
+  } catch (const std::exception& e) {
+    spdlog::warn("floor ATE: {}", e.what());
+    return kNaN;
+  }
+}
+
+// The map's keyframes at their true poses, in the map's world (its first keyframe where the map
+// has it).
+KeyframePoses TruePoses(const pcr::Dataset& d, const pcr::Map& map) {
+  const pcr::Trajectory& truth = *d.ground_truth;
+  auto gt = [&](pcr::KeyframeId id) -> const pcr::SE3& {
+    return truth.at(static_cast<size_t>(id.value)).world_from_cam;
+  };
+  const pcr::KeyframeId first = map.first_keyframe();
+  const pcr::SE3 map_from_truth =
+      map.keyframe(first)->cam_from_world.inverse() * gt(first).inverse();
+  KeyframePoses poses;
+  for (const auto& [id, kf] : map.keyframes())
+    poses[id] = pcr::Sim3::FromSE3((map_from_truth * gt(id)).inverse());
+  return poses;
+}
+
+// The keyframe poses after a global BA to convergence of map, its keyframes first moved to
+// `start` (none: from the map as it is).
+KeyframePoses Converge(const pcr::Map& map, pcr::LoopClosingOptions options,
+                       const KeyframePoses* start) {
+  options.global_ba_iterations = kFloorIterations;
+  options.global_ba_function_tolerance = kFloorTolerance;
+  pcr::LoopJob job;
+  job.map = std::make_shared<const pcr::Map>(map);
+  job.options = options;
+  pcr::LoopOutcome moved;
+  if (start) {
+    moved.correction.before = PosesOf(map);
+    moved.correction.after = *start;
+  }
+  const pcr::LoopOutcome o = pcr::LoopCloser::GlobalBundleAdjustment(job, moved, nullptr);
+  return o.correction.after;
+}
+
+Floor FloorOf(const pcr::Dataset& d, const pcr::driver::RunConfig& config,
+              const pcr::graph::PipelineResult& on, const pcr::graph::PipelineResult& off) {
+  Floor f;
+  if (!d.ground_truth || !on.final_map || !off.final_map) return f;
+  const pcr::Map& on_map = on.final_map->map;
+  const pcr::Map& off_map = off.final_map->map;
+  if (on_map.keyframes().size() < 3 || off_map.keyframes().size() < 3) return f;
+  f.keyframes = static_cast<int>(on_map.keyframes().size());
+  f.kf_on_m = KeyframeAte(d, PosesOf(on_map));
+  f.kf_off_m = KeyframeAte(d, PosesOf(off_map));
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    f.converged_m = KeyframeAte(d, Converge(on_map, config.slam.loop, nullptr));
+    const KeyframePoses on_truth = TruePoses(d, on_map);
+    f.start_m = KeyframeAte(d, on_truth);
+    f.from_truth_m = KeyframeAte(d, Converge(on_map, config.slam.loop, &on_truth));
+    const KeyframePoses off_truth = TruePoses(d, off_map);
+    f.off_from_truth_m = KeyframeAte(d, Converge(off_map, config.slam.loop, &off_truth));
+  } catch (const std::exception& e) {
+    spdlog::warn("floor: {}", e.what());
+  }
+  f.ba_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return f;
+}
+
 struct LoopFigures {
   int loops = 0, global_bas = 0, jobs = 0, jobs_rejected = 0;
   int candidates_rejected = 0, candidates_prechecked = 0;
@@ -537,6 +644,7 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
     Figures off, on;
     Oracle oracle;  // stereo: the OFF run's drift corrected by perfect loops (OracleOf)
     LoopFigures loop;
+    Floor floor;  // --floor, stereo
   };
   std::vector<Row> rows;
   int failed = 0;
@@ -546,8 +654,11 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
     const pcr::Dataset d = pcr::OpenDataset(LoopSequence(args, r.seed));
     r.frames = d.size();
     r.path_m = d.ground_truth ? pcr::PathLength(*d.ground_truth) : kNaN;
+    const bool floor = args.floor && !mono;
+    pcr::graph::PipelineResult on_run;  // --floor: the ON run's final map
     for (bool on : {true, false}) {
-      const pcr::driver::DriverResult run = Run(d, args, policy, on ? vocabulary : nullptr);
+      const pcr::driver::DriverResult run =
+          Run(d, args, policy, on ? vocabulary : nullptr, nullptr, floor);
       Figures f = Measure(d, run, mono);
       std::printf("  seed %d loop %-3s %s: %zu/%zu frames tracked, %.1f s%s%s\n",
                   static_cast<int>(r.seed), on ? "on" : "off", d.root.c_str(), f.tracked, d.size(),
@@ -557,9 +668,17 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
       if (on) {
         r.on = f;
         r.loop = LoopFiguresOf(run.pipeline);
+        if (floor) on_run.final_map = run.pipeline.final_map;
       } else {
         r.off = f;
         if (!mono) r.oracle = OracleOf(d, run.summary.tracked);
+        if (floor) {
+          r.floor = FloorOf(d, pcr::driver::LoadRunConfig("", args.settings, nullptr), on_run,
+                            run.pipeline);
+          std::printf("  seed %d floor: %d keyframes, %.1f s\n", static_cast<int>(r.seed),
+                      r.floor.keyframes, r.floor.ba_s);
+          std::fflush(stdout);
+        }
       }
     }
     rows.push_back(r);
@@ -604,6 +723,25 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
         "ATE ratio oracle/off (the OFF run's drift, pose graph with ground-truth loop edges): "
         "median %.3f, min %.3f, max %.3f\n",
         pcr::Percentile(oracle_ratios, 50), oracle_ratios.front(), oracle_ratios.back());
+  }
+
+  if (args.floor && !mono) {
+    std::printf(
+        "\nThe measurements' floor (keyframes' SE(3) ATE in m of each run's final map; the ON "
+        "map after a global BA to convergence, %d iterations, tolerance %.0e, from its own "
+        "estimate and from the ground-truth poses; the OFF map from the ground truth too: the "
+        "error its observations leave to any back end)\n",
+        kFloorIterations, kFloorTolerance);
+    std::printf("%4s %5s | %7s %7s %7s | %9s %9s %9s | %9s %9s | %7s\n", "seed", "kfs", "kf off",
+                "kf on", "on/off", "on conv", "start", "on truth", "truth/off", "off truth",
+                "BA s");
+    for (const Row& r : rows) {
+      const Floor& f = r.floor;
+      std::printf("%4d %5d | %7.3f %7.3f %7.3f | %9.3f %9.4f %9.3f | %9.3f %9.3f | %7.1f\n",
+                  static_cast<int>(r.seed), f.keyframes, f.kf_off_m, f.kf_on_m,
+                  f.kf_on_m / f.kf_off_m, f.converged_m, f.start_m, f.from_truth_m,
+                  f.from_truth_m / f.kf_off_m, f.off_from_truth_m, f.ba_s);
+    }
   }
 
   std::printf(
@@ -1702,6 +1840,9 @@ int main(int argc, char** argv) {
   app.add_flag(
       "--held-out", a.held_out,
       "--place: also each clip under a vocabulary trained without it (the others' frames)");
+  app.add_flag("--floor", a.floor,
+               "loops (stereo): also the keyframes' ATE after a global BA to convergence from "
+               "the map's estimate and from the ground truth (what the measurements allow)");
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
 
