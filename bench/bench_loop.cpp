@@ -113,6 +113,7 @@
 #include "bench_args.h"
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
+#include "driver/map_floor.h"
 #include "driver/map_outputs.h"
 #include "eval/association.h"
 #include "eval/evaluation.h"
@@ -486,108 +487,22 @@ Oracle OracleOf(const pcr::Dataset& d, const pcr::Trajectory& tracked) {
   return out;
 }
 
-// --floor: what the measurements themselves allow. The keyframes' SE(3) ATE of a run's final map,
-// and of the ON run's map after a global bundle adjustment run to convergence
-// (LoopCloser::GlobalBundleAdjustment with the run's loop options, kFloorIterations iterations,
-// tolerance kFloorTolerance) from two starts: the map's own estimate, and the ground truth
-// (every keyframe moved to its true pose, expressed in the map's world through the first
-// keyframe, its points carried along as in a loop correction). Started at the truth, the solve
-// ends at the maximum-likelihood estimate nearest to it: the error that the map's observations
-// and associations leave to any back end, loop correction included.
-constexpr int kFloorIterations = 100;
-constexpr double kFloorTolerance = 1e-10;
-
+// --floor (driver/map_floor.h): the keyframes' SE(3) ATE of each run's final map; the ON map
+// solved to convergence from its estimate and from the truth, the OFF map from the truth.
 struct Floor {
-  int keyframes = 0;
-  double kf_off_m = kNaN;          // keyframes of the OFF run's final map
-  double kf_on_m = kNaN;           // keyframes of the ON run's final map
-  double start_m = kNaN;           // ON map's keyframes at the truth, before the solve (~0)
-  double converged_m = kNaN;       // ON map, converged from its own estimate
-  double from_truth_m = kNaN;      // ON map, converged from the truth
-  double off_from_truth_m = kNaN;  // OFF map, converged from the truth (its own floor)
-  double ba_s = 0;                 // the three solves
+  pcr::driver::MapFloor on, off;
 };
-
-using KeyframePoses = std::map<pcr::KeyframeId, pcr::Sim3>;  // cam_from_world
-
-KeyframePoses PosesOf(const pcr::Map& map) {
-  KeyframePoses poses;
-  for (const auto& [id, kf] : map.keyframes()) poses[id] = pcr::Sim3::FromSE3(kf.cam_from_world);
-  return poses;
-}
-
-// SE(3) ATE of keyframe poses (keyframe ids are frame indices) against the ground truth.
-double KeyframeAte(const pcr::Dataset& d, const KeyframePoses& poses) {
-  pcr::Trajectory t;
-  for (const auto& [id, cam_from_world] : poses)
-    t.push_back({0, id.value, cam_from_world.Inverse().ToSE3()});
-  pcr::eval::EvalOptions eval;
-  eval.alignment.mode = pcr::eval::AlignMode::kSe3;
-  try {
-    return pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(*d.ground_truth, t), eval)
-        .ape.trans_m.rmse;
-  } catch (const std::exception& e) {
-    spdlog::warn("floor ATE: {}", e.what());
-    return kNaN;
-  }
-}
-
-// The map's keyframes at their true poses, in the map's world (its first keyframe where the map
-// has it).
-KeyframePoses TruePoses(const pcr::Dataset& d, const pcr::Map& map) {
-  const pcr::Trajectory& truth = *d.ground_truth;
-  auto gt = [&](pcr::KeyframeId id) -> const pcr::SE3& {
-    return truth.at(static_cast<size_t>(id.value)).world_from_cam;
-  };
-  const pcr::KeyframeId first = map.first_keyframe();
-  const pcr::SE3 map_from_truth =
-      map.keyframe(first)->cam_from_world.inverse() * gt(first).inverse();
-  KeyframePoses poses;
-  for (const auto& [id, kf] : map.keyframes())
-    poses[id] = pcr::Sim3::FromSE3((map_from_truth * gt(id)).inverse());
-  return poses;
-}
-
-// The keyframe poses after a global BA to convergence of map, its keyframes first moved to
-// `start` (none: from the map as it is).
-KeyframePoses Converge(const pcr::Map& map, pcr::LoopClosingOptions options,
-                       const KeyframePoses* start) {
-  options.global_ba_iterations = kFloorIterations;
-  options.global_ba_function_tolerance = kFloorTolerance;
-  pcr::LoopJob job;
-  job.map = std::make_shared<const pcr::Map>(map);
-  job.options = options;
-  pcr::LoopOutcome moved;
-  if (start) {
-    moved.correction.before = PosesOf(map);
-    moved.correction.after = *start;
-  }
-  const pcr::LoopOutcome o = pcr::LoopCloser::GlobalBundleAdjustment(job, moved, nullptr);
-  return o.correction.after;
-}
 
 Floor FloorOf(const pcr::Dataset& d, const pcr::driver::RunConfig& config,
               const pcr::graph::PipelineResult& on, const pcr::graph::PipelineResult& off) {
   Floor f;
   if (!d.ground_truth || !on.final_map || !off.final_map) return f;
-  const pcr::Map& on_map = on.final_map->map;
-  const pcr::Map& off_map = off.final_map->map;
-  if (on_map.keyframes().size() < 3 || off_map.keyframes().size() < 3) return f;
-  f.keyframes = static_cast<int>(on_map.keyframes().size());
-  f.kf_on_m = KeyframeAte(d, PosesOf(on_map));
-  f.kf_off_m = KeyframeAte(d, PosesOf(off_map));
-  const auto start = std::chrono::steady_clock::now();
   try {
-    f.converged_m = KeyframeAte(d, Converge(on_map, config.slam.loop, nullptr));
-    const KeyframePoses on_truth = TruePoses(d, on_map);
-    f.start_m = KeyframeAte(d, on_truth);
-    f.from_truth_m = KeyframeAte(d, Converge(on_map, config.slam.loop, &on_truth));
-    const KeyframePoses off_truth = TruePoses(d, off_map);
-    f.off_from_truth_m = KeyframeAte(d, Converge(off_map, config.slam.loop, &off_truth));
+    f.on = pcr::driver::MapEstimateFloor(on.final_map->map, *d.ground_truth, config.slam.loop);
+    f.off = pcr::driver::MapEstimateFloor(off.final_map->map, *d.ground_truth, config.slam.loop);
   } catch (const std::exception& e) {
     spdlog::warn("floor: {}", e.what());
   }
-  f.ba_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return f;
 }
 
@@ -676,7 +591,7 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
           r.floor = FloorOf(d, pcr::driver::LoadRunConfig("", args.settings, nullptr), on_run,
                             run.pipeline);
           std::printf("  seed %d floor: %d keyframes, %.1f s\n", static_cast<int>(r.seed),
-                      r.floor.keyframes, r.floor.ba_s);
+                      r.floor.on.keyframes, r.floor.on.solve_s + r.floor.off.solve_s);
           std::fflush(stdout);
         }
       }
@@ -731,16 +646,18 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
         "map after a global BA to convergence, %d iterations, tolerance %.0e, from its own "
         "estimate and from the ground-truth poses; the OFF map from the ground truth too: the "
         "error its observations leave to any back end)\n",
-        kFloorIterations, kFloorTolerance);
+        pcr::driver::MapFloorOptions{}.iterations,
+        pcr::driver::MapFloorOptions{}.function_tolerance);
     std::printf("%4s %5s | %7s %7s %7s | %9s %9s %9s | %9s %9s | %7s\n", "seed", "kfs", "kf off",
                 "kf on", "on/off", "on conv", "start", "on truth", "truth/off", "off truth",
                 "BA s");
     for (const Row& r : rows) {
-      const Floor& f = r.floor;
+      const pcr::driver::MapFloor& on = r.floor.on;
+      const pcr::driver::MapFloor& off = r.floor.off;
       std::printf("%4d %5d | %7.3f %7.3f %7.3f | %9.3f %9.4f %9.3f | %9.3f %9.3f | %7.1f\n",
-                  static_cast<int>(r.seed), f.keyframes, f.kf_off_m, f.kf_on_m,
-                  f.kf_on_m / f.kf_off_m, f.converged_m, f.start_m, f.from_truth_m,
-                  f.from_truth_m / f.kf_off_m, f.off_from_truth_m, f.ba_s);
+                  static_cast<int>(r.seed), on.keyframes, off.map_m, on.map_m, on.map_m / off.map_m,
+                  on.converged_m, on.start_m, on.from_truth_m, on.from_truth_m / off.map_m,
+                  off.from_truth_m, on.solve_s + off.solve_s);
     }
   }
 

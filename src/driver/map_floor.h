@@ -1,0 +1,44 @@
+#pragma once
+// What a map's own observations allow: its keyframes' SE(3) ATE against the ground truth, and
+// the same after a global bundle adjustment run to convergence (LoopCloser's global BA with the
+// run's loop options, more iterations and a tighter tolerance) from two starts: the map's own
+// estimate, and the ground truth (every keyframe moved to its true pose, expressed in the map's
+// world through its first keyframe, its points carried along with their keyframes as in a loop
+// correction). Started at the truth, the solve ends at the maximum-likelihood estimate of the
+// map's observations and associations nearest to it: the error they leave to any back end, a
+// loop correction included. For benchmarks and tests (bench_loop --floor); needs ground truth
+// whose indices are the keyframes' frame indices (keyframe ids, for a run from frame 0).
+#include <limits>
+
+#include "slam/common/pose.h"
+#include "slam/loop/loop_closer.h"
+#include "slam/map/map.h"
+
+namespace pcr::driver {
+
+struct MapFloorOptions {
+  int iterations = 100;
+  double function_tolerance = 1e-10;
+};
+
+struct MapFloor {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  int keyframes = 0;
+  double map_m = kNaN;         // the map's keyframes as they are
+  double converged_m = kNaN;   // after the solve from the map's estimate
+  double start_m = kNaN;       // the keyframes moved to the truth, before the solve (~0)
+  double from_truth_m = kNaN;  // after the solve from the truth
+  double solve_s = 0;          // both solves
+};
+
+// SE(3)-aligned RMSE of the map's keyframe positions against truth (NaN when fewer than 3
+// keyframes are associated).
+double KeyframeAte(const Map& map, const Trajectory& truth);
+
+// Throws std::out_of_range when a keyframe's frame index is outside truth, ConfigError for
+// invalid options.
+MapFloor MapEstimateFloor(const Map& map, const Trajectory& truth,
+                          const LoopClosingOptions& loop_options,
+                          const MapFloorOptions& options = {});
+
+}  // namespace pcr::driver
