@@ -494,12 +494,13 @@ struct Floor {
 };
 
 Floor FloorOf(const pcr::Dataset& d, const pcr::driver::RunConfig& config,
-              const pcr::graph::PipelineResult& on, const pcr::graph::PipelineResult& off) {
+              const std::shared_ptr<const pcr::MapArchive>& on,
+              const std::shared_ptr<const pcr::MapArchive>& off) {
   Floor f;
-  if (!d.ground_truth || !on.final_map || !off.final_map) return f;
+  if (!d.ground_truth || !on || !off) return f;
   try {
-    f.on = pcr::driver::MapEstimateFloor(on.final_map->map, *d.ground_truth, config.slam.loop);
-    f.off = pcr::driver::MapEstimateFloor(off.final_map->map, *d.ground_truth, config.slam.loop);
+    f.on = pcr::driver::MapEstimateFloor(on->map, *d.ground_truth, config.slam.loop);
+    f.off = pcr::driver::MapEstimateFloor(off->map, *d.ground_truth, config.slam.loop);
   } catch (const std::exception& e) {
     spdlog::warn("floor: {}", e.what());
   }
@@ -552,6 +553,7 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
     return 1;
   }
   const bool mono = args.mode == "mono";
+  if (args.floor && mono) std::printf("--floor: stereo only, not measured in mono\n");
   struct Row {
     uint64_t seed = 0;
     size_t frames = 0;
@@ -570,7 +572,7 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
     r.frames = d.size();
     r.path_m = d.ground_truth ? pcr::PathLength(*d.ground_truth) : kNaN;
     const bool floor = args.floor && !mono;
-    pcr::graph::PipelineResult on_run;  // --floor: the ON run's final map
+    std::shared_ptr<const pcr::MapArchive> on_map;  // --floor: the ON run's final map
     for (bool on : {true, false}) {
       const pcr::driver::DriverResult run =
           Run(d, args, policy, on ? vocabulary : nullptr, nullptr, floor);
@@ -583,13 +585,13 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
       if (on) {
         r.on = f;
         r.loop = LoopFiguresOf(run.pipeline);
-        if (floor) on_run.final_map = run.pipeline.final_map;
+        if (floor) on_map = run.pipeline.final_map;
       } else {
         r.off = f;
         if (!mono) r.oracle = OracleOf(d, run.summary.tracked);
         if (floor) {
-          r.floor = FloorOf(d, pcr::driver::LoadRunConfig("", args.settings, nullptr), on_run,
-                            run.pipeline);
+          r.floor = FloorOf(d, pcr::driver::LoadRunConfig("", args.settings, nullptr), on_map,
+                            run.pipeline.final_map);
           std::printf("  seed %d floor: %d keyframes, %.1f s\n", static_cast<int>(r.seed),
                       r.floor.on.keyframes, r.floor.on.solve_s + r.floor.off.solve_s);
           std::fflush(stdout);
