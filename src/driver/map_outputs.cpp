@@ -124,46 +124,44 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
   nlohmann::json j = {{"camera_height_m", kRoadCameraHeightM},
                       {"keyframes", keyframes},
                       {"estimated", s.estimated}};
-  if (s.estimated > 0) {
-    j["median_height"] = s.median_height;
-    j["metres_per_unit"] = s.metres_per_unit;
-    j["metres_per_unit_p10"] = s.p10;
-    j["metres_per_unit_p90"] = s.p90;
+  if (s.estimated == 0) {
+    spdlog::info("no road found under the {} keyframes", keyframes);
+    return j;
   }
+  j["median_height"] = s.median_height;
+  j["metres_per_unit"] = s.metres_per_unit;
+  j["metres_per_unit_p10"] = s.p10;
+  j["metres_per_unit_p90"] = s.p90;
   // The scale that aligns the trajectory to the ground truth: what the road's should be.
-  if (evaluation && s.estimated > 0) {
+  if (evaluation) {
     j["truth_metres_per_unit"] = evaluation->alignment.scale;
     j["ratio_to_truth"] = s.metres_per_unit / evaluation->alignment.scale;
   }
+  spdlog::info(
+      "the road under {} of {} keyframes: {:.4g} m per map unit (keyframes' p10-p90 "
+      "{:.4g}-{:.4g}){}",
+      s.estimated, keyframes, s.metres_per_unit, s.p10, s.p90,
+      evaluation ? fmt::format("; the alignment to the ground truth: {:.4g} ({:.3f}x)",
+                               evaluation->alignment.scale,
+                               s.metres_per_unit / evaluation->alignment.scale)
+                 : "");
   // A monocular run in the road's metres, aligned by rotation and translation only: its error
   // without the ground truth's scale (against the Sim(3) alignment's, which takes that scale).
-  if (evaluation && s.estimated > 0 && evaluation->align_mode == eval::AlignMode::kSim3) {
-    Trajectory metric = summary.tracked;
-    for (StampedPose& p : metric) p.world_from_cam.translation() *= s.metres_per_unit;
-    eval::EvalOptions se3 = summary.eval_options;
-    se3.alignment.mode = eval::AlignMode::kSe3;
-    try {
-      const eval::EvalResult e =
-          eval::Evaluate(eval::AssociateByFrameIndex(summary.ground_truth, metric), se3);
-      j["ate_m_road_scale_se3"] = e.ape.trans_m.rmse;
-    } catch (const std::exception& e) {
-      spdlog::warn("evaluation in the road's scale skipped: {}", e.what());
-    }
-  }
-  if (s.estimated > 0)
-    spdlog::info(
-        "the road under {} of {} keyframes: {:.4g} m per map unit (keyframes' p10-p90 "
-        "{:.4g}-{:.4g}){}",
-        s.estimated, keyframes, s.metres_per_unit, s.p10, s.p90,
-        evaluation ? fmt::format("; the alignment to the ground truth: {:.4g} ({:.3f}x)",
-                                 evaluation->alignment.scale,
-                                 s.metres_per_unit / evaluation->alignment.scale)
-                   : "");
-  else
-    spdlog::info("no road found under the {} keyframes", keyframes);
-  if (j.contains("ate_m_road_scale_se3"))
+  if (!evaluation || evaluation->align_mode != eval::AlignMode::kSim3) return j;
+  Trajectory metric = summary.tracked;
+  for (StampedPose& p : metric) p.world_from_cam.translation() *= s.metres_per_unit;
+  eval::EvalOptions se3 = summary.eval_options;
+  se3.alignment.mode = eval::AlignMode::kSe3;
+  try {
+    const double ate_m =
+        eval::Evaluate(eval::AssociateByFrameIndex(summary.ground_truth, metric), se3)
+            .ape.trans_m.rmse;
+    j["ate_m_road_scale_se3"] = ate_m;
     spdlog::info("ATE in the road's metres, SE(3)-aligned: {:.4f} m (Sim(3)-aligned: {:.4f} m)",
-                 j["ate_m_road_scale_se3"].get<double>(), evaluation->ape.trans_m.rmse);
+                 ate_m, evaluation->ape.trans_m.rmse);
+  } catch (const std::exception& e) {
+    spdlog::warn("evaluation in the road's scale skipped: {}", e.what());
+  }
   return j;
 }
 

@@ -33,8 +33,7 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
 // ("points", "removed_points", "removed_by_reason", "removed_by_truth": moving / parked / static
 // against the dataset's ground truth where it has one, "keyframes", "loops": [query, match]
 // pairs of keyframe indices, i.e. of keyframes.txt's pose lines, "ground": GroundScaleJson).
-// Throws InputError naming the
-// file when one cannot be written.
+// Throws InputError naming the file when one cannot be written.
 nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnapshot& map,
                                const RunSummary& summary);
 

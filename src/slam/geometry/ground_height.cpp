@@ -7,6 +7,7 @@
 #include "slam/common/timing.h"
 #include "slam/common/validation.h"
 #include "slam/geometry/plane.h"
+#include "slam/geometry/se3.h"
 
 namespace pcr {
 
@@ -61,7 +62,7 @@ GroundHeight EstimateGroundHeight(const std::vector<Eigen::Vector3d>& points_in_
     return result;
   }
   // d >= 0 puts the normal towards the camera; under the camera that is up, the -y axis.
-  result.tilt_deg = std::acos(std::clamp(-fit.plane.normal.y(), -1.0, 1.0)) * 180.0 / M_PI;
+  result.tilt_deg = RadToDeg(std::acos(std::clamp(-fit.plane.normal.y(), -1.0, 1.0)));
   result.inliers = fit.num_inliers;
   result.height = fit.plane.d * unit;
   if (result.tilt_deg > options.max_tilt_deg) {
