@@ -836,6 +836,12 @@ PipelineResult GraphRun::Collect() {
   // Loop outcomes that came after the last frame's mapping (the graph has finished: this thread
   // is the map's owner now), so that no correction is lost at the end of a run.
   for (const nodes::LoopOutcomePtr& o : TakeLoopOutcomes()) mapping_.ApplyLoopOutcome(*o, -1);
+  // Then the final global BA (loop.final_global_ba), profiled as a global BA after the last frame.
+  if (mapping_.NeedsFinishLoopClosing()) {
+    FrameTicket after_last;
+    after_last.seq = std::max<int64_t>(admitted_ - 1, 0);
+    Guarded(kStageGlobalBa, after_last, [&] { return mapping_.FinishLoopClosing(); });
+  }
   out.loop_events = slam_->loop_events();
   out.loop_stats = slam_->loop_closer().stats();
   out.relocalisation_stats = slam_->relocalisation_stats();

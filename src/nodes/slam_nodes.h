@@ -42,6 +42,9 @@ class MappingNode {
   Output Run(const TrackedPtr& tracked, const std::vector<LoopOutcomePtr>& arrived);
   // Applies one outcome of the loop lane (frame_index -1: after the last frame).
   void ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_index);
+  // After the last outcome: the final global BA (SlamSystem::FinalGlobalBundleAdjustment).
+  bool FinishLoopClosing() { return slam_->FinalGlobalBundleAdjustment(); }
+  bool NeedsFinishLoopClosing() const { return slam_->NeedsFinalGlobalBundleAdjustment(); }
   bool loop_in_flight() const { return loop_in_flight_; }
 
  private:

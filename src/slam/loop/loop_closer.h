@@ -61,7 +61,11 @@ struct LoopClosingOptions {
   int global_ba_iterations = 20;
   double global_ba_function_tolerance = 1e-8;  // Ceres' relative cost-change stop
   bool global_ba_optimise_twice = false;       // second solve without the first one's outliers
-  int skip_keyframes_after_loop = 10;          // no detection right after a correction
+  // At the end of a run that closed a loop, one more global BA over the whole map when keyframes
+  // came after the last one (SlamSystem::FinalGlobalBundleAdjustment): the keyframes mapped
+  // after a loop, on a revisited street or further laps, are otherwise left to local BA.
+  bool final_global_ba = false;
+  int skip_keyframes_after_loop = 10;  // no detection right after a correction
   // Place recognition over sequences (slam/loop/sequence_score.h) instead of ORB-SLAM's
   // single-frame candidates: 0 off; else the candidate is the keyframe (outside the query's
   // exclusion) whose last keyframes score best against the query's last sequence_length

@@ -285,6 +285,8 @@ bool SlamSystem::ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_inde
       !outcome.correction.after.empty()) {
     map_.Apply(LoopCloser::CorrectionDelta(map_, outcome.correction));
     changed = true;
+    if (outcome.kind == LoopOutcomeKind::kGlobalBundleAdjustment)
+      last_global_ba_newest_ = outcome.correction.after.rbegin()->first;
   }
   loop_closer_.OnOutcome(outcome, map_);
   if (outcome.kind == LoopOutcomeKind::kCorrected && outcome.match) {
@@ -317,6 +319,26 @@ void SlamSystem::RunLoopJob(const std::shared_ptr<const LoopJob>& job, int64_t f
   if (LoopCloser::FollowsWithGlobalBundleAdjustment(*resolved, corrected))
     ApplyLoopOutcome(LoopCloser::GlobalBundleAdjustment(*resolved, corrected, nullptr),
                      frame_index);
+}
+
+bool SlamSystem::NeedsFinalGlobalBundleAdjustment() const {
+  if (!loop_closer_.IsActive() || !options_.loop.final_global_ba ||
+      loop_closer_.stats().corrections == 0 || map_.keyframes().empty())
+    return false;
+  const KeyframeId newest = map_.keyframes().rbegin()->first;  // ids grow with time
+  return !last_global_ba_newest_.valid() || newest > last_global_ba_newest_;
+}
+
+bool SlamSystem::FinalGlobalBundleAdjustment() {
+  if (!NeedsFinalGlobalBundleAdjustment()) return false;
+  const LoopClosingOptions& loop = options_.loop;
+  LoopJob job;
+  job.id = -1;
+  job.query = map_.keyframes().rbegin()->first;
+  job.map = std::make_shared<const Map>(map_);
+  job.fix_scale = mode_ == SlamMode::kStereo;
+  job.options = loop;
+  return ApplyLoopOutcome(LoopCloser::GlobalBundleAdjustment(job, LoopOutcome{}, nullptr), -1);
 }
 
 void FillTrackingOutput(const TrackingResult& tracking, FrameOutput* out) {

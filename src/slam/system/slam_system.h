@@ -145,6 +145,12 @@ class SlamSystem {
   bool ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_index);
   // The loop lane's work on a job, inline: CloseLoop, applied, then the global BA, applied.
   void RunLoopJob(const std::shared_ptr<const LoopJob>& job, int64_t frame_index);
+  // After the last frame (and the last loop outcome applied): when loop closing is active with
+  // loop.final_global_ba, a loop was closed and the map holds keyframes newer than the last
+  // global BA's, a global BA over the whole map, applied and recorded as a loop event of frame
+  // -1. Returns true when the map changed.
+  bool FinalGlobalBundleAdjustment();
+  bool NeedsFinalGlobalBundleAdjustment() const;
   const LoopCloser& loop_closer() const { return loop_closer_; }
   const RelocalisationStats& relocalisation_stats() const {
     return tracker_.relocalisation_stats();
@@ -197,6 +203,8 @@ class SlamSystem {
   LoopCloser loop_closer_;
   LoopMapReplica loop_replica_;  // RunLoopJob's copy of the map (jobs may carry edits)
   std::vector<LoopEvent> loop_events_;
+  // The newest keyframe of the last global BA applied (invalid before one).
+  KeyframeId last_global_ba_newest_;
   int64_t next_frame_id_ = 0;
   std::vector<FrameRecord> records_;
   std::vector<PendingFrame> pending_;  // bounded; cleared at initialisation
