@@ -646,20 +646,20 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
     std::printf(
         "\nThe measurements' floor (keyframes' SE(3) ATE in m of each run's final map; the ON "
         "map after a global BA to convergence, %d iterations, tolerance %.0e, from its own "
-        "estimate and from the ground-truth poses; the OFF map from the ground truth too: the "
-        "error its observations leave to any back end)\n",
+        "estimate and from the ground-truth poses; the OFF map from both too: the error its "
+        "observations leave to any back end)\n",
         pcr::driver::MapFloorOptions{}.iterations,
         pcr::driver::MapFloorOptions{}.function_tolerance);
-    std::printf("%4s %5s | %7s %7s %7s | %9s %9s %9s | %9s %9s | %7s\n", "seed", "kfs", "kf off",
-                "kf on", "on/off", "on conv", "start", "on truth", "truth/off", "off truth",
-                "BA s");
+    std::printf("%4s %5s | %7s %7s %7s | %9s %9s %9s | %9s %9s %9s | %7s\n", "seed", "kfs",
+                "kf off", "kf on", "on/off", "on conv", "start", "on truth", "truth/off",
+                "off conv", "off truth", "BA s");
     for (const Row& r : rows) {
       const pcr::driver::MapFloor& on = r.floor.on;
       const pcr::driver::MapFloor& off = r.floor.off;
-      std::printf("%4d %5d | %7.3f %7.3f %7.3f | %9.3f %9.4f %9.3f | %9.3f %9.3f | %7.1f\n",
+      std::printf("%4d %5d | %7.3f %7.3f %7.3f | %9.3f %9.4f %9.3f | %9.3f %9.3f %9.3f | %7.1f\n",
                   static_cast<int>(r.seed), on.keyframes, off.map_m, on.map_m, on.map_m / off.map_m,
                   on.converged_m, on.start_m, on.from_truth_m, on.from_truth_m / off.map_m,
-                  off.from_truth_m, on.solve_s + off.solve_s);
+                  off.converged_m, off.from_truth_m, on.solve_s + off.solve_s);
     }
   }
 

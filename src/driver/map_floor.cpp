@@ -4,7 +4,6 @@
 
 #include <chrono>
 #include <map>
-#include <memory>
 #include <stdexcept>
 
 #include "eval/association.h"
@@ -56,15 +55,12 @@ KeyframePoses Converge(const Map& map, LoopClosingOptions loop_options,
                        const MapFloorOptions& options, const KeyframePoses* start) {
   loop_options.global_ba_iterations = options.iterations;
   loop_options.global_ba_function_tolerance = options.function_tolerance;
-  LoopJob job;
-  job.map = std::make_shared<const Map>(map);
-  job.options = loop_options;
-  LoopOutcome moved;
+  MapCorrection moved;
   if (start) {
-    moved.correction.before = PosesOf(map);
-    moved.correction.after = *start;
+    moved.before = PosesOf(map);
+    moved.after = *start;
   }
-  return LoopCloser::GlobalBundleAdjustment(job, moved, nullptr).correction.after;
+  return LoopCloser::GlobalBundleAdjustmentOfMap(map, loop_options, moved).correction.after;
 }
 
 }  // namespace

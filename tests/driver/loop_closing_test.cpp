@@ -119,9 +119,9 @@ TEST(LoopClosing, TheRevisitIsClosedAndTheTrajectoryImprovesSequentially) {
       MapEstimateFloor(off.result.pipeline.final_map->map, truth, config.slam.loop);
   std::printf(
       "[loop street] keyframes' ATE, on: map %.4f, converged %.4f, from the truth %.4f (start "
-      "%.2g); off: map %.4f, from the truth %.4f m\n",
+      "%.2g); off: map %.4f, converged %.4f, from the truth %.4f m\n",
       on_floor.map_m, on_floor.converged_m, on_floor.from_truth_m, on_floor.start_m,
-      off_floor.map_m, off_floor.from_truth_m);
+      off_floor.map_m, off_floor.converged_m, off_floor.from_truth_m);
   EXPECT_LT(on_floor.start_m, 1e-9);
   EXPECT_LT(std::abs(on_floor.converged_m - on_floor.from_truth_m), 0.005);
   EXPECT_LT(on_floor.map_m, 1.3 * on_floor.from_truth_m + 0.005);

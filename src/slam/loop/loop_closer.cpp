@@ -948,6 +948,18 @@ LoopOutcome LoopCloser::GlobalBundleAdjustment(const LoopJob& job, const LoopOut
   return outcome;
 }
 
+LoopOutcome LoopCloser::GlobalBundleAdjustmentOfMap(const Map& map,
+                                                    const LoopClosingOptions& options,
+                                                    const MapCorrection& start) {
+  LoopJob job;
+  job.id = -1;
+  job.map = std::shared_ptr<const Map>(std::shared_ptr<const Map>(), &map);  // not owned
+  job.options = options;
+  LoopOutcome moved;
+  moved.correction = start;
+  return GlobalBundleAdjustment(job, moved, nullptr);
+}
+
 MapDelta LoopCloser::CorrectionDelta(const Map& map, const MapCorrection& correction) {
   MapDelta delta;
   if (correction.after.empty()) return delta;

@@ -243,6 +243,11 @@ class LoopCloser {
   // nothing to apply).
   static LoopOutcome GlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& corrected,
                                             const std::atomic<bool>* abort);
+  // Pure: the same global BA on the whole of `map` as it stands, outside any loop job (outcome
+  // job -1), its keyframes first moved by `start` as a correction moves them (empty: from the
+  // map's own estimate). The map is read during the call only, never copied for a job.
+  static LoopOutcome GlobalBundleAdjustmentOfMap(const Map& map, const LoopClosingOptions& options,
+                                                 const MapCorrection& start = {});
   // Whether `closed` (CloseLoop's outcome of job) is followed by GlobalBundleAdjustment: a
   // correction, and the job's options ask for it. The one rule of every lane that runs jobs.
   static bool FollowsWithGlobalBundleAdjustment(const LoopJob& job, const LoopOutcome& closed) {

@@ -331,14 +331,9 @@ bool SlamSystem::NeedsFinalGlobalBundleAdjustment() const {
 
 bool SlamSystem::FinalGlobalBundleAdjustment() {
   if (!NeedsFinalGlobalBundleAdjustment()) return false;
-  const LoopClosingOptions& loop = options_.loop;
-  LoopJob job;
-  job.id = -1;
-  job.query = map_.keyframes().rbegin()->first;
-  job.map = std::make_shared<const Map>(map_);
-  job.fix_scale = mode_ == SlamMode::kStereo;
-  job.options = loop;
-  return ApplyLoopOutcome(LoopCloser::GlobalBundleAdjustment(job, LoopOutcome{}, nullptr), -1);
+  LoopOutcome outcome = LoopCloser::GlobalBundleAdjustmentOfMap(map_, options_.loop);
+  outcome.query = map_.keyframes().rbegin()->first;
+  return ApplyLoopOutcome(outcome, -1);
 }
 
 void FillTrackingOutput(const TrackingResult& tracking, FrameOutput* out) {
