@@ -108,8 +108,13 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("loop", "global_ba_optimise_twice", &l.global_ba_optimise_twice,
         "second global BA solve without the first one's outlier observations");
   s.Add("loop", "final_global_ba", &l.final_global_ba,
-        "after a run that closed a loop, one more global BA over the whole map when keyframes came "
-        "after the last one");
+        "stereo: after a run that closed a loop, one more global BA over the whole map when "
+        "keyframes came after the last one");
+  s.Add("loop", "final_global_ba_mono", &l.final_global_ba_mono,
+        "loop.final_global_ba for monocular maps");
+  s.Add("loop", "final_global_ba_min_keyframes", &l.final_global_ba_min_keyframes,
+        "loop.final_global_ba only when at least this many keyframes came after the last global "
+        "BA");
   s.Add("loop", "skip_keyframes_after_loop", &l.skip_keyframes_after_loop);
   s.Add("loop", "sequence_length", &l.sequence_length,
         "0: loop candidates by single keyframes (ORB-SLAM's); else over sequences of this many "

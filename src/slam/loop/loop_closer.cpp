@@ -129,6 +129,7 @@ bool LoopClosingOptions::IsValid(std::string* why) const {
   if (covisibility_edge_weight < 1) return fail("covisibility_edge_weight must be >= 1");
   if (pose_graph_iterations < 1) return fail("pose_graph_iterations must be >= 1");
   if (global_ba_iterations < 1) return fail("global_ba_iterations must be >= 1");
+  if (final_global_ba_min_keyframes < 1) return fail("final_global_ba_min_keyframes must be >= 1");
   if (skip_keyframes_after_loop < 0) return fail("skip_keyframes_after_loop must be >= 0");
   if (max_snapshot_edits < 0) return fail("max_snapshot_edits must be >= 0");
   if (sequence_length < 0) return fail("sequence_length must be >= 0");

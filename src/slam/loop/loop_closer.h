@@ -64,7 +64,13 @@ struct LoopClosingOptions {
   // At the end of a run that closed a loop, one more global BA over the whole map when keyframes
   // came after the last one (SlamSystem::FinalGlobalBundleAdjustment): the keyframes mapped
   // after a loop, on a revisited street or further laps, are otherwise left to local BA.
-  bool final_global_ba = false;
+  // final_global_ba for stereo maps, final_global_ba_mono for monocular ones (off: on the
+  // synthetic loops a mono map's final global BA was better on 3 of 6 routes and worse on 3).
+  bool final_global_ba = true;
+  bool final_global_ba_mono = false;
+  // ... and only when at least this many keyframes came after it: fewer fit in one local BA
+  // window (LocalMapperOptions::ba_local_keyframes, 20), which has adjusted them together already.
+  int final_global_ba_min_keyframes = 20;
   int skip_keyframes_after_loop = 10;  // no detection right after a correction
   // Place recognition over sequences (slam/loop/sequence_score.h) instead of ORB-SLAM's
   // single-frame candidates: 0 off; else the candidate is the keyframe (outside the query's

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <iterator>
 #include <stdexcept>
 
 #include "slam/common/error.h"
@@ -322,15 +323,25 @@ void SlamSystem::RunLoopJob(const std::shared_ptr<const LoopJob>& job, int64_t f
 }
 
 bool SlamSystem::NeedsFinalGlobalBundleAdjustment() const {
-  if (!loop_closer_.IsActive() || !options_.loop.final_global_ba ||
-      loop_closer_.stats().corrections == 0 || map_.keyframes().empty())
+  const bool wanted = mode_ == SlamMode::kStereo ? options_.loop.final_global_ba
+                                                 : options_.loop.final_global_ba_mono;
+  if (!loop_closer_.IsActive() || !wanted || loop_closer_.stats().corrections == 0 ||
+      map_.keyframes().empty())
     return false;
-  const KeyframeId newest = map_.keyframes().rbegin()->first;  // ids grow with time
-  return !last_global_ba_newest_.valid() || newest > last_global_ba_newest_;
+  return KeyframesAfterLastGlobalBundleAdjustment() >= options_.loop.final_global_ba_min_keyframes;
+}
+
+int SlamSystem::KeyframesAfterLastGlobalBundleAdjustment() const {
+  if (!last_global_ba_newest_.valid()) return static_cast<int>(map_.keyframes().size());
+  // Ids grow with time: the keyframes after it are the map's tail past its newest.
+  return static_cast<int>(
+      std::distance(map_.keyframes().upper_bound(last_global_ba_newest_), map_.keyframes().end()));
 }
 
 bool SlamSystem::FinalGlobalBundleAdjustment() {
   if (!NeedsFinalGlobalBundleAdjustment()) return false;
+  spdlog::info("final global BA: {} of the map's {} keyframes came after the last global BA",
+               KeyframesAfterLastGlobalBundleAdjustment(), map_.keyframes().size());
   LoopOutcome outcome = LoopCloser::GlobalBundleAdjustmentOfMap(map_, options_.loop);
   outcome.query = map_.keyframes().rbegin()->first;
   return ApplyLoopOutcome(outcome, -1);

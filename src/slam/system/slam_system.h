@@ -146,11 +146,14 @@ class SlamSystem {
   // The loop lane's work on a job, inline: CloseLoop, applied, then the global BA, applied.
   void RunLoopJob(const std::shared_ptr<const LoopJob>& job, int64_t frame_index);
   // After the last frame (and the last loop outcome applied): when loop closing is active with
-  // loop.final_global_ba, a loop was closed and the map holds keyframes newer than the last
-  // global BA's, a global BA over the whole map, applied and recorded as a loop event of frame
-  // -1. Returns true when the map changed.
+  // loop.final_global_ba (loop.final_global_ba_mono in monocular mode), a loop was closed and the
+  // map holds at least loop.final_global_ba_min_keyframes keyframes newer than the last global
+  // BA's, a global BA over the whole map, applied and recorded as a loop event of frame -1. Returns
+  // true when the map changed.
   bool FinalGlobalBundleAdjustment();
   bool NeedsFinalGlobalBundleAdjustment() const;
+  // The map's keyframes newer than the last global BA applied (all of them before any).
+  int KeyframesAfterLastGlobalBundleAdjustment() const;
   const LoopCloser& loop_closer() const { return loop_closer_; }
   const RelocalisationStats& relocalisation_stats() const {
     return tracker_.relocalisation_stats();

@@ -172,6 +172,9 @@ TEST(LoopCloser, WithoutAVocabularyItIsInactiveAndBadOptionsAreRejected) {
   LoopClosingOptions bad;
   bad.min_loop_matches = 5;  // below min_sim3_inliers
   EXPECT_THROW(LoopCloser(bad, nullptr, true), ConfigError);
+  LoopClosingOptions no_keyframes;
+  no_keyframes.final_global_ba_min_keyframes = 0;
+  EXPECT_THROW(LoopCloser(no_keyframes, nullptr, true), ConfigError);
 }
 
 // Places of a route for the sequence tests: one random descriptor each, and a vocabulary with one
