@@ -325,10 +325,9 @@ void SlamSystem::RunLoopJob(const std::shared_ptr<const LoopJob>& job, int64_t f
 bool SlamSystem::NeedsFinalGlobalBundleAdjustment() const {
   const bool wanted = mode_ == SlamMode::kStereo ? options_.loop.final_global_ba
                                                  : options_.loop.final_global_ba_mono;
-  if (!loop_closer_.IsActive() || !wanted || loop_closer_.stats().corrections == 0 ||
-      map_.keyframes().empty())
-    return false;
-  return KeyframesAfterLastGlobalBundleAdjustment() >= options_.loop.final_global_ba_min_keyframes;
+  // final_global_ba_min_keyframes >= 1 (LoopClosingOptions::IsValid): an empty map never asks.
+  return loop_closer_.IsActive() && wanted && loop_closer_.stats().corrections > 0 &&
+         KeyframesAfterLastGlobalBundleAdjustment() >= options_.loop.final_global_ba_min_keyframes;
 }
 
 int SlamSystem::KeyframesAfterLastGlobalBundleAdjustment() const {
