@@ -102,6 +102,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <numeric>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -125,6 +126,7 @@
 #include "slam/common/lie.h"
 #include "slam/common/timing.h"
 #include "slam/features/orb_extractor.h"
+#include "slam/geometry/road_distance.h"
 #include "slam/geometry/se3.h"
 #include "slam/loop/keyframe_database.h"
 #include "slam/loop/loop_closer.h"
@@ -161,7 +163,8 @@ struct Args {
   int window = 10;
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
   bool held_out = false;
-  bool map_distance = false;           // --place: the clips' own maps place the answers
+  bool map_distance = false;  // --place: the clips' own maps place the answers
+  bool road_distance = false;
   pcr::SequenceScoreOptions sequence;  // --place: answer (4)
   double uniqueness = 1.05;            // --place: answer (4)'s gate
   std::vector<std::string> settings;   // --set: "section.key=value" for every run
@@ -796,6 +799,21 @@ int RunSequences(const Args& args, const std::shared_ptr<const pcr::Vocabulary>&
 
 // --- Place recognition alone ------------------------------------------------------------------
 
+// Matched keypoints of two images in normalised coordinates, each through its own camera.
+std::pair<std::vector<cv::Point2d>, std::vector<cv::Point2d>> NormalisedPairs(
+    const std::vector<cv::KeyPoint>& keypoints_a, const pcr::PinholeCamera& a,
+    const std::vector<cv::KeyPoint>& keypoints_b, const pcr::PinholeCamera& b,
+    const std::vector<std::pair<int, int>>& pairs) {
+  std::vector<cv::Point2d> pa, pb;
+  for (const auto& [i, j] : pairs) {
+    const cv::Point2f& u = keypoints_a[static_cast<size_t>(i)].pt;
+    const cv::Point2f& v = keypoints_b[static_cast<size_t>(j)].pt;
+    pa.emplace_back((u.x - a.cx) / a.fx, (u.y - a.cy) / a.fy);
+    pb.emplace_back((v.x - b.cx) / b.fx, (v.y - b.cy) / b.fy);
+  }
+  return {std::move(pa), std::move(pb)};
+}
+
 // Inliers of an essential matrix (RANSAC, 1 px at the cameras' mean focal length) fitted to
 // matched keypoints of two images, each through its own camera: the two-view geometric check of
 // a place match between frames without a map (as DBoW2's loop detector checks with a fundamental
@@ -804,13 +822,7 @@ int TwoViewInliers(const std::vector<cv::KeyPoint>& keypoints_a, const pcr::Pinh
                    const std::vector<cv::KeyPoint>& keypoints_b, const pcr::PinholeCamera& b,
                    const std::vector<std::pair<int, int>>& pairs) {
   if (pairs.size() < 5) return 0;
-  std::vector<cv::Point2d> pa, pb;
-  for (const auto& [i, j] : pairs) {
-    const cv::Point2f& u = keypoints_a[static_cast<size_t>(i)].pt;
-    const cv::Point2f& v = keypoints_b[static_cast<size_t>(j)].pt;
-    pa.emplace_back((u.x - a.cx) / a.fx, (u.y - a.cy) / a.fy);
-    pb.emplace_back((v.x - b.cx) / b.fx, (v.y - b.cy) / b.fy);
-  }
+  const auto [pa, pb] = NormalisedPairs(keypoints_a, a, keypoints_b, b, pairs);
   cv::Mat inliers;
   const cv::Mat e = cv::findEssentialMat(pa, pb, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.999,
                                          2.0 / (a.fx + b.fx), inliers);
@@ -827,6 +839,7 @@ struct PlaceImage {
   pcr::PinholeCamera camera;  // its clip's rectified left camera
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
+  cv::Mat grey;  // the left image (RoadDistanceOf)
 };
 
 enum class Verdict { kCorrect, kSameClipFar, kOtherClip };
@@ -849,8 +862,10 @@ class PlacePool {
         image.position = (*d.ground_truth)[i].world_from_cam.translation();
         image.camera = d.rig.left;
         const auto t0 = std::chrono::steady_clock::now();
-        pcr::OrbFeatures features = orb.Extract(d.LoadLeft(i));
+        const cv::Mat left = d.LoadLeft(i);
+        pcr::OrbFeatures features = orb.Extract(left);
         extract_ms_.Add(pcr::MsSince(t0));
+        image.grey = left;
         image.keypoints = std::move(features.keypoints);
         image.descriptors = features.descriptors;
         images_.push_back(std::move(image));
@@ -943,16 +958,56 @@ class PlacePool {
   // Whether q's database holds a frame of its own clip (a clip's first queries' does not).
   bool HasOwnClip(size_t q) const { return has_own_[q]; }
 
+  // The loop closer's word matches between two images.
+  std::vector<std::pair<int, int>> WordPairs(const PlaceImage& a, const PlaceImage& b) const {
+    return pcr::MatchFeaturesByWords(a.keypoints, a.descriptors, a.direct, nullptr, b.keypoints,
+                                     b.descriptors, b.direct, nullptr,
+                                     loop_options_.bow_max_distance, loop_options_.bow_ratio);
+  }
   // The loop closer's word matches between query q and frame j, then the two-view check's
   // inliers on them; -1 when the matches are fewer than min_bow_matches.
   int TwoView(size_t q, size_t j) const {
     const PlaceImage& a = images_[q];
     const PlaceImage& b = images_[j];
-    const auto pairs = pcr::MatchFeaturesByWords(
-        a.keypoints, a.descriptors, a.direct, nullptr, b.keypoints, b.descriptors, b.direct,
-        nullptr, loop_options_.bow_max_distance, loop_options_.bow_ratio);
+    const auto pairs = WordPairs(a, b);
     if (static_cast<int>(pairs.size()) < loop_options_.min_bow_matches) return -1;
     return TwoViewInliers(a.keypoints, a.camera, b.keypoints, b.camera, pairs);
+  }
+
+  // The metric distance between the cameras of q and j from their two images alone
+  // (slam/geometry/road_distance.h): the relative pose up to scale from the loop closer's word
+  // matches (essential matrix by RANSAC as TwoView, then the motion in front of both cameras,
+  // at least min_ransac_inliers), the scale from the road kRoadCameraHeightM below the front
+  // camera. No answer without such a pose or when the road does not give one.
+  struct RoadAnswer {
+    std::optional<double> distance_m;
+    int inliers = 0;  // of the relative pose
+    pcr::RoadDistance road;
+  };
+  RoadAnswer RoadDistanceOf(size_t q, size_t j) const {
+    RoadAnswer answer;
+    const PlaceImage& a = images_[q];
+    const PlaceImage& b = images_[j];
+    const auto pairs = WordPairs(a, b);
+    if (static_cast<int>(pairs.size()) < loop_options_.min_bow_matches) return answer;
+    const auto [pa, pb] = NormalisedPairs(a.keypoints, a.camera, b.keypoints, b.camera, pairs);
+    cv::Mat mask;
+    const cv::Mat e = cv::findEssentialMat(pa, pb, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.999,
+                                           2.0 / (a.camera.fx + b.camera.fx), mask);
+    if (e.rows != 3 || e.cols != 3) return answer;  // none, or several solutions stacked
+    cv::Mat r, t;
+    answer.inliers = cv::recoverPose(e, pa, pb, r, t, 1.0, cv::Point2d(0, 0), mask);
+    if (answer.inliers < loop_options_.min_ransac_inliers) return answer;
+    pcr::SE3 b_from_a = pcr::SE3::Identity();
+    for (int y = 0; y < 3; ++y) {
+      b_from_a.translation()(y) = t.at<double>(y);
+      for (int x = 0; x < 3; ++x) b_from_a.linear()(y, x) = r.at<double>(y, x);
+    }
+    pcr::RoadDistanceOptions options;
+    options.camera_height_m = pcr::driver::kRoadCameraHeightM;
+    answer.road = pcr::EstimateRoadDistance(a.grey, a.camera, b.grey, b.camera, b_from_a, options);
+    if (answer.road.success) answer.distance_m = answer.road.distance_m;
+    return answer;
   }
 
   // q's best-scoring database frame; none when its database is empty.
@@ -1229,6 +1284,74 @@ void PrintMapGate(const char* label, const PlacePool& pool, const SequenceAnswer
       ratio.empty() ? kNaN : *std::min_element(ratio.begin(), ratio.end()),
       ratio.empty() ? kNaN : pcr::Percentile(ratio, 50),
       ratio.empty() ? kNaN : *std::max_element(ratio.begin(), ratio.end()));
+}
+
+// The answers over sequences (4) that pass the uniqueness gate, measured by the road
+// (PlacePool::RoadDistanceOf: the two images alone) and declined where it finds no distance or one
+// over a limit, for limits up to kPlaceRadiusM; with the road's distance against the true one.
+void PrintRoadGate(const char* label, const PlacePool& pool, const SequenceAnswers& by_sequence,
+                   double uniqueness, int revisits) {
+  struct Measured {
+    size_t query = 0, answer = 0;
+    std::optional<double> distance_m;
+  };
+  std::vector<Measured> measured;
+  std::map<std::string, int> failures;
+  std::vector<double> ratio, ratio_far;  // road / true, same-clip answers within / beyond 10 m
+  pcr::TimingSeries road_ms;
+  for (size_t q = 0; q < pool.size(); ++q) {
+    if (!by_sequence[q] || by_sequence[q]->uniqueness < uniqueness) continue;
+    const size_t a = by_sequence[q]->frame;
+    const auto t0 = std::chrono::steady_clock::now();
+    const PlacePool::RoadAnswer r = pool.RoadDistanceOf(q, a);
+    road_ms.Add(pcr::MsSince(t0));
+    measured.push_back({q, a, r.distance_m});
+    if (!r.distance_m) {
+      const std::string why =
+          r.inliers < pcr::LoopClosingOptions{}.min_ransac_inliers
+              ? "no relative pose"
+              : r.road.failure_reason.substr(0, r.road.failure_reason.find(" ("));
+      ++failures[why];
+      continue;
+    }
+    if (pool.image(q).clip != pool.image(a).clip) continue;
+    const double truth = (pool.image(q).position - pool.image(a).position).norm();
+    (truth <= kPlaceRadiusM ? ratio : ratio_far).push_back(*r.distance_m / truth);
+  }
+  const pcr::TimingSummary time = road_ms.Summarize();
+  std::printf(
+      "\n%s: over sequences (uniqueness >= %.2f), measured by the road (the two images alone: "
+      "relative pose from the essential matrix, scale from the road %.2f m below the front "
+      "camera; p50 %.0f ms, p99 %.0f ms a pair): %zu answers, %zu measured; not measured:",
+      label, uniqueness, pcr::driver::kRoadCameraHeightM, time.p50_ms, time.p99_ms, measured.size(),
+      measured.size() -
+          static_cast<size_t>(std::accumulate(failures.begin(), failures.end(), 0,
+                                              [](int n, const auto& f) { return n + f.second; })));
+  for (const auto& [why, count] : failures) std::printf(" %s %d;", why.c_str(), count);
+  auto spread = [](std::vector<double> v) {
+    if (v.empty()) return std::string("none");
+    std::sort(v.begin(), v.end());
+    return fmt::format(
+        "{} answers, min {:.2f} / p10 {:.2f} / median {:.2f} / p90 {:.2f} / max {:.2f}", v.size(),
+        v.front(), pcr::Percentile(v, 10), pcr::Percentile(v, 50), pcr::Percentile(v, 90),
+        v.back());
+  };
+  std::printf(
+      "\nthe road's distance over the true one, answers of the query's clip within %.0f m: %s; "
+      "further: %s\n",
+      kPlaceRadiusM, spread(ratio).c_str(), spread(ratio_far).c_str());
+  std::printf("%-24s %8s %7s %8s %5s %9s %7s\n", "kept: road distance <=", "answered", "correct",
+              "same far", "other", "precision", "recall");
+  for (const double limit : {10.0, 9.0, 8.0, 7.0}) {
+    std::array<int, 3> kept{};
+    for (const Measured& m : measured)
+      if (m.distance_m && *m.distance_m <= limit)
+        ++kept[static_cast<int>(pool.VerdictOf(m.query, m.answer))];
+    const int answered = kept[0] + kept[1] + kept[2];
+    std::printf("%22.0f m %8d %7d %8d %5d %9.3f %7.3f\n", limit, answered, kept[0], kept[1],
+                kept[2], answered > 0 ? static_cast<double>(kept[0]) / answered : kNaN,
+                revisits > 0 ? static_cast<double>(kept[0]) / revisits : kNaN);
+  }
 }
 
 int RunPlace(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& shared_vocabulary) {
@@ -1608,6 +1731,11 @@ int RunPlace(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& sha
   SequenceAnswers held_out_by_sequence;
   if (args.held_out)
     PrintHeldOut(vocabulary, by_geometry, by_sequence, args, &pool, &held_out_by_sequence);
+  if (args.road_distance) {
+    PrintRoadGate("given vocabulary", pool, by_sequence, args.uniqueness, revisits);
+    if (args.held_out)
+      PrintRoadGate("held out", pool, held_out_by_sequence, args.uniqueness, revisits);
+  }
   if (args.map_distance) {
     const auto mapped = MapPositions(args, shared_vocabulary, pool);
     PrintMapGate("given vocabulary", pool, by_sequence, mapped, args.uniqueness, revisits);
@@ -1753,6 +1881,9 @@ int main(int argc, char** argv) {
   app.add_option("--uniqueness", a.uniqueness,
                  "--place: answer 4's best over the best elsewhere, at least")
       ->capture_default_str();
+  app.add_flag("--road-distance", a.road_distance,
+               "--place: also decline answers that the road, from the two images alone, places "
+               "further than a limit from the query");
   app.add_flag("--map-distance", a.map_distance,
                "--place: also decline answers that the query's clip, mapped by the system, places "
                "further than 10 m from it");
