@@ -163,8 +163,9 @@ struct Args {
   int window = 10;
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
   bool held_out = false;
-  bool map_distance = false;  // --place: the clips' own maps place the answers
-  bool road_distance = false;
+  bool map_distance = false;           // --place: the clips' own maps place the answers
+  bool road_distance = false;          // --place: the road measures the answers
+  double road_limit_m = 9.0;           // --place --road-distance: per clip within this
   pcr::SequenceScoreOptions sequence;  // --place: answer (4)
   double uniqueness = 1.05;            // --place: answer (4)'s gate
   std::vector<std::string> settings;   // --set: "section.key=value" for every run
@@ -983,8 +984,17 @@ class PlacePool {
     std::optional<double> distance_m;
     int inliers = 0;  // of the relative pose
     pcr::RoadDistance road;
+    double ms = 0;  // the whole measurement
   };
   RoadAnswer RoadDistanceOf(size_t q, size_t j) const {
+    const auto t0 = std::chrono::steady_clock::now();
+    RoadAnswer answer = RoadDistanceBetween(q, j);
+    answer.ms = pcr::MsSince(t0);
+    return answer;
+  }
+
+ private:
+  RoadAnswer RoadDistanceBetween(size_t q, size_t j) const {
     RoadAnswer answer;
     const PlaceImage& a = images_[q];
     const PlaceImage& b = images_[j];
@@ -1010,6 +1020,7 @@ class PlacePool {
     return answer;
   }
 
+ public:
   // q's best-scoring database frame; none when its database is empty.
   std::optional<size_t> BestScoring(size_t q) const {
     std::optional<size_t> best;
@@ -1128,9 +1139,22 @@ PlaceRow RowOf(const PlacePool& pool, int clip, const GeometryAnswers& by_geomet
 // `given` (whose answers by geometry and over sequences are given_by_geometry and
 // given_by_sequence). Leaves the pool under the last held-out vocabulary; each query's answer
 // over sequences under its clip's held-out vocabulary in *held_out_by_sequence.
+// Per query of the pool: the road's measurement of its answer over sequences (4) when that passes
+// the uniqueness gate, under the vocabulary the pool holds (the answer's own: the word matches
+// of the relative pose come from it).
+using RoadAnswers = std::vector<std::optional<PlacePool::RoadAnswer>>;
+void MeasureByRoad(const PlacePool& pool, const SequenceAnswers& by_sequence, double uniqueness,
+                   int clip, RoadAnswers* roads) {
+  roads->resize(pool.size());
+  for (size_t q = 0; q < pool.size(); ++q)
+    if ((clip < 0 || pool.image(q).clip == clip) && by_sequence[q] &&
+        by_sequence[q]->uniqueness >= uniqueness)
+      (*roads)[q] = pool.RoadDistanceOf(q, by_sequence[q]->frame);
+}
+
 void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_geometry,
                   const SequenceAnswers& given_by_sequence, const Args& args, PlacePool* pool,
-                  SequenceAnswers* held_out_by_sequence) {
+                  SequenceAnswers* held_out_by_sequence, RoadAnswers* held_out_roads) {
   held_out_by_sequence->assign(pool->size(), std::nullopt);
   const pcr::VocabularyOptions& options = given.options();
   std::printf(
@@ -1190,6 +1214,7 @@ void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_
         by_sequence[q] = pool->BestBySequence(q, args.sequence);
         (*held_out_by_sequence)[q] = by_sequence[q];
       }
+    if (held_out_roads) MeasureByRoad(*pool, by_sequence, args.uniqueness, c, held_out_roads);
     const PlaceRow row = RowOf(*pool, c, by_geometry, by_sequence, args.uniqueness);
     const std::string& name = pool->names()[static_cast<size_t>(c)];
     print(name, "given", given.num_words(), kNaN, given_rows[static_cast<size_t>(c)]);
@@ -1290,7 +1315,7 @@ void PrintMapGate(const char* label, const PlacePool& pool, const SequenceAnswer
 // (PlacePool::RoadDistanceOf: the two images alone) and declined where it finds no distance or one
 // over a limit, for limits up to kPlaceRadiusM; with the road's distance against the true one.
 void PrintRoadGate(const char* label, const PlacePool& pool, const SequenceAnswers& by_sequence,
-                   double uniqueness, int revisits) {
+                   const RoadAnswers& roads, double uniqueness, int revisits, double limit_m) {
   struct Measured {
     size_t query = 0, answer = 0;
     std::optional<double> distance_m;
@@ -1300,11 +1325,10 @@ void PrintRoadGate(const char* label, const PlacePool& pool, const SequenceAnswe
   std::vector<double> ratio, ratio_far;  // road / true, same-clip answers within / beyond 10 m
   pcr::TimingSeries road_ms;
   for (size_t q = 0; q < pool.size(); ++q) {
-    if (!by_sequence[q] || by_sequence[q]->uniqueness < uniqueness) continue;
+    if (!roads[q]) continue;
     const size_t a = by_sequence[q]->frame;
-    const auto t0 = std::chrono::steady_clock::now();
-    const PlacePool::RoadAnswer r = pool.RoadDistanceOf(q, a);
-    road_ms.Add(pcr::MsSince(t0));
+    const PlacePool::RoadAnswer& r = *roads[q];
+    road_ms.Add(r.ms);
     measured.push_back({q, a, r.distance_m});
     if (!r.distance_m) {
       const std::string why =
@@ -1342,16 +1366,32 @@ void PrintRoadGate(const char* label, const PlacePool& pool, const SequenceAnswe
       kPlaceRadiusM, spread(ratio).c_str(), spread(ratio_far).c_str());
   std::printf("%-24s %8s %7s %8s %5s %9s %7s\n", "kept: road distance <=", "answered", "correct",
               "same far", "other", "precision", "recall");
-  for (const double limit : {10.0, 9.0, 8.0, 7.0}) {
+  auto kept_within = [&](double limit, int clip) {
     std::array<int, 3> kept{};
     for (const Measured& m : measured)
-      if (m.distance_m && *m.distance_m <= limit)
+      if (m.distance_m && *m.distance_m <= limit && (clip < 0 || pool.image(m.query).clip == clip))
         ++kept[static_cast<int>(pool.VerdictOf(m.query, m.answer))];
+    return kept;
+  };
+  for (const double limit : {10.0, 9.0, 8.0, 7.0}) {
+    const std::array<int, 3> kept = kept_within(limit, -1);
     const int answered = kept[0] + kept[1] + kept[2];
     std::printf("%22.0f m %8d %7d %8d %5d %9.3f %7.3f\n", limit, answered, kept[0], kept[1],
                 kept[2], answered > 0 ? static_cast<double>(kept[0]) / answered : kNaN,
                 revisits > 0 ? static_cast<double>(kept[0]) / revisits : kNaN);
   }
+  std::printf("per clip, kept within %.0f m (answered / correct / same far / other, recall):",
+              limit_m);
+  for (size_t c = 0; c < pool.names().size(); ++c) {
+    const std::array<int, 3> kept = kept_within(limit_m, static_cast<int>(c));
+    int clip_revisits = 0;
+    for (size_t q = 0; q < pool.size(); ++q)
+      clip_revisits += pool.image(q).clip == static_cast<int>(c) && pool.HasNear(q);
+    std::printf(" %s %d / %d / %d / %d, %.3f;", pool.names()[c].c_str(),
+                kept[0] + kept[1] + kept[2], kept[0], kept[1], kept[2],
+                clip_revisits > 0 ? static_cast<double>(kept[0]) / clip_revisits : kNaN);
+  }
+  std::printf("\n");
 }
 
 int RunPlace(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& shared_vocabulary) {
@@ -1728,13 +1768,18 @@ int RunPlace(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& sha
                 counts[2], answered > 0 ? static_cast<double>(counts[0]) / answered : kNaN,
                 revisits > 0 ? static_cast<double>(counts[0]) / revisits : kNaN);
   }
+  RoadAnswers roads, held_out_roads;
+  if (args.road_distance) MeasureByRoad(pool, by_sequence, args.uniqueness, -1, &roads);
   SequenceAnswers held_out_by_sequence;
   if (args.held_out)
-    PrintHeldOut(vocabulary, by_geometry, by_sequence, args, &pool, &held_out_by_sequence);
+    PrintHeldOut(vocabulary, by_geometry, by_sequence, args, &pool, &held_out_by_sequence,
+                 args.road_distance ? &held_out_roads : nullptr);
   if (args.road_distance) {
-    PrintRoadGate("given vocabulary", pool, by_sequence, args.uniqueness, revisits);
+    PrintRoadGate("given vocabulary", pool, by_sequence, roads, args.uniqueness, revisits,
+                  args.road_limit_m);
     if (args.held_out)
-      PrintRoadGate("held out", pool, held_out_by_sequence, args.uniqueness, revisits);
+      PrintRoadGate("held out", pool, held_out_by_sequence, held_out_roads, args.uniqueness,
+                    revisits, args.road_limit_m);
   }
   if (args.map_distance) {
     const auto mapped = MapPositions(args, shared_vocabulary, pool);
@@ -1884,6 +1929,9 @@ int main(int argc, char** argv) {
   app.add_flag("--road-distance", a.road_distance,
                "--place: also decline answers that the road, from the two images alone, places "
                "further than a limit from the query");
+  app.add_option("--road-limit", a.road_limit_m,
+                 "--road-distance: the limit of the per-clip figures (m; the sweep shows 7-10)")
+      ->check(CLI::Range(0.5, 40.0));
   app.add_flag("--map-distance", a.map_distance,
                "--place: also decline answers that the query's clip, mapped by the system, places "
                "further than 10 m from it");

@@ -29,6 +29,10 @@ bool RoadDistanceOptions::IsValid(std::string* why) const {
     return Fail(why, "need 0 < smooth_sigma_px < background_sigma_px");
   if (!(min_overlap > 0.0 && min_overlap <= 1.0)) return Fail(why, "min_overlap must be in (0, 1]");
   if (!(min_ncc >= -1.0 && min_ncc < 1.0)) return Fail(why, "min_ncc must be in [-1, 1)");
+  if (!(min_ncc_margin >= 0.0 && min_ncc_margin < 2.0))
+    return Fail(why, "min_ncc_margin must be in [0, 2)");
+  if (!(ambiguity_band > 0.0 && ambiguity_band < 1.0))
+    return Fail(why, "ambiguity_band must be in (0, 1)");
   return true;
 }
 
@@ -113,17 +117,22 @@ RoadDistance Search(const cv::Mat& front_grey, const PinholeCamera& front, const
     return va > 0 && vb > 0 ? (sab - sa * sb / m) / std::sqrt(va * vb) : -2.0;
   };
   double best = -2.0, best_s = 0.0, best_pitch = 0.0;
-  auto scan = [&](double s_lo, double s_hi, double s_step, double p_lo, double p_hi,
-                  double p_step) {
-    for (double p = p_lo; p <= p_hi + 1e-9; p += p_step)
-      for (double s = s_lo; s <= s_hi + 1e-9; s += s_step) {
-        if (s <= 0.0) continue;
+  std::vector<std::pair<double, double>> coarse;  // (length, its best correlation over pitch)
+  auto scan = [&](double s_lo, double s_hi, double s_step, double p_lo, double p_hi, double p_step,
+                  bool keep) {
+    for (double s = s_lo; s <= s_hi + 1e-9; s += s_step) {
+      if (s <= 0.0) continue;
+      double best_here = -2.0;
+      for (double p = p_lo; p <= p_hi + 1e-9; p += p_step) {
         const double c = ncc(s, p);
+        best_here = std::max(best_here, c);
         if (c > best) best = c, best_s = s, best_pitch = p;
       }
+      if (keep) coarse.emplace_back(s, best_here);
+    }
   };
   scan(o.coarse_step_m, o.max_distance_m, o.coarse_step_m, -o.max_pitch_deg, o.max_pitch_deg,
-       o.coarse_pitch_step_deg);
+       o.coarse_pitch_step_deg, true);
   if (best <= -2.0) {
     result.failure_reason = "the front camera's road is not in the rear image at any distance";
     return result;
@@ -131,7 +140,12 @@ RoadDistance Search(const cv::Mat& front_grey, const PinholeCamera& front, const
   const double coarse_s = best_s, coarse_pitch = best_pitch;
   scan(coarse_s - o.coarse_step_m, coarse_s + o.coarse_step_m, o.fine_step_m,
        coarse_pitch - o.coarse_pitch_step_deg, coarse_pitch + o.coarse_pitch_step_deg,
-       o.fine_pitch_step_deg);
+       o.fine_pitch_step_deg, false);
+  // The runner-up: the best correlation at lengths away from the answer (a repeated texture or
+  // a road without marks correlates nearly as well elsewhere).
+  for (const auto& [s, c] : coarse)
+    if (std::abs(s - best_s) > std::max(o.coarse_step_m * 2, o.ambiguity_band * best_s))
+      result.runner_up_ncc = std::max(result.runner_up_ncc, c);
   result.distance_m = best_s;
   result.ncc = best;
   result.pitch_deg = best_pitch;
@@ -141,6 +155,10 @@ RoadDistance Search(const cv::Mat& front_grey, const PinholeCamera& front, const
     result.failure_reason = "the distance is at the search's limit";
   else if (best < o.min_ncc)
     result.failure_reason = "the road does not match (correlation " + std::to_string(best) + ")";
+  else if (best - result.runner_up_ncc < o.min_ncc_margin)
+    result.failure_reason = "the road matches as well at another distance (correlation " +
+                            std::to_string(best) + " against " +
+                            std::to_string(result.runner_up_ncc) + ")";
   else
     result.success = true;
   return result;

@@ -40,18 +40,25 @@ struct RoadDistanceOptions {
   // correlation reaches min_ncc, and neither the pitch nor the length is at its search's limit.
   double min_overlap = 0.5;
   double min_ncc = 0.2;
+  // ... and it beats the best correlation at lengths further than ambiguity_band of it (and two
+  // coarse steps) from it by min_ncc_margin: a repeated texture matches at several lengths. (On
+  // the synthetic loops' tiled streets, pairs of different places that pass the bag of words and
+  // the two-view check reach 0.08 at most.)
+  double min_ncc_margin = 0.1;
+  double ambiguity_band = 0.3;
 
   bool IsValid(std::string* why) const;
 };
 
 struct RoadDistance {
   bool success = false;
-  double distance_m = 0.0;     // the baseline's length (metres); the best fit even on failure
-  double ncc = -1.0;           // its correlation
-  double pitch_deg = 0.0;      // the road's normal against the front camera's y axis, about x
-  bool a_in_front = true;      // whether camera a is the front one (its road was used)
-  int road_pixels = 0;         // pixels of the front camera's road
-  std::string failure_reason;  // empty on success
+  double distance_m = 0.0;      // the baseline's length (metres); the best fit even on failure
+  double ncc = -1.0;            // its correlation
+  double runner_up_ncc = -1.0;  // the best correlation away from it (RoadDistanceOptions)
+  double pitch_deg = 0.0;       // the road's normal against the front camera's y axis, about x
+  bool a_in_front = true;       // whether camera a is the front one (its road was used)
+  int road_pixels = 0;          // pixels of the front camera's road
+  std::string failure_reason;   // empty on success
 };
 
 // image_a and image_b: 8-bit grey images of the two cameras; b_from_a: the relative pose from

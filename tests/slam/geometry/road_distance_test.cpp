@@ -28,6 +28,14 @@ cv::Mat RoadTexture() {
   return noise;
 }
 
+// The same blotches repeated every 4 m along the road, as on a tiled texture.
+cv::Mat TiledRoadTexture() {
+  const cv::Mat road = RoadTexture();
+  cv::Mat tiled(road.size(), road.type());
+  for (int z = 0; z < road.rows; ++z) road.row(z % 200).copyTo(tiled.row(z));
+  return tiled;
+}
+
 // What a camera at world_from_cam sees of that road, the world being camera a's frame, the road
 // the plane n . x = kHeight with n = (0, cos p, sin p); above the road a plain sky. 2x2
 // supersampled.
@@ -152,6 +160,27 @@ TEST(RoadDistance, ARoadWithoutMarksIsNoAnswerAndAnotherRoadMatchesFarWorse) {
   const RoadDistance unrelated = EstimateRoadDistance(a, camera, b_elsewhere, camera, b_from_a, {});
   ASSERT_TRUE(same.success) << same.failure_reason;
   EXPECT_LT(unrelated.ncc, 0.5 * same.ncc);
+}
+
+TEST(RoadDistance, ARoadThatRepeatsIsAmbiguous) {
+  // Tiles every 4 m: the road 8 m back matches as well as the one 4 or 12 m back, so no length
+  // stands out (on the same road without repeats it does, the test above).
+  const PinholeCamera camera = KittiCamera();
+  const cv::Mat texture = TiledRoadTexture();
+  const SE3 world_from_b = Behind(8.0);
+  const cv::Mat a = Render(camera, SE3::Identity(), texture, 0.0);
+  const cv::Mat b = Render(camera, world_from_b, texture, 0.0);
+  const RoadDistance tiled =
+      EstimateRoadDistance(a, camera, b, camera, UpToScale(world_from_b.inverse()), {});
+  EXPECT_FALSE(tiled.success);
+  EXPECT_NE(tiled.failure_reason.find("as well at another distance"), std::string::npos)
+      << tiled.failure_reason;
+  EXPECT_LT(tiled.ncc - tiled.runner_up_ncc, RoadDistanceOptions{}.min_ncc_margin);
+  RoadDistanceOptions unguarded;
+  unguarded.min_ncc_margin = 0.0;
+  EXPECT_TRUE(
+      EstimateRoadDistance(a, camera, b, camera, UpToScale(world_from_b.inverse()), unguarded)
+          .success);
 }
 
 TEST(RoadDistance, BadInputIsAClearError) {
