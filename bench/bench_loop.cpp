@@ -102,7 +102,6 @@
 #include <limits>
 #include <map>
 #include <memory>
-#include <numeric>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -815,18 +814,25 @@ std::pair<std::vector<cv::Point2d>, std::vector<cv::Point2d>> NormalisedPairs(
   return {std::move(pa), std::move(pb)};
 }
 
-// Inliers of an essential matrix (RANSAC, 1 px at the cameras' mean focal length) fitted to
-// matched keypoints of two images, each through its own camera: the two-view geometric check of
-// a place match between frames without a map (as DBoW2's loop detector checks with a fundamental
-// matrix). 0 for fewer than 5 matches or no model.
+// An essential matrix fitted by RANSAC (1 px at the cameras' mean focal length) to matched
+// normalised points of cameras a and b (NormalisedPairs); its inliers in *inliers.
+cv::Mat FitEssential(const std::vector<cv::Point2d>& pa, const std::vector<cv::Point2d>& pb,
+                     const pcr::PinholeCamera& a, const pcr::PinholeCamera& b, cv::Mat* inliers) {
+  return cv::findEssentialMat(pa, pb, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.999,
+                              2.0 / (a.fx + b.fx), *inliers);
+}
+
+// Inliers of an essential matrix (FitEssential) fitted to matched keypoints of two images, each
+// through its own camera: the two-view geometric check of a place match between frames without a
+// map (as DBoW2's loop detector checks with a fundamental matrix). 0 for fewer than 5 matches or
+// no model.
 int TwoViewInliers(const std::vector<cv::KeyPoint>& keypoints_a, const pcr::PinholeCamera& a,
                    const std::vector<cv::KeyPoint>& keypoints_b, const pcr::PinholeCamera& b,
                    const std::vector<std::pair<int, int>>& pairs) {
   if (pairs.size() < 5) return 0;
   const auto [pa, pb] = NormalisedPairs(keypoints_a, a, keypoints_b, b, pairs);
   cv::Mat inliers;
-  const cv::Mat e = cv::findEssentialMat(pa, pb, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.999,
-                                         2.0 / (a.fx + b.fx), inliers);
+  const cv::Mat e = FitEssential(pa, pb, a, b, &inliers);
   return e.empty() ? 0 : cv::countNonZero(inliers);
 }
 
@@ -984,17 +990,9 @@ class PlacePool {
     std::optional<double> distance_m;
     int inliers = 0;  // of the relative pose
     pcr::RoadDistance road;
-    double ms = 0;  // the whole measurement
+    double ms = 0;  // the whole measurement (MeasureByRoad)
   };
   RoadAnswer RoadDistanceOf(size_t q, size_t j) const {
-    const auto t0 = std::chrono::steady_clock::now();
-    RoadAnswer answer = RoadDistanceBetween(q, j);
-    answer.ms = pcr::MsSince(t0);
-    return answer;
-  }
-
- private:
-  RoadAnswer RoadDistanceBetween(size_t q, size_t j) const {
     RoadAnswer answer;
     const PlaceImage& a = images_[q];
     const PlaceImage& b = images_[j];
@@ -1002,8 +1000,7 @@ class PlacePool {
     if (static_cast<int>(pairs.size()) < loop_options_.min_bow_matches) return answer;
     const auto [pa, pb] = NormalisedPairs(a.keypoints, a.camera, b.keypoints, b.camera, pairs);
     cv::Mat mask;
-    const cv::Mat e = cv::findEssentialMat(pa, pb, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.999,
-                                           2.0 / (a.camera.fx + b.camera.fx), mask);
+    const cv::Mat e = FitEssential(pa, pb, a.camera, b.camera, &mask);
     if (e.rows != 3 || e.cols != 3) return answer;  // none, or several solutions stacked
     cv::Mat r, t;
     answer.inliers = cv::recoverPose(e, pa, pb, r, t, 1.0, cv::Point2d(0, 0), mask);
@@ -1020,7 +1017,6 @@ class PlacePool {
     return answer;
   }
 
- public:
   // q's best-scoring database frame; none when its database is empty.
   std::optional<size_t> BestScoring(size_t q) const {
     std::optional<size_t> best;
@@ -1133,12 +1129,6 @@ PlaceRow RowOf(const PlacePool& pool, int clip, const GeometryAnswers& by_geomet
   return row;
 }
 
-// --place --held-out: each clip's queries again under a vocabulary trained like `given` on the
-// other clips' frames of the pool only, so that none of the clip's own descriptors shaped the
-// words (the shipped vocabulary is trained on these very clips), beside the same queries under
-// `given` (whose answers by geometry and over sequences are given_by_geometry and
-// given_by_sequence). Leaves the pool under the last held-out vocabulary; each query's answer
-// over sequences under its clip's held-out vocabulary in *held_out_by_sequence.
 // Per query of the pool: the road's measurement of its answer over sequences (4) when that passes
 // the uniqueness gate, under the vocabulary the pool holds (the answer's own: the word matches
 // of the relative pose come from it).
@@ -1148,10 +1138,19 @@ void MeasureByRoad(const PlacePool& pool, const SequenceAnswers& by_sequence, do
   roads->resize(pool.size());
   for (size_t q = 0; q < pool.size(); ++q)
     if ((clip < 0 || pool.image(q).clip == clip) && by_sequence[q] &&
-        by_sequence[q]->uniqueness >= uniqueness)
+        by_sequence[q]->uniqueness >= uniqueness) {
+      const auto t0 = std::chrono::steady_clock::now();
       (*roads)[q] = pool.RoadDistanceOf(q, by_sequence[q]->frame);
+      (*roads)[q]->ms = pcr::MsSince(t0);
+    }
 }
 
+// --place --held-out: each clip's queries again under a vocabulary trained like `given` on the
+// other clips' frames of the pool only, so that none of the clip's own descriptors shaped the
+// words (the shipped vocabulary is trained on these very clips), beside the same queries under
+// `given` (whose answers by geometry and over sequences are given_by_geometry and
+// given_by_sequence). Leaves the pool under the last held-out vocabulary; each query's answer
+// over sequences under its clip's held-out vocabulary in *held_out_by_sequence.
 void PrintHeldOut(const pcr::Vocabulary& given, const GeometryAnswers& given_by_geometry,
                   const SequenceAnswers& given_by_sequence, const Args& args, PlacePool* pool,
                   SequenceAnswers* held_out_by_sequence, RoadAnswers* held_out_roads) {
@@ -1321,6 +1320,7 @@ void PrintRoadGate(const char* label, const PlacePool& pool, const SequenceAnswe
     std::optional<double> distance_m;
   };
   std::vector<Measured> measured;
+  int with_distance = 0;
   std::map<std::string, int> failures;
   std::vector<double> ratio, ratio_far;  // road / true, same-clip answers within / beyond 10 m
   pcr::TimingSeries road_ms;
@@ -1338,6 +1338,7 @@ void PrintRoadGate(const char* label, const PlacePool& pool, const SequenceAnswe
       ++failures[why];
       continue;
     }
+    ++with_distance;
     if (pool.image(q).clip != pool.image(a).clip) continue;
     const double truth = (pool.image(q).position - pool.image(a).position).norm();
     (truth <= kPlaceRadiusM ? ratio : ratio_far).push_back(*r.distance_m / truth);
@@ -1346,11 +1347,9 @@ void PrintRoadGate(const char* label, const PlacePool& pool, const SequenceAnswe
   std::printf(
       "\n%s: over sequences (uniqueness >= %.2f), measured by the road (the two images alone: "
       "relative pose from the essential matrix, scale from the road %.2f m below the front "
-      "camera; p50 %.0f ms, p99 %.0f ms a pair): %zu answers, %zu measured; not measured:",
+      "camera; p50 %.0f ms, p99 %.0f ms a pair): %zu answers, %d measured; not measured:",
       label, uniqueness, pcr::driver::kRoadCameraHeightM, time.p50_ms, time.p99_ms, measured.size(),
-      measured.size() -
-          static_cast<size_t>(std::accumulate(failures.begin(), failures.end(), 0,
-                                              [](int n, const auto& f) { return n + f.second; })));
+      with_distance);
   for (const auto& [why, count] : failures) std::printf(" %s %d;", why.c_str(), count);
   auto spread = [](std::vector<double> v) {
     if (v.empty()) return std::string("none");

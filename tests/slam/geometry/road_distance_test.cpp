@@ -91,19 +91,33 @@ SE3 UpToScale(SE3 pose) {
   return pose;
 }
 
+// Camera a at the world's origin and camera b Behind(back_m), both seeing `texture` on a road
+// pitched pitch_deg, with b_from_a up to scale.
+struct RoadPair {
+  cv::Mat a, b;
+  SE3 world_from_b;
+  SE3 b_from_a;  // unit baseline
+};
+RoadPair RenderPair(const cv::Mat& texture, double back_m, double pitch_deg) {
+  const PinholeCamera camera = KittiCamera();
+  RoadPair pair;
+  pair.world_from_b = Behind(back_m);
+  pair.a = Render(camera, SE3::Identity(), texture, pitch_deg);
+  pair.b = Render(camera, pair.world_from_b, texture, pitch_deg);
+  pair.b_from_a = UpToScale(pair.world_from_b.inverse());
+  return pair;
+}
+
 TEST(RoadDistance, TheBaselineFollowsFromTheRoadAtTheCamerasHeight) {
   const PinholeCamera camera = KittiCamera();
   const cv::Mat texture = RoadTexture();
   const double pitch_deg = 1.0;
-  const cv::Mat a = Render(camera, SE3::Identity(), texture, pitch_deg);
   for (const double back_m : {3.0, 8.0, 14.0}) {
     SCOPED_TRACE(back_m);
-    const SE3 world_from_b = Behind(back_m);
-    const double truth = world_from_b.translation().norm();
-    const cv::Mat b = Render(camera, world_from_b, texture, pitch_deg);
-    const SE3 b_from_a = world_from_b.inverse();
+    const RoadPair p = RenderPair(texture, back_m, pitch_deg);
+    const double truth = p.world_from_b.translation().norm();
     const RoadDistance forward =
-        EstimateRoadDistance(a, camera, b, camera, UpToScale(b_from_a), RoadDistanceOptions{});
+        EstimateRoadDistance(p.a, camera, p.b, camera, p.b_from_a, RoadDistanceOptions{});
     ASSERT_TRUE(forward.success) << forward.failure_reason;
     EXPECT_TRUE(forward.a_in_front);
     EXPECT_NEAR(forward.distance_m, truth, 0.03 * truth);
@@ -112,8 +126,8 @@ TEST(RoadDistance, TheBaselineFollowsFromTheRoadAtTheCamerasHeight) {
     // falls with the distance (0.9 at 3 m, 0.4 at 14 m here) but stays above the acceptance.
     EXPECT_GT(forward.ncc, 1.5 * RoadDistanceOptions{}.min_ncc);
     // The same pair the other way round: the front camera is found, the answer is the same.
-    const RoadDistance backward =
-        EstimateRoadDistance(b, camera, a, camera, UpToScale(world_from_b), RoadDistanceOptions{});
+    const RoadDistance backward = EstimateRoadDistance(
+        p.b, camera, p.a, camera, UpToScale(p.world_from_b), RoadDistanceOptions{});
     ASSERT_TRUE(backward.success) << backward.failure_reason;
     EXPECT_FALSE(backward.a_in_front);
     EXPECT_DOUBLE_EQ(backward.distance_m, forward.distance_m);
@@ -123,20 +137,15 @@ TEST(RoadDistance, TheBaselineFollowsFromTheRoadAtTheCamerasHeight) {
 TEST(RoadDistance, TheWrongCameraHeightScalesTheAnswer) {
   // The scale comes from the height alone: a camera said to be twice as high is twice as far.
   const PinholeCamera camera = KittiCamera();
-  const cv::Mat texture = RoadTexture();
-  const SE3 world_from_b = Behind(6.0);
-  const cv::Mat a = Render(camera, SE3::Identity(), texture, 0.0);
-  const cv::Mat b = Render(camera, world_from_b, texture, 0.0);
+  const RoadPair p = RenderPair(RoadTexture(), 6.0, 0.0);
   RoadDistanceOptions options;
-  const RoadDistance right =
-      EstimateRoadDistance(a, camera, b, camera, UpToScale(world_from_b.inverse()), options);
+  const RoadDistance right = EstimateRoadDistance(p.a, camera, p.b, camera, p.b_from_a, options);
   options.camera_height_m = 2 * kHeight;
   options.min_depth_m *= 2, options.max_depth_m *= 2, options.max_lateral_m *= 2;
-  const RoadDistance doubled =
-      EstimateRoadDistance(a, camera, b, camera, UpToScale(world_from_b.inverse()), options);
+  const RoadDistance doubled = EstimateRoadDistance(p.a, camera, p.b, camera, p.b_from_a, options);
   ASSERT_TRUE(right.success) << right.failure_reason;
   ASSERT_TRUE(doubled.success) << doubled.failure_reason;
-  EXPECT_NEAR(right.distance_m, world_from_b.translation().norm(), 0.2);
+  EXPECT_NEAR(right.distance_m, p.world_from_b.translation().norm(), 0.2);
   EXPECT_NEAR(doubled.distance_m, 2 * right.distance_m, 0.3);
 }
 
@@ -153,11 +162,11 @@ TEST(RoadDistance, ARoadWithoutMarksIsNoAnswerAndAnotherRoadMatchesFarWorse) {
   const cv::Mat texture = RoadTexture();
   cv::Mat other_texture;
   cv::flip(texture, other_texture, -1);
-  const cv::Mat a = Render(camera, SE3::Identity(), texture, 0.0);
-  const cv::Mat b = Render(camera, Behind(6.0), texture, 0.0);
-  const cv::Mat b_elsewhere = Render(camera, Behind(6.0), other_texture, 0.0);
-  const RoadDistance same = EstimateRoadDistance(a, camera, b, camera, b_from_a, {});
-  const RoadDistance unrelated = EstimateRoadDistance(a, camera, b_elsewhere, camera, b_from_a, {});
+  const RoadPair p = RenderPair(texture, 6.0, 0.0);
+  const cv::Mat b_elsewhere = Render(camera, p.world_from_b, other_texture, 0.0);
+  const RoadDistance same = EstimateRoadDistance(p.a, camera, p.b, camera, p.b_from_a, {});
+  const RoadDistance unrelated =
+      EstimateRoadDistance(p.a, camera, b_elsewhere, camera, p.b_from_a, {});
   ASSERT_TRUE(same.success) << same.failure_reason;
   EXPECT_LT(unrelated.ncc, 0.5 * same.ncc);
 }
@@ -166,21 +175,15 @@ TEST(RoadDistance, ARoadThatRepeatsIsAmbiguous) {
   // Tiles every 4 m: the road 8 m back matches as well as the one 4 or 12 m back, so no length
   // stands out (on the same road without repeats it does, the test above).
   const PinholeCamera camera = KittiCamera();
-  const cv::Mat texture = TiledRoadTexture();
-  const SE3 world_from_b = Behind(8.0);
-  const cv::Mat a = Render(camera, SE3::Identity(), texture, 0.0);
-  const cv::Mat b = Render(camera, world_from_b, texture, 0.0);
-  const RoadDistance tiled =
-      EstimateRoadDistance(a, camera, b, camera, UpToScale(world_from_b.inverse()), {});
+  const RoadPair p = RenderPair(TiledRoadTexture(), 8.0, 0.0);
+  const RoadDistance tiled = EstimateRoadDistance(p.a, camera, p.b, camera, p.b_from_a, {});
   EXPECT_FALSE(tiled.success);
   EXPECT_NE(tiled.failure_reason.find("as well at another distance"), std::string::npos)
       << tiled.failure_reason;
   EXPECT_LT(tiled.ncc - tiled.runner_up_ncc, RoadDistanceOptions{}.min_ncc_margin);
   RoadDistanceOptions unguarded;
   unguarded.min_ncc_margin = 0.0;
-  EXPECT_TRUE(
-      EstimateRoadDistance(a, camera, b, camera, UpToScale(world_from_b.inverse()), unguarded)
-          .success);
+  EXPECT_TRUE(EstimateRoadDistance(p.a, camera, p.b, camera, p.b_from_a, unguarded).success);
 }
 
 TEST(RoadDistance, BadInputIsAClearError) {
