@@ -1331,10 +1331,9 @@ void PrintRoadGate(const char* label, const PlacePool& pool, const SequenceAnswe
     road_ms.Add(r.ms);
     measured.push_back({q, a, r.distance_m});
     if (!r.distance_m) {
-      const std::string why =
-          r.inliers < pcr::LoopClosingOptions{}.min_ransac_inliers
-              ? "no relative pose"
-              : r.road.failure_reason.substr(0, r.road.failure_reason.find(" ("));
+      const std::string why = r.inliers < pcr::LoopClosingOptions{}.min_ransac_inliers
+                                  ? "no relative pose"
+                                  : pcr::RoadFailureName(r.road.failure);
       ++failures[why];
       continue;
     }

@@ -50,6 +50,13 @@ void CheckImage(const cv::Mat& image, const PinholeCamera& camera, const char* n
                                 std::to_string(camera.height_px));
 }
 
+void SetFailure(RoadDistance* result, RoadFailure failure, const std::string& details = {}) {
+  result->success = false;
+  result->failure = failure;
+  result->failure_reason = RoadFailureName(failure);
+  if (!details.empty()) result->failure_reason += " (" + details + ")";
+}
+
 cv::Mat BandPass(const cv::Mat& grey, const RoadDistanceOptions& o) {
   cv::Mat f, smooth, background;
   grey.convertTo(f, CV_32F);
@@ -81,8 +88,7 @@ RoadDistance Search(const cv::Mat& front_grey, const PinholeCamera& front, const
     }
   result.road_pixels = static_cast<int>(rays.size());
   if (rays.size() < 100) {
-    result.failure_reason =
-        "too little road in the front image (" + std::to_string(rays.size()) + " pixels)";
+    SetFailure(&result, RoadFailure::kTooLittleRoad, std::to_string(rays.size()) + " pixels");
     return result;
   }
   const Eigen::Matrix3d r = rear_from_front.linear();
@@ -134,7 +140,7 @@ RoadDistance Search(const cv::Mat& front_grey, const PinholeCamera& front, const
   scan(o.coarse_step_m, o.max_distance_m, o.coarse_step_m, -o.max_pitch_deg, o.max_pitch_deg,
        o.coarse_pitch_step_deg, true);
   if (best <= -2.0) {
-    result.failure_reason = "the front camera's road is not in the rear image at any distance";
+    SetFailure(&result, RoadFailure::kNotInRearImage);
     return result;
   }
   const double coarse_s = best_s, coarse_pitch = best_pitch;
@@ -150,21 +156,43 @@ RoadDistance Search(const cv::Mat& front_grey, const PinholeCamera& front, const
   result.ncc = best;
   result.pitch_deg = best_pitch;
   if (std::abs(best_pitch) > o.max_pitch_deg + 1e-9)
-    result.failure_reason = "the road's pitch is beyond the search's limit";
+    SetFailure(&result, RoadFailure::kPitchAtLimit);
   else if (best_s < o.coarse_step_m - 1e-9 || best_s > o.max_distance_m + 1e-9)
-    result.failure_reason = "the distance is at the search's limit";
+    SetFailure(&result, RoadFailure::kDistanceAtLimit);
   else if (best < o.min_ncc)
-    result.failure_reason = "the road does not match (correlation " + std::to_string(best) + ")";
+    SetFailure(&result, RoadFailure::kNoMatch, "correlation " + std::to_string(best));
   else if (best - result.runner_up_ncc < o.min_ncc_margin)
-    result.failure_reason = "the road matches as well at another distance (correlation " +
-                            std::to_string(best) + " against " +
-                            std::to_string(result.runner_up_ncc) + ")";
+    SetFailure(
+        &result, RoadFailure::kAmbiguous,
+        "correlation " + std::to_string(best) + " against " + std::to_string(result.runner_up_ncc));
   else
     result.success = true;
   return result;
 }
 
 }  // namespace
+
+const char* RoadFailureName(RoadFailure failure) {
+  switch (failure) {
+    case RoadFailure::kNone:
+      return "";
+    case RoadFailure::kNoBaseline:
+      return "no baseline direction";
+    case RoadFailure::kTooLittleRoad:
+      return "too little road in the front image";
+    case RoadFailure::kNotInRearImage:
+      return "the front camera's road is not in the rear image at any distance";
+    case RoadFailure::kPitchAtLimit:
+      return "the road's pitch is beyond the search's limit";
+    case RoadFailure::kDistanceAtLimit:
+      return "the distance is at the search's limit";
+    case RoadFailure::kNoMatch:
+      return "the road does not match";
+    case RoadFailure::kAmbiguous:
+      return "the road matches as well at another distance";
+  }
+  return "unknown";
+}
 
 RoadDistance EstimateRoadDistance(const cv::Mat& image_a, const PinholeCamera& camera_a,
                                   const cv::Mat& image_b, const PinholeCamera& camera_b,
@@ -175,7 +203,7 @@ RoadDistance EstimateRoadDistance(const cv::Mat& image_a, const PinholeCamera& c
   CheckImage(image_b, camera_b, "image b");
   if (!(b_from_a.translation().norm() > 0.0) || !b_from_a.matrix().allFinite()) {
     RoadDistance result;
-    result.failure_reason = "no baseline direction";
+    SetFailure(&result, RoadFailure::kNoBaseline);
     return result;
   }
   // a's centre in b's frame is b_from_a's translation: in front of b when its z is positive.

@@ -50,15 +50,30 @@ struct RoadDistanceOptions {
   bool IsValid(std::string* why) const;
 };
 
+// Why a distance could not be measured.
+enum class RoadFailure {
+  kNone,             // success
+  kNoBaseline,       // the relative pose has no translation, or is not finite
+  kTooLittleRoad,    // fewer than 100 pixels of the front camera's road
+  kNotInRearImage,   // the front camera's road lands in the rear image at no distance searched
+  kPitchAtLimit,     // the best pitch is at the search's limit
+  kDistanceAtLimit,  // the best length is at the search's limit
+  kNoMatch,          // the best correlation is under min_ncc
+  kAmbiguous,        // another length correlates within min_ncc_margin
+};
+// A short description of `failure` ("" for kNone), the first words of failure_reason.
+const char* RoadFailureName(RoadFailure failure);
+
 struct RoadDistance {
   bool success = false;
+  RoadFailure failure = RoadFailure::kNone;
   double distance_m = 0.0;      // the baseline's length (metres); the best fit even on failure
   double ncc = -1.0;            // its correlation
   double runner_up_ncc = -1.0;  // the best correlation away from it (RoadDistanceOptions)
   double pitch_deg = 0.0;       // the road's normal against the front camera's y axis, about x
   bool a_in_front = true;       // whether camera a is the front one (its road was used)
   int road_pixels = 0;          // pixels of the front camera's road
-  std::string failure_reason;   // empty on success
+  std::string failure_reason;   // RoadFailureName(failure) and its figures; empty on success
 };
 
 // image_a and image_b: 8-bit grey images of the two cameras; b_from_a: the relative pose from

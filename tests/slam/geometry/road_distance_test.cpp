@@ -119,6 +119,8 @@ TEST(RoadDistance, TheBaselineFollowsFromTheRoadAtTheCamerasHeight) {
     const RoadDistance forward =
         EstimateRoadDistance(p.a, camera, p.b, camera, p.b_from_a, RoadDistanceOptions{});
     ASSERT_TRUE(forward.success) << forward.failure_reason;
+    EXPECT_EQ(forward.failure, RoadFailure::kNone);
+    EXPECT_TRUE(forward.failure_reason.empty());
     EXPECT_TRUE(forward.a_in_front);
     EXPECT_NEAR(forward.distance_m, truth, 0.03 * truth);
     EXPECT_NEAR(forward.pitch_deg, pitch_deg, 0.5);
@@ -155,6 +157,7 @@ TEST(RoadDistance, ARoadWithoutMarksIsNoAnswerAndAnotherRoadMatchesFarWorse) {
   const cv::Mat flat(camera.height_px, camera.width_px, CV_8UC1, cv::Scalar(120));
   const RoadDistance none = EstimateRoadDistance(flat, camera, flat, camera, b_from_a, {});
   EXPECT_FALSE(none.success);
+  EXPECT_NE(none.failure, RoadFailure::kNone);
   EXPECT_FALSE(none.failure_reason.empty());
   // Two different roads: no length maps one onto the other, and the best chance alignment of the
   // search correlates far worse than the same road does. (Telling places apart is the bag of
@@ -178,7 +181,8 @@ TEST(RoadDistance, ARoadThatRepeatsIsAmbiguous) {
   const RoadPair p = RenderPair(TiledRoadTexture(), 8.0, 0.0);
   const RoadDistance tiled = EstimateRoadDistance(p.a, camera, p.b, camera, p.b_from_a, {});
   EXPECT_FALSE(tiled.success);
-  EXPECT_NE(tiled.failure_reason.find("as well at another distance"), std::string::npos)
+  EXPECT_EQ(tiled.failure, RoadFailure::kAmbiguous) << tiled.failure_reason;
+  EXPECT_EQ(tiled.failure_reason.rfind(RoadFailureName(RoadFailure::kAmbiguous), 0), 0u)
       << tiled.failure_reason;
   EXPECT_LT(tiled.ncc - tiled.runner_up_ncc, RoadDistanceOptions{}.min_ncc_margin);
   RoadDistanceOptions unguarded;
@@ -202,6 +206,7 @@ TEST(RoadDistance, BadInputIsAClearError) {
   const RoadDistance no_baseline =
       EstimateRoadDistance(grey, camera, grey, camera, SE3::Identity(), {});
   EXPECT_FALSE(no_baseline.success);
+  EXPECT_EQ(no_baseline.failure, RoadFailure::kNoBaseline);
   EXPECT_EQ(no_baseline.failure_reason, "no baseline direction");
 }
 
