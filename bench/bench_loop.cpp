@@ -103,6 +103,7 @@
 #include <map>
 #include <memory>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
@@ -846,7 +847,7 @@ struct PlaceImage {
   pcr::PinholeCamera camera;  // its clip's rectified left camera
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
-  cv::Mat grey;  // the left image (RoadDistanceOf)
+  cv::Mat grey;  // the left image, kept for --road-distance only (RoadDistanceOf)
 };
 
 enum class Verdict { kCorrect, kSameClipFar, kOtherClip };
@@ -872,7 +873,7 @@ class PlacePool {
         const cv::Mat left = d.LoadLeft(i);
         pcr::OrbFeatures features = orb.Extract(left);
         extract_ms_.Add(pcr::MsSince(t0));
-        image.grey = left;
+        if (args.road_distance) image.grey = left;
         image.keypoints = std::move(features.keypoints);
         image.descriptors = features.descriptors;
         images_.push_back(std::move(image));
@@ -988,7 +989,7 @@ class PlacePool {
   // camera. No answer without such a pose or when the road does not give one.
   struct RoadAnswer {
     std::optional<double> distance_m;
-    int inliers = 0;  // of the relative pose
+    bool posed = false;  // a relative pose with at least min_ransac_inliers: the road was asked
     pcr::RoadDistance road;
     double ms = 0;  // the whole measurement (MeasureByRoad)
   };
@@ -1003,13 +1004,17 @@ class PlacePool {
     const cv::Mat e = FitEssential(pa, pb, a.camera, b.camera, &mask);
     if (e.rows != 3 || e.cols != 3) return answer;  // none, or several solutions stacked
     cv::Mat r, t;
-    answer.inliers = cv::recoverPose(e, pa, pb, r, t, 1.0, cv::Point2d(0, 0), mask);
-    if (answer.inliers < loop_options_.min_ransac_inliers) return answer;
+    if (cv::recoverPose(e, pa, pb, r, t, 1.0, cv::Point2d(0, 0), mask) <
+        loop_options_.min_ransac_inliers)
+      return answer;
+    answer.posed = true;
+    Eigen::Matrix3d r_e;
+    Eigen::Vector3d t_e;
+    cv::cv2eigen(r, r_e);
+    cv::cv2eigen(t, t_e);
     pcr::SE3 b_from_a = pcr::SE3::Identity();
-    for (int y = 0; y < 3; ++y) {
-      b_from_a.translation()(y) = t.at<double>(y);
-      for (int x = 0; x < 3; ++x) b_from_a.linear()(y, x) = r.at<double>(y, x);
-    }
+    b_from_a.linear() = r_e;
+    b_from_a.translation() = t_e;
     pcr::RoadDistanceOptions options;
     options.camera_height_m = pcr::driver::kRoadCameraHeightM;
     answer.road = pcr::EstimateRoadDistance(a.grey, a.camera, b.grey, b.camera, b_from_a, options);
@@ -1331,9 +1336,7 @@ void PrintRoadGate(const char* label, const PlacePool& pool, const SequenceAnswe
     road_ms.Add(r.ms);
     measured.push_back({q, a, r.distance_m});
     if (!r.distance_m) {
-      const std::string why = r.inliers < pcr::LoopClosingOptions{}.min_ransac_inliers
-                                  ? "no relative pose"
-                                  : pcr::RoadFailureName(r.road.failure);
+      const std::string why = r.posed ? pcr::RoadFailureName(r.road.failure) : "no relative pose";
       ++failures[why];
       continue;
     }
