@@ -8,6 +8,7 @@
 
 #include "slam/common/error.h"
 #include "slam/common/validation.h"
+#include "slam/geometry/se3.h"
 
 namespace pcr {
 
@@ -98,7 +99,7 @@ RoadDistance Search(const cv::Mat& front_grey, const PinholeCamera& front, const
   const int min_count =
       static_cast<int>(std::ceil(o.min_overlap * static_cast<double>(rays.size())));
   auto ncc = [&](double s, double pitch_deg) {
-    const double p = pitch_deg * M_PI / 180.0;
+    const double p = DegToRad(pitch_deg);
     const Eigen::Vector3d n(0.0, std::cos(p), std::sin(p));  // road: n . x = h
     const Eigen::Matrix3d hm = k_rear * (r + (s / h) * t * n.transpose());
     double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;

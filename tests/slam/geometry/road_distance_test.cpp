@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "slam/common/error.h"
+#include "slam/geometry/se3.h"
 #include "support/test_helpers.h"
 
 namespace pcr {
@@ -41,7 +42,7 @@ cv::Mat TiledRoadTexture() {
 // supersampled.
 cv::Mat Render(const PinholeCamera& c, const SE3& world_from_cam, const cv::Mat& texture,
                double pitch_deg) {
-  const double p = pitch_deg * M_PI / 180.0;
+  const double p = DegToRad(pitch_deg);
   const Eigen::Vector3d n(0.0, std::cos(p), std::sin(p));
   const Eigen::Vector3d centre = world_from_cam.translation();
   cv::Mat image(c.height_px, c.width_px, CV_8UC1);
@@ -80,7 +81,7 @@ cv::Mat Render(const PinholeCamera& c, const SE3& world_from_cam, const cv::Mat&
 SE3 Behind(double back_m) {
   SE3 world_from_b = SE3::Identity();
   world_from_b.linear() =
-      Eigen::AngleAxisd(1.5 * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+      Eigen::AngleAxisd(DegToRad(1.5), Eigen::Vector3d::UnitY()).toRotationMatrix();
   world_from_b.translation() = Eigen::Vector3d(0.4, 0.0, -back_m);
   return world_from_b;
 }
