@@ -103,7 +103,6 @@
 #include <map>
 #include <memory>
 #include <opencv2/calib3d.hpp>
-#include <opencv2/core/eigen.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
@@ -126,6 +125,7 @@
 #include "slam/common/lie.h"
 #include "slam/common/timing.h"
 #include "slam/features/orb_extractor.h"
+#include "slam/geometry/cv_pose.h"
 #include "slam/geometry/road_distance.h"
 #include "slam/geometry/se3.h"
 #include "slam/loop/keyframe_database.h"
@@ -1008,13 +1008,7 @@ class PlacePool {
         loop_options_.min_ransac_inliers)
       return answer;
     answer.posed = true;
-    Eigen::Matrix3d r_e;
-    Eigen::Vector3d t_e;
-    cv::cv2eigen(r, r_e);
-    cv::cv2eigen(t, t_e);
-    pcr::SE3 b_from_a = pcr::SE3::Identity();
-    b_from_a.linear() = r_e;
-    b_from_a.translation() = t_e;
+    const pcr::SE3 b_from_a = pcr::PoseFromCvRotation(r, t);
     pcr::RoadDistanceOptions options;
     options.camera_height_m = pcr::driver::kRoadCameraHeightM;
     answer.road = pcr::EstimateRoadDistance(a.grey, a.camera, b.grey, b.camera, b_from_a, options);

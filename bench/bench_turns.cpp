@@ -17,7 +17,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <opencv2/calib3d.hpp>
-#include <opencv2/core/eigen.hpp>
 #include <opencv2/features2d.hpp>
 #include <string>
 #include <vector>
@@ -29,6 +28,7 @@
 #include "io/dataset.h"
 #include "sim/sequence_writer.h"
 #include "slam/common/lie.h"
+#include "slam/geometry/cv_pose.h"
 #include "slam/geometry/se3.h"
 
 namespace {
@@ -81,16 +81,7 @@ pcr::Trajectory NaiveStereoVo(const pcr::Dataset& d) {
           cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 300, 2.0f, 0.999,
                              inliers, cv::SOLVEPNP_EPNP) &&
           inliers.size() >= 10) {
-        cv::Mat R;
-        cv::Rodrigues(rvec, R);
-        Eigen::Matrix3d r;
-        Eigen::Vector3d t;
-        cv::cv2eigen(R, r);
-        cv::cv2eigen(tvec, t);
-        pcr::SE3 cur_from_prev = pcr::SE3::Identity();
-        cur_from_prev.linear() = r;
-        cur_from_prev.translation() = t;
-        world_from_cam = world_from_cam * cur_from_prev.inverse();
+        world_from_cam = world_from_cam * pcr::PoseFromCvRodrigues(rvec, tvec).inverse();
       }  // else: hold the pose (counted as tracked: the naive VO has no failure state)
     }
     out.push_back({d.t_ns[i], static_cast<int64_t>(i), world_from_cam});

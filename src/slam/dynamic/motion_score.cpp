@@ -10,6 +10,7 @@
 
 #include "slam/common/error.h"
 #include "slam/common/validation.h"
+#include "slam/geometry/cv_pose.h"
 #include "slam/geometry/se3.h"
 
 namespace pcr {
@@ -345,13 +346,7 @@ EgoMotionEstimate EstimateCurFromPrev(const PinholeCamera& camera,
     image_in.push_back(image[i]);
   }
   cv::solvePnPRefineLM(object_in, image_in, k, cv::noArray(), rvec, tvec);
-  cv::Matx33d r;
-  cv::Rodrigues(rvec, r);
-  SE3 prev_from_cur = SE3::Identity();
-  for (int a = 0; a < 3; ++a) {
-    for (int b = 0; b < 3; ++b) prev_from_cur.linear()(a, b) = r(a, b);
-    prev_from_cur.translation()(a) = tvec.at<double>(a);
-  }
+  const SE3 prev_from_cur = PoseFromCvRodrigues(rvec, tvec);
   // Inliers of the refined motion.
   int count = 0;
   for (size_t c = 0; c < object.size(); ++c) {

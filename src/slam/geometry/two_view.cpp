@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "slam/common/error.h"
+#include "slam/geometry/cv_pose.h"
 #include "slam/geometry/se3.h"
 #include "slam/geometry/triangulation.h"
 
@@ -334,23 +335,16 @@ std::vector<SE3> HomographyMotions(const Eigen::Matrix3d& H, const PinholeCamera
   cv::decomposeHomographyMat(H_cv, K_cv, rotations, translations, normals);
   std::vector<SE3> motions;
   for (size_t s = 0; s < rotations.size(); ++s) {
-    Eigen::Matrix3d R;
-    Eigen::Vector3d t;
-    for (int r = 0; r < 3; ++r) {
-      t(r) = translations[s].at<double>(r);
-      for (int c = 0; c < 3; ++c) R(r, c) = rotations[s].at<double>(r, c);
-    }
+    SE3 motion = PoseFromCvRotation(rotations[s], translations[s]);
     // t is the translation over the plane distance; zero for a pure rotation, which leaves no
     // baseline to triangulate with.
-    const double t_norm = t.norm();
-    if (!(t_norm > 1e-12) || !R.allFinite()) continue;
-    SE3 motion = SE3::Identity();
-    motion.linear() = R;
-    motion.translation() = t / t_norm;
+    const double t_norm = motion.translation().norm();
+    if (!(t_norm > 1e-12) || !motion.linear().allFinite()) continue;
+    motion.translation() /= t_norm;
     // When the translation is parallel to the plane normal the two decompositions coincide;
     // keep one copy so that a duplicate does not pass for an ambiguity.
     const bool duplicate = std::any_of(motions.begin(), motions.end(), [&](const SE3& m) {
-      return RotationDistanceRad(m.linear(), R) < 1e-6 &&
+      return RotationDistanceRad(m.linear(), motion.linear()) < 1e-6 &&
              (m.translation() - motion.translation()).norm() < 1e-6;
     });
     if (!duplicate) motions.push_back(motion);

@@ -2,11 +2,11 @@
 
 #include <algorithm>
 #include <opencv2/calib3d.hpp>
-#include <opencv2/core/eigen.hpp>
 #include <set>
 
 #include "slam/common/error.h"
 #include "slam/common/lie.h"
+#include "slam/geometry/cv_pose.h"
 #include "slam/map/matcher.h"
 #include "slam/map/stereo_points.h"
 
@@ -283,15 +283,7 @@ bool Tracker::PnpRansac(const Frame& frame, const Map& map, const Keyframe& kf,
                           options_.pnp_iterations, options_.pnp_reprojection_px, 0.99, *inliers,
                           cv::SOLVEPNP_EPNP))
     return false;
-  cv::Mat R;
-  cv::Rodrigues(rvec, R);
-  Eigen::Matrix3d R_e;
-  Eigen::Vector3d t_e;
-  cv::cv2eigen(R, R_e);
-  cv::cv2eigen(tvec, t_e);
-  *cam_from_world = SE3::Identity();
-  cam_from_world->linear() = R_e;
-  cam_from_world->translation() = t_e;
+  *cam_from_world = PoseFromCvRodrigues(rvec, tvec);
   return true;
 }
 
