@@ -4,8 +4,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$(date +%s)
 bash scripts/build.sh
+built=$(date +%s)
 build=${PCR_BUILD_DIR:-build}
 export PCR_SHARED_DIR=${PCR_SHARED_DIR:-$(cd .. && pwd)/shared}
 cd "$build"
 ctest --output-on-failure -j"${PCR_JOBS:-$(nproc)}" --timeout 900
-echo "test.sh: build + tests took $(( $(date +%s) - start )) s"
+end=$(date +%s)
+echo "test.sh: build $(( built - start )) s, tests $(( end - built )) s, build + tests $(( end - start )) s"
