@@ -616,17 +616,15 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
                 "rATE off", "rATE on");
   std::printf("\n");
   std::vector<double> ratios, oracle_ratios;
-  int within_path = 0;   // seeds whose ATE on is at most 0.2% of the path
-  int within_third = 0;  // seeds whose ATE on is at most 1/3 of off (listed in third_seeds)
-  std::string third_seeds;
+  int within_path = 0;                 // seeds whose ATE on is at most 0.2% of the path
+  std::vector<uint64_t> within_third;  // seeds whose ATE on is at most 1/3 of off
   for (const Row& r : rows) {
     if (std::isfinite(r.oracle.ate_m / r.off.ate_m))
       oracle_ratios.push_back(r.oracle.ate_m / r.off.ate_m);
     const double ratio = r.on.ate_m / r.off.ate_m;
     if (std::isfinite(ratio)) ratios.push_back(ratio);
     within_path += r.on.ate_m <= 0.002 * r.path_m;
-    if (ratio <= 1.0 / 3.0)
-      third_seeds += fmt::format("{}{}", within_third++ == 0 ? " (seeds " : ",", r.seed);
+    if (ratio <= 1.0 / 3.0) within_third.push_back(r.seed);
     std::printf("%4d %6zu %8.1f | %7zu %7zu | %8.3f %8.3f | %6.2f%% %6.2f%% | %6.3f | %8.3f %8.3f",
                 static_cast<int>(r.seed), r.frames, r.path_m, r.off.tracked, r.on.tracked,
                 r.off.ate_m, r.on.ate_m, 100 * r.off.ate_m / r.path_m, 100 * r.on.ate_m / r.path_m,
@@ -644,10 +642,10 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
     std::printf("ATE ratio on/off: median %.3f, min %.3f, max %.3f over %zu seeds\n",
                 pcr::Percentile(ratios, 50), ratios.front(), ratios.back(), ratios.size());
   }
-  if (within_third > 0) third_seeds += ")";
   std::printf(
-      "ATE on at most 0.2%% of the path: %d of %zu seeds; at most 1/3 of off: %d of %zu%s\n",
-      within_path, rows.size(), within_third, rows.size(), third_seeds.c_str());
+      "ATE on at most 0.2%% of the path: %d of %zu seeds; at most 1/3 of off: %zu of %zu%s\n",
+      within_path, rows.size(), within_third.size(), rows.size(),
+      within_third.empty() ? "" : fmt::format(" (seeds {})", fmt::join(within_third, ",")).c_str());
   if (!oracle_ratios.empty()) {
     std::sort(oracle_ratios.begin(), oracle_ratios.end());
     std::printf(
