@@ -49,9 +49,8 @@ KeyframePoses TruePoses(const Map& map, const Trajectory& truth) {
   return poses;
 }
 
-// The keyframe poses after the global BA of map, its keyframes first moved to `start` (none:
-// from the map as it is).
-KeyframePoses Converge(const Map& map, LoopClosingOptions loop_options,
+// The global BA of map, its keyframes first moved to `start` (none: from the map as it is).
+MapCorrection Converge(const Map& map, LoopClosingOptions loop_options,
                        const MapFloorOptions& options, const KeyframePoses* start) {
   loop_options.global_ba_iterations = options.iterations;
   loop_options.global_ba_function_tolerance = options.function_tolerance;
@@ -60,12 +59,64 @@ KeyframePoses Converge(const Map& map, LoopClosingOptions loop_options,
     moved.before = PosesOf(map);
     moved.after = *start;
   }
-  return LoopCloser::GlobalBundleAdjustmentOfMap(map, loop_options, moved).correction.after;
+  return LoopCloser::GlobalBundleAdjustmentOfMap(map, loop_options, moved).correction;
 }
+
+struct ResidualSums {
+  int observations = 0, stereo = 0;
+  double radial_u = 0, radial_v = 0, disparity = 0;
+};
 
 }  // namespace
 
 double KeyframeAte(const Map& map, const Trajectory& truth) { return AteOf(PosesOf(map), truth); }
+
+std::vector<LevelResidual> ResidualsByLevel(const Map& map) {
+  constexpr double kChi2Mono = 5.991, kChi2Stereo = 7.815;  // BundleAdjustmentOptions' gates
+  std::map<int, ResidualSums> sums;
+  for (const auto& [pid, mp] : map.points()) {
+    for (const auto& [kid, kp] : mp.observations) {
+      const Keyframe* kf = map.keyframe(kid);
+      if (!kf || !kf->frame) continue;
+      const Frame& f = *kf->frame;
+      if (kp < 0 || kp >= f.size() || f.excluded(kp)) continue;
+      const Eigen::Vector3d pc = kf->cam_from_world * mp.p_in_world;
+      if (!(pc.z() > 0)) continue;
+      const StereoRig& rig = f.rig();
+      const PinholeCamera& cam = rig.left;
+      const double u = cam.fx * pc.x() / pc.z() + cam.cx;
+      const double v = cam.fy * pc.y() / pc.z() + cam.cy;
+      const Eigen::Vector2d uv = f.uv(kp);
+      const double du = uv.x() - u, dv = uv.y() - v;
+      const int level = f.octave(kp);
+      const double information = f.scale().inv_level_sigma2[level];
+      const bool stereo = f.has_stereo(kp) && rig.IsStereo();
+      const double dr = stereo ? f.u_right_px(kp) - rig.ProjectRightX(pc) : 0.0;
+      const double chi2 = (du * du + dv * dv + dr * dr) * information;
+      if (chi2 > (stereo ? kChi2Stereo : kChi2Mono)) continue;
+      ResidualSums& s = sums[level];
+      ++s.observations;
+      s.radial_u += u >= cam.cx ? du : -du;
+      s.radial_v += v >= cam.cy ? dv : -dv;
+      if (stereo) {
+        ++s.stereo;
+        s.disparity += du - dr;  // (u - u_right) observed minus predicted
+      }
+    }
+  }
+  std::vector<LevelResidual> out;
+  for (const auto& [level, s] : sums) {
+    LevelResidual r;
+    r.level = level;
+    r.observations = s.observations;
+    r.stereo = s.stereo;
+    r.radial_u_px = s.radial_u / s.observations;
+    r.radial_v_px = s.radial_v / s.observations;
+    r.disparity_px = s.stereo > 0 ? s.disparity / s.stereo : 0.0;
+    out.push_back(r);
+  }
+  return out;
+}
 
 MapFloor MapEstimateFloor(const Map& map, const Trajectory& truth,
                           const LoopClosingOptions& loop_options, const MapFloorOptions& options) {
@@ -76,10 +127,14 @@ MapFloor MapEstimateFloor(const Map& map, const Trajectory& truth,
   f.map_m = KeyframeAte(map, truth);
   if (f.keyframes < 3) return f;
   const auto start = std::chrono::steady_clock::now();
-  f.converged_m = AteOf(Converge(map, loop_options, options, nullptr), truth);
+  const MapCorrection converged = Converge(map, loop_options, options, nullptr);
+  f.converged_m = AteOf(converged.after, truth);
+  Map solved = map;
+  solved.Apply(LoopCloser::CorrectionDelta(solved, converged));
+  f.converged_residuals = ResidualsByLevel(solved);
   const KeyframePoses at_truth = TruePoses(map, truth);
   f.start_m = AteOf(at_truth, truth);
-  f.from_truth_m = AteOf(Converge(map, loop_options, options, &at_truth), truth);
+  f.from_truth_m = AteOf(Converge(map, loop_options, options, &at_truth).after, truth);
   f.solve_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return f;
 }

@@ -9,6 +9,7 @@
 // loop correction included. For benchmarks and tests (bench_loop --floor); needs ground truth
 // whose indices are the keyframes' frame indices (keyframe ids, for a run from frame 0).
 #include <limits>
+#include <vector>
 
 #include "slam/common/pose.h"
 #include "slam/loop/loop_closer.h"
@@ -21,6 +22,22 @@ struct MapFloorOptions {
   double function_tolerance = 1e-10;
 };
 
+// Mean residual of a map's keyframe observations at one ORB pyramid level: observed minus
+// projected, in level-0 pixels, over the observations within BA's chi-square gate (5.991 mono,
+// 7.815 stereo; the points in front of their camera). radial_u / radial_v: the horizontal /
+// vertical residual signed away from the principal point (negative: the keypoints lie nearer
+// the image's centre than their points project). disparity: observed minus predicted disparity
+// over the stereo observations. Noise averages out of these means; what stays is a systematic
+// part of the observations that no back end removes.
+struct LevelResidual {
+  int level = 0;
+  int observations = 0, stereo = 0;
+  double radial_u_px = 0, radial_v_px = 0, disparity_px = 0;
+};
+
+// Per pyramid level that holds an observation, in level order.
+std::vector<LevelResidual> ResidualsByLevel(const Map& map);
+
 struct MapFloor {
   static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   int keyframes = 0;
@@ -29,6 +46,8 @@ struct MapFloor {
   double start_m = kNaN;       // the keyframes moved to the truth, before the solve (~0)
   double from_truth_m = kNaN;  // after the solve from the truth
   double solve_s = 0;          // both solves
+  // ResidualsByLevel of the map after the solve from its own estimate.
+  std::vector<LevelResidual> converged_residuals;
 };
 
 // SE(3)-aligned RMSE of the map's keyframe positions against truth (NaN when fewer than 3

@@ -126,6 +126,28 @@ TEST(LoopClosing, TheRevisitIsClosedAndTheTrajectoryImprovesSequentially) {
   EXPECT_LT(std::abs(on_floor.converged_m - on_floor.from_truth_m), 0.005);
   EXPECT_LT(on_floor.map_m, 1.3 * on_floor.from_truth_m + 0.005);
   EXPECT_LT(on_floor.from_truth_m, 0.5 * off_floor.from_truth_m);
+  // The converged map's mean residuals per pyramid level: every level of the pyramid that holds
+  // observations, within BA's gate (so far below the gate's 2.4 px at level 0), and near zero at
+  // level 0, where most observations are (a projection or sign slip would show here).
+  ASSERT_FALSE(on_floor.converged_residuals.empty());
+  int residual_observations = 0;
+  for (const LevelResidual& l : on_floor.converged_residuals) {
+    std::printf(
+        "[loop street] level %d: %d observations, radial %+.4f / %+.4f px, %d stereo, "
+        "disparity %+.4f px\n",
+        l.level, l.observations, l.radial_u_px, l.radial_v_px, l.stereo, l.disparity_px);
+    EXPECT_GT(l.observations, 0);
+    EXPECT_LE(l.stereo, l.observations);
+    EXPECT_LT(std::abs(l.radial_u_px), 0.5);
+    EXPECT_LT(std::abs(l.radial_v_px), 0.5);
+    EXPECT_LT(std::abs(l.disparity_px), 0.5);
+    residual_observations += l.observations;
+  }
+  const LevelResidual& level0 = on_floor.converged_residuals.front();
+  EXPECT_EQ(level0.level, 0);
+  EXPECT_LT(std::abs(level0.radial_u_px), 0.05);
+  EXPECT_LT(std::abs(level0.radial_v_px), 0.05);
+  EXPECT_GT(residual_observations, 1000);
 
   // loop.final_global_ba (on in stereo): the keyframes mapped after the loop's global BA are
   // taken into one more global BA after the last frame (an event of frame -1, over every keyframe

@@ -29,6 +29,8 @@ TEST(MapFloor, AMapWithoutKeyframesHasNoFigures) {
   EXPECT_TRUE(std::isnan(f.map_m));
   EXPECT_TRUE(std::isnan(f.from_truth_m));
   EXPECT_TRUE(std::isnan(KeyframeAte(Map{}, Trajectory{})));
+  EXPECT_TRUE(f.converged_residuals.empty());
+  EXPECT_TRUE(ResidualsByLevel(Map{}).empty());
 }
 
 }  // namespace
