@@ -9,6 +9,7 @@
 #include "eval/association.h"
 #include "eval/evaluation.h"
 #include "slam/common/error.h"
+#include "slam/optim/bundle_adjustment.h"
 
 namespace pcr::driver {
 namespace {
@@ -72,7 +73,7 @@ struct ResidualSums {
 double KeyframeAte(const Map& map, const Trajectory& truth) { return AteOf(PosesOf(map), truth); }
 
 std::vector<LevelResidual> ResidualsByLevel(const Map& map) {
-  constexpr double kChi2Mono = 5.991, kChi2Stereo = 7.815;  // BundleAdjustmentOptions' gates
+  const BundleAdjustmentOptions gates;  // BA's chi-square thresholds
   std::map<int, ResidualSums> sums;
   for (const auto& [pid, mp] : map.points()) {
     for (const auto& [kid, kp] : mp.observations) {
@@ -84,8 +85,8 @@ std::vector<LevelResidual> ResidualsByLevel(const Map& map) {
       if (!(pc.z() > 0)) continue;
       const StereoRig& rig = f.rig();
       const PinholeCamera& cam = rig.left;
-      const double u = cam.fx * pc.x() / pc.z() + cam.cx;
-      const double v = cam.fy * pc.y() / pc.z() + cam.cy;
+      const Eigen::Vector2d projected = cam.Project(pc);
+      const double u = projected.x(), v = projected.y();
       const Eigen::Vector2d uv = f.uv(kp);
       const double du = uv.x() - u, dv = uv.y() - v;
       const int level = f.octave(kp);
@@ -93,7 +94,7 @@ std::vector<LevelResidual> ResidualsByLevel(const Map& map) {
       const bool stereo = f.has_stereo(kp) && rig.IsStereo();
       const double dr = stereo ? f.u_right_px(kp) - rig.ProjectRightX(pc) : 0.0;
       const double chi2 = (du * du + dv * dv + dr * dr) * information;
-      if (chi2 > (stereo ? kChi2Stereo : kChi2Mono)) continue;
+      if (chi2 > (stereo ? gates.chi2_stereo : gates.chi2_mono)) continue;
       ResidualSums& s = sums[level];
       ++s.observations;
       s.radial_u += u >= cam.cx ? du : -du;
