@@ -18,9 +18,11 @@
 //              loop edges at every revisit frame, OracleOf), the best any loop correction of that
 //              drift can do without re-estimating the structure, so ATE on/off can be read against
 //              ATE oracle/off of the same run. Then where the error lies, off and on: the aligned
-//              error's RMS along the direction of travel, across it and vertical, and the scale
-//              error of 40-frame windows on straights (RMS, and the correlation of the same
-//              windows' errors off and on).
+//              error's RMS along the direction of travel, across it and vertical, the mean across
+//              it (signed; on the loop a constant outward or inward error: the loop estimated too
+//              large or too small all round, which closes with the loop), and the scale
+//              error of 40-frame windows on straights (RMS, mean, and the correlation of the
+//              same windows' errors off and on).
 //  --latency   one seed, pipelined policy: ON/OFF/ON/OFF... for --repeat rounds; tracking latency
 //              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages.
 //  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
@@ -290,12 +292,16 @@ std::pair<double, double> StepLengths(const pcr::Dataset& d, const pcr::Trajecto
 }
 
 // Where an aligned estimate's error lies: RMS along the ground truth's direction of travel, across
-// it and vertical (the world's y axis: KITTI's camera 0 at frame 0, y down), and the scale error
-// of windows of kSplitWindow frames on straights (estimated distance / true distance - 1).
+// it and vertical (the world's y axis: KITTI's camera 0 at frame 0, y down), the mean across it
+// (signed, + to the right of the travel: on the loop route, driven with left turns, outward, so a
+// loop estimated too large all round has a positive mean; a closed loop keeps such an error, as
+// it closes with it), and the scale error of windows of kSplitWindow frames on straights
+// (estimated distance / true distance - 1).
 constexpr int kSplitWindow = 40;  // frames (32 m at 8 m/s)
 
 struct ErrorSplit {
   double along_m = kNaN, cross_m = kNaN, vertical_m = kNaN;
+  double cross_mean_m = kNaN;                            // signed, + to the right of the travel
   std::vector<std::pair<int64_t, double>> window_scale;  // (first frame, scale error)
 };
 
@@ -323,7 +329,9 @@ ErrorSplit SplitOf(const pcr::eval::EvalResult& e) {
     vertical.push_back(err.dot(up));
   }
   split.along_m = pcr::eval::ComputeStatistics(along).rmse;
-  split.cross_m = pcr::eval::ComputeStatistics(cross).rmse;
+  const pcr::eval::ErrorStatistics cross_stats = pcr::eval::ComputeStatistics(cross);
+  split.cross_m = cross_stats.rmse;
+  split.cross_mean_m = cross_stats.mean;
   split.vertical_m = pcr::eval::ComputeStatistics(vertical).rmse;
   // Straight windows: every frame present and the heading within 0.01 rad throughout.
   for (size_t i = 0; i + kSplitWindow < n; i += kSplitWindow / 2) {
@@ -687,11 +695,14 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
 
   std::printf(
       "\nWhere the error lies (RMS m of the aligned error along the direction of travel, across "
-      "it and vertical; scale error of %d-frame windows on straights, estimated / true distance "
-      "- 1, RMS per mille, and the correlation of the windows' errors off and on)\n",
+      "it and vertical; cr mean: the mean error across it, m, + to the right of the travel, "
+      "outward on the loop: the part that closes with the loop; scale error of %d-frame windows "
+      "on straights, estimated / true distance - 1, RMS and mean per mille, and the correlation of "
+      "the windows' errors off and on)\n",
       kSplitWindow);
-  std::printf("%4s | %7s %7s | %7s %7s | %7s %7s | %7s %7s %7s %5s\n", "seed", "al off", "al on",
-              "cr off", "cr on", "vt off", "vt on", "windows", "scl off", "scl on", "corr");
+  std::printf("%4s | %7s %7s | %7s %7s | %8s %8s | %7s %7s | %7s %7s %7s %8s %8s %5s\n", "seed",
+              "al off", "al on", "cr off", "cr on", "crm off", "crm on", "vt off", "vt on",
+              "windows", "scl off", "scl on", "mean off", "mean on", "corr");
   for (const Row& r : rows) {
     // The windows both runs measured, in frame order.
     std::vector<double> off, on;
@@ -707,10 +718,13 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
       syy += (on[i] - on_stats.mean) * (on[i] - on_stats.mean);
     }
     const double corr = sxx > 0 && syy > 0 ? sxy / std::sqrt(sxx * syy) : kNaN;
-    std::printf("%4d | %7.3f %7.3f | %7.3f %7.3f | %7.3f %7.3f | %7zu %7.2f %7.2f %5.2f\n",
-                static_cast<int>(r.seed), r.off.split.along_m, r.on.split.along_m,
-                r.off.split.cross_m, r.on.split.cross_m, r.off.split.vertical_m,
-                r.on.split.vertical_m, off.size(), 1e3 * off_stats.rmse, 1e3 * on_stats.rmse, corr);
+    std::printf(
+        "%4d | %7.3f %7.3f | %7.3f %7.3f | %+8.3f %+8.3f | %7.3f %7.3f | %7zu %7.2f %7.2f %+8.2f "
+        "%+8.2f %5.2f\n",
+        static_cast<int>(r.seed), r.off.split.along_m, r.on.split.along_m, r.off.split.cross_m,
+        r.on.split.cross_m, r.off.split.cross_mean_m, r.on.split.cross_mean_m,
+        r.off.split.vertical_m, r.on.split.vertical_m, off.size(), 1e3 * off_stats.rmse,
+        1e3 * on_stats.rmse, 1e3 * off_stats.mean, 1e3 * on_stats.mean, corr);
   }
 
   std::printf(
