@@ -9,7 +9,9 @@
 // disparity is right, are counted and left out of the statistics. Errors above 1 px are counted
 // as wrong matches and left out of bias, SD, RMS and p95. Rows: all matches, the road (points
 // within 3 cm of the frame's road plane, fitted to the true points of the road just in front of
-// the car; frames without a flat patch there add no road points), and bins of true disparity.
+// the car; frames without a flat patch there add no road points), the matches whose SAD window
+// holds a markedly nearer surface (WindowHoldsNearer: the window fattens the foreground, and the
+// disparity comes out too large), and bins of true disparity.
 // Prints figures and asserts nothing; the exit status is 1 only for bad arguments.
 //
 //   bench_stereo_truth [--seeds 1,2] [--frames 600] [--stride 30]
@@ -52,9 +54,10 @@ std::vector<Setting> Settings() {
   return {{"default (equiangular)", {}}, {"parabola", parabola}, {"slant_refinement", slanted}};
 }
 
-// Rows of the table: all, road, then true-disparity bins.
-constexpr std::array<const char*, 6> kRowNames = {"all",     "road",     "d < 4 px",
+// Rows of the table: all, road, a nearer surface in the window, then true-disparity bins.
+constexpr std::array<const char*, 7> kRowNames = {"all",     "road",     "nearer",  "d < 4 px",
                                                   "4-10 px", "10-25 px", ">= 25 px"};
+constexpr int kRoadRow = 1, kNearerRow = 2, kFirstBinRow = 3;
 
 struct Stats {
   long matched = 0, edge = 0, wrong = 0;
@@ -86,6 +89,26 @@ double TrueDisparity(const cv::Mat& disparity, cv::Point2f pt) {
   const double ax = pt.x - x0, ay = pt.y - y0;
   return (1 - ay) * ((1 - ax) * at(y0, x0) + ax * at(y0, x0 + 1)) +
          ay * ((1 - ax) * at(y0 + 1, x0) + ax * at(y0 + 1, x0 + 1));
+}
+
+// Whether the matcher's SAD window (half_px level-0 pixels either side of the keypoint) holds a
+// surface markedly nearer than the keypoint's own: a true disparity above kNearerFactor times
+// its own plus kNearerPx. Window matching is pulled toward such a surface (it fattens the
+// foreground), so these matches' disparities come out too large.
+constexpr double kNearerFactor = 1.3, kNearerPx = 0.3;
+
+bool WindowHoldsNearer(const cv::Mat& disparity, cv::Point2f pt, double half_px, double truth) {
+  const double limit = kNearerFactor * truth + kNearerPx;
+  const int x0 = std::max(0, static_cast<int>(std::floor(pt.x - half_px)));
+  const int x1 = std::min(disparity.cols - 1, static_cast<int>(std::ceil(pt.x + half_px)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(pt.y - half_px)));
+  const int y1 = std::min(disparity.rows - 1, static_cast<int>(std::ceil(pt.y + half_px)));
+  for (int y = y0; y <= y1; ++y) {
+    const float* row = disparity.ptr<float>(y);
+    for (int x = x0; x <= x1; ++x)
+      if (row[x] > limit) return true;
+  }
+  return false;
 }
 
 // A true point of the left camera at a pixel and its true disparity.
@@ -201,11 +224,19 @@ int main(int argc, char** argv) {
           const bool road =
               !edge && road_plane &&
               std::abs(road_plane->SignedDistance(PointAt(rig, pt, truth))) < kRoadBandM;
-          const int bin = edge ? -1 : truth < 4 ? 2 : truth < 10 ? 3 : truth < 25 ? 4 : 5;
+          const double half_px = (settings[s].options.sad_window_half_px + 0.5) *
+                                 extractor.scale_factors()[left.keypoints[i].octave];
+          const bool nearer = !edge && WindowHoldsNearer(disparity, pt, half_px, truth);
+          const int bin = edge         ? -1
+                          : truth < 4  ? kFirstBinRow
+                          : truth < 10 ? kFirstBinRow + 1
+                          : truth < 25 ? kFirstBinRow + 2
+                                       : kFirstBinRow + 3;
           const double e = (pt.x - m.u_right_px[i]) - truth;
           for (int row = 0; row < static_cast<int>(kRowNames.size()); ++row) {
-            if (row == 1 && !road) continue;
-            if (row >= 2 && row != bin) continue;
+            if (row == kRoadRow && !road) continue;
+            if (row == kNearerRow && !nearer) continue;
+            if (row >= kFirstBinRow && row != bin) continue;
             if (row >= 1 && edge) continue;
             Stats& st = stats[s][static_cast<size_t>(row)];
             ++st.matched;
