@@ -23,12 +23,12 @@ struct MapFloorOptions {
 };
 
 // Mean residual of a map's keyframe observations at one ORB pyramid level: observed minus
-// projected, in level-0 pixels, over the observations within BA's chi-square gate (5.991 mono,
-// 7.815 stereo; the points in front of their camera). radial_u / radial_v: the horizontal /
-// vertical residual signed away from the principal point (negative: the keypoints lie nearer
-// the image's centre than their points project). disparity: observed minus predicted disparity
-// over the stereo observations. Noise averages out of these means; what stays is a systematic
-// part of the observations that no back end removes.
+// projected, in level-0 pixels, over the observations within BA's chi-square gate
+// (BundleAdjustmentOptions' chi2_mono / chi2_stereo; the points in front of their camera).
+// radial_u, radial_v: the horizontal and vertical residual signed away from the principal point
+// (negative: the keypoints lie nearer the image's centre than their points project). disparity:
+// observed minus predicted disparity over the stereo observations. Noise averages out of these
+// means; what stays is a systematic part of the observations that no back end removes.
 struct LevelResidual {
   int level = 0;
   int observations = 0, stereo = 0;
