@@ -22,11 +22,14 @@
 //              it (signed; on the loop a constant outward or inward error: the loop estimated too
 //              large or too small all round, which closes with the loop), and the scale
 //              error of 40-frame windows on straights (RMS, mean, and the correlation of the
-//              same windows' errors off and on).
+//              same windows' errors off and on), and the drift per metre: the relative error
+//              over 40 m of path (all pairs, RMS; translation in %, rotation in deg / 100 m).
 //  --latency   one seed, pipelined policy: ON/OFF/ON/OFF... for --repeat rounds; tracking latency
 //              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages.
 //  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
-//              (must be 0: "FALSE LOOP" and exit 1 otherwise), detection p50/p99.
+//              (must be 0: "FALSE LOOP" and exit 1 otherwise), detection p50/p99, and where
+//              the clip has ground truth its ATE and its drift per metre as above (a clip
+//              shorter than 40 m of path: nan).
 //  --place     place recognition alone (no SLAM): ORB + bag of words on every --place-stride'th
 //              left frame of each clip, all clips in one pool. A query's database: the frames of
 //              the other clips (as if mapped before) and its own clip's earlier frames outside its
@@ -144,6 +147,9 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kPlaceRadiusM = 10.0;   // --place: a correct match lies within this of the query
 constexpr size_t kPlaceVerifyTopK = 10;  // --place: best-scoring frames tried by the two-view check
 constexpr size_t kScaleWindow = 100;     // mono end-of-route figures: tracked frames at each end
+// Drift per metre: the relative error (RPE, all pairs) over this much ground-truth path, RMS,
+// divided by it. Alignment-free, so a synthetic route and a real clip compare directly.
+constexpr double kDriftDeltaM = 40.0;
 
 struct Args {
   std::string seeds = "1,2,3";
@@ -356,6 +362,9 @@ struct Figures {
   // Mono: the map's metres per unit from the road over the ground truth's Sim(3) scale, and the
   // ATE in those metres aligned by SE(3) (driver::GroundScaleJson); NaN without a road.
   double road_ratio = kNaN, road_ate_m = kNaN;
+  // RPE over kDriftDeltaM of path (all pairs), RMS: translation in % of it, rotation in deg per
+  // 100 m; NaN when the route is shorter.
+  double drift_pct = kNaN, drift_deg_100m = kNaN;
   double wall_s = 0;
   std::string error;  // the run stopped early
 };
@@ -369,11 +378,18 @@ Figures Measure(const pcr::Dataset& d, const pcr::driver::DriverResult& run, boo
   if (!d.ground_truth || tracked.size() < 3) return f;
   pcr::eval::EvalOptions options;
   options.alignment.mode = mono ? pcr::eval::AlignMode::kSim3 : pcr::eval::AlignMode::kSe3;
+  options.rpe.delta = kDriftDeltaM;
+  options.rpe.unit = pcr::eval::DeltaUnit::kMeters;
+  options.rpe.all_pairs = true;
   try {
     const pcr::eval::EvalResult e =
         pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(*d.ground_truth, tracked), options);
     f.ate_m = e.ape.trans_m.rmse;
     f.split = SplitOf(e);
+    if (e.rpe.trans_m.count > 0) {
+      f.drift_pct = 100 * e.rpe.trans_m.rmse / kDriftDeltaM;
+      f.drift_deg_100m = 100 * e.rpe.rot_deg.rmse / kDriftDeltaM;
+    }
   } catch (const std::exception& e) {
     spdlog::warn("ATE: {}", e.what());
   }
@@ -698,11 +714,15 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
       "it and vertical; cr mean: the mean error across it, m, + to the right of the travel, "
       "outward on the loop: the part that closes with the loop; scale error of %d-frame windows "
       "on straights, estimated / true distance - 1, RMS and mean per mille, and the correlation of "
-      "the windows' errors off and on)\n",
-      kSplitWindow);
-  std::printf("%4s | %7s %7s | %7s %7s | %8s %8s | %7s %7s | %7s %7s %7s %8s %8s %5s\n", "seed",
-              "al off", "al on", "cr off", "cr on", "crm off", "crm on", "vt off", "vt on",
-              "windows", "scl off", "scl on", "mean off", "mean on", "corr");
+      "the windows' errors off and on; drift: the relative error over %.0f m of path, all pairs, "
+      "RMS, translation in %% of it and rotation in deg per 100 m, as `--sequence` prints it for "
+      "real clips)\n",
+      kSplitWindow, kDriftDeltaM);
+  std::printf(
+      "%4s | %7s %7s | %7s %7s | %8s %8s | %7s %7s | %7s %7s %7s %8s %8s %5s | %6s %6s %6s %6s\n",
+      "seed", "al off", "al on", "cr off", "cr on", "crm off", "crm on", "vt off", "vt on",
+      "windows", "scl off", "scl on", "mean off", "mean on", "corr", "t% off", "t% on", "r off",
+      "r on");
   for (const Row& r : rows) {
     // The windows both runs measured, in frame order.
     std::vector<double> off, on;
@@ -720,11 +740,12 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
     const double corr = sxx > 0 && syy > 0 ? sxy / std::sqrt(sxx * syy) : kNaN;
     std::printf(
         "%4d | %7.3f %7.3f | %7.3f %7.3f | %+8.3f %+8.3f | %7.3f %7.3f | %7zu %7.2f %7.2f %+8.2f "
-        "%+8.2f %5.2f\n",
+        "%+8.2f %5.2f | %6.3f %6.3f %6.3f %6.3f\n",
         static_cast<int>(r.seed), r.off.split.along_m, r.on.split.along_m, r.off.split.cross_m,
         r.on.split.cross_m, r.off.split.cross_mean_m, r.on.split.cross_mean_m,
         r.off.split.vertical_m, r.on.split.vertical_m, off.size(), 1e3 * off_stats.rmse,
-        1e3 * on_stats.rmse, 1e3 * off_stats.mean, 1e3 * on_stats.mean, corr);
+        1e3 * on_stats.rmse, 1e3 * off_stats.mean, 1e3 * on_stats.mean, corr, r.off.drift_pct,
+        r.on.drift_pct, r.off.drift_deg_100m, r.on.drift_deg_100m);
   }
 
   std::printf(
@@ -806,23 +827,30 @@ int RunSequences(const Args& args, const std::shared_ptr<const pcr::Vocabulary>&
     std::fprintf(stderr, "--policy: sequential or pipelined\n");
     return 1;
   }
-  std::printf("\nClips without a loop (%s, %s, loop closing on)\n", args.mode.c_str(),
-              args.policy.c_str());
-  std::printf("%-28s %6s %7s | %5s %7s %6s %6s | %5s %6s %9s %9s | %6s | %7s %7s | %6s\n", "clip",
-              "frames", "tracked", "KFs", "queries", "cands", "gated", "jobs", "j rej", "cand rej",
-              "precheck", "loops", "det p50", "det p99", "wall s");
+  const bool mono = args.mode == "mono";
+  std::printf(
+      "\nClips without a loop (%s, %s, loop closing on; against the clip's ground truth where it "
+      "has one: %s ATE in m, and the drift as the loops' table gives it, over %.0f m of path: "
+      "translation in %%, rotation in deg per 100 m)\n",
+      args.mode.c_str(), args.policy.c_str(), mono ? "Sim(3)" : "SE(3)", kDriftDeltaM);
+  std::printf(
+      "%-28s %6s %7s | %5s %7s %6s %6s | %5s %6s %9s %9s | %6s | %7s %7s | %7s %6s %6s | %6s\n",
+      "clip", "frames", "tracked", "KFs", "queries", "cands", "gated", "jobs", "j rej", "cand rej",
+      "precheck", "loops", "det p50", "det p99", "ATE", "t%", "r", "wall s");
   int bad = 0;
   for (const std::string& path : args.sequences) {
     const pcr::Dataset d = pcr::OpenDataset(path);
     const pcr::driver::DriverResult run = Run(d, args, policy, vocabulary);
     const pcr::LoopStats& st = run.pipeline.loop_stats;
     const pcr::TimingSummary detect = pcr::SummarizeTimes(st.detect_ms);
+    const Figures f = Measure(d, run, mono);
     std::printf(
-        "%-28s %6zu %7zu | %5d %7d %6d %6d | %5d %6d %9d %9d | %6d | %7.2f %7.2f | %6.1f%s%s%s\n",
+        "%-28s %6zu %7zu | %5d %7d %6d %6d | %5d %6d %9d %9d | %6d | %7.2f %7.2f | %7.4f %6.3f "
+        "%6.3f | %6.1f%s%s%s\n",
         d.name.c_str(), d.size(), run.summary.tracked.size(), st.keyframes_seen, st.detections,
         st.candidates, st.sequence_gated, st.jobs, st.rejected, st.candidates_rejected,
-        st.candidates_prechecked, st.corrections, detect.p50_ms, detect.p99_ms, run.summary.wall_s,
-        st.corrections > 0 ? "  FALSE LOOP" : "",
+        st.candidates_prechecked, st.corrections, detect.p50_ms, detect.p99_ms, f.ate_m,
+        f.drift_pct, f.drift_deg_100m, run.summary.wall_s, st.corrections > 0 ? "  FALSE LOOP" : "",
         run.summary.error.empty() ? "" : "  FAILED: ", run.summary.error.c_str());
     std::fflush(stdout);
     bad += st.corrections > 0 || !run.summary.error.empty();
