@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <utility>
 
 #include "slam/common/error.h"
@@ -1000,7 +1001,17 @@ MapDelta LoopCloser::CorrectionDelta(const Map& map, const MapCorrection& correc
   }
   std::unordered_map<MapPointId, Eigen::Vector3d> snapshot_position;
   for (const auto& [pid, p] : correction.point_positions) snapshot_position[pid] = p;
+  // A point that this delta merges away takes no position of its own: Map::Apply resolves ids
+  // through the merges, so its entry would land on the point it merges into and overwrite the
+  // position the correction gave that one. (Where the point it merges into is gone, the merge
+  // will not happen, and the point moves like any other.)
+  std::unordered_set<MapPointId> merged_away;
+  for (const PointMerge& merge : correction.merges) {
+    const MapPointId from = map.Resolve(merge.from), into = map.Resolve(merge.into);
+    if (from.valid() && into.valid() && from != into) merged_away.insert(from);
+  }
   for (const auto& [pid, mp] : map.points()) {
+    if (merged_away.count(pid)) continue;
     if (const auto it = snapshot_position.find(pid); it != snapshot_position.end()) {
       delta.point_positions.emplace_back(pid, it->second);
       continue;

@@ -162,6 +162,41 @@ TEST(LoopCloser, CorrectionDeltaWithScaleMovesPointsByTheSimilarity) {
   EXPECT_TRUE(q_cam.isApprox(1.25 * p_cam, 1e-9));
 }
 
+TEST(LoopCloser, CorrectionDeltaKeepsTheFusedLoopPointsPosition) {
+  // As CloseLoop makes a correction: the query side's duplicate (point 45, keyframe 2's) merges
+  // into the loop point (point 5, keyframe 0's), and the snapshot gives every point that is left
+  // after the fusion its corrected position; the duplicate has none.
+  Map live = ChainMap(3);
+  const MapPointId loop_point(5), duplicate(45), other(46);
+  Sim3 w;  // the query side's world correction
+  w.translation = Eigen::Vector3d(0.2, 0, 0.1);
+  MapCorrection c;
+  for (const auto& [id, kf] : live.keyframes()) {
+    c.before[id] = Sim3::FromSE3(kf.cam_from_world);
+    c.after[id] = id.value == 2 ? c.before[id] * w.Inverse() : c.before[id];
+  }
+  c.merges.push_back({duplicate, loop_point});
+  const Eigen::Vector3d fused_position(0.5, 0.1, 10.05);
+  for (const auto& [pid, mp] : live.points()) {
+    if (pid == duplicate) continue;
+    c.point_positions.emplace_back(pid, pid == loop_point ? fused_position : mp.p_in_world);
+  }
+  // A merge whose target is gone does not happen: its source moves as any other point does.
+  const Eigen::Vector3d other_before = live.point(other)->p_in_world;
+  c.merges.push_back({other, MapPointId(9999)});
+  std::erase_if(c.point_positions, [&](const auto& e) { return e.first == other; });
+
+  const MapDelta delta = LoopCloser::CorrectionDelta(live, c);
+  for (const auto& [pid, p] : delta.point_positions) EXPECT_NE(pid, duplicate);
+  live.Apply(delta);
+  EXPECT_EQ(live.point(duplicate), nullptr);
+  EXPECT_EQ(live.Resolve(duplicate), loop_point);
+  EXPECT_TRUE(live.point(loop_point)->p_in_world.isApprox(fused_position, 1e-12));
+  EXPECT_TRUE(live.point(loop_point)->observations.count(KeyframeId(2)));
+  ASSERT_NE(live.point(other), nullptr);
+  EXPECT_TRUE(live.point(other)->p_in_world.isApprox(w.Map(other_before), 1e-12));
+}
+
 TEST(LoopCloser, WithoutAVocabularyItIsInactiveAndBadOptionsAreRejected) {
   LoopCloser closer(LoopClosingOptions{}, nullptr, true);
   EXPECT_FALSE(closer.IsActive());
