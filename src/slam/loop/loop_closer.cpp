@@ -303,9 +303,11 @@ std::vector<PlaceCandidate> LoopCloser::SequenceCandidates(KeyframeId query_id, 
     auto row = sequence_rows_.find(h);
     if (row == sequence_rows_.end())  // a loaded map, or rows culled meanwhile
       row = sequence_rows_.emplace(h, database_.Scores(bow_.at(h))).first;
+    // Against the keyframes before it only, as when it came: a row computed again now also
+    // holds the keyframe itself (1) and those added after it.
     for (const auto& [other, s] : row->second) {
       const auto p = position.find(other);
-      if (p != position.end()) score[k][p->second] = s;
+      if (p != position.end() && p->second < q - k) score[k][p->second] = s;
     }
   }
   // Left out as by KeyframeDatabase::DetectLoopCandidates.
@@ -385,14 +387,22 @@ int LoopCloser::Restore(const std::optional<PlaceArchive>& archive, const Map& m
   if (!IsActive()) return 0;
   const bool same = archive && archive->vocabulary_fingerprint == VocabularyFingerprint() &&
                     archive->direct_index_levels_up == options_.direct_index_levels_up;
-  // A stored vector is used only when it fits this vocabulary and the keyframe's keypoints.
+  // A stored vector is used only when it fits this vocabulary and the keyframe's keypoints, in
+  // the order Transform makes (words, nodes and rows increasing: scoring and matching by words
+  // are merge joins, which an unsorted vector would silently get wrong).
   auto fits = [this](const BowVector& bow, const FeatureVector& features, const Frame& frame) {
-    for (const auto& [word, weight] : bow.words)
-      if (word >= vocabulary_->num_words() || !std::isfinite(weight)) return false;
-    for (const auto& [node, rows] : features.nodes) {
+    for (size_t i = 0; i < bow.words.size(); ++i) {
+      const auto& [word, weight] = bow.words[i];
+      if (word >= vocabulary_->num_words() || !std::isfinite(weight) || weight < 0) return false;
+      if (i > 0 && !(bow.words[i - 1].first < word)) return false;
+    }
+    for (size_t i = 0; i < features.nodes.size(); ++i) {
+      const auto& [node, rows] = features.nodes[i];
       if (node >= vocabulary_->num_nodes()) return false;
-      for (int row : rows)
-        if (row < 0 || row >= frame.size()) return false;
+      if (i > 0 && !(features.nodes[i - 1].first < node)) return false;
+      for (size_t r = 0; r < rows.size(); ++r)
+        if (rows[r] < 0 || rows[r] >= frame.size() || (r > 0 && !(rows[r - 1] < rows[r])))
+          return false;
     }
     return true;
   };

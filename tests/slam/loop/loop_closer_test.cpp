@@ -356,6 +356,55 @@ TEST(LoopCloser, SequenceCandidatesLeaveOutTheRecentKeyframes) {
   EXPECT_DOUBLE_EQ(found[0].score, 0.0);  // place 20 against the query's place 25
 }
 
+TEST(LoopCloser, SequenceRowsComputedAgainScoreOnlyTheKeyframesBeforeThem) {
+  // A drive that never comes back (keyframe k sees place k), with only the last 2 keyframes
+  // excluded: at half speed the query's history pairs keyframe 45 with itself when the candidate
+  // is keyframe 48. Rows kept from when each keyframe came hold no score against itself, so no
+  // candidate scores above 0; rows computed again for a loaded map must hold the same.
+  const Places places(60);
+  std::vector<int> route;
+  for (int k = 0; k < 52; ++k) route.push_back(k);
+  LoopClosingOptions o = SequenceOptions();
+  o.exclude_recent_keyframes = 2;
+  LoopCloser closer(o, places.vocabulary, true);
+  const Map map = places.Drive(route, &closer);
+  EXPECT_TRUE(closer.SequenceCandidates(KeyframeId(51), map).empty());
+  LoopCloser loaded(o, places.vocabulary, true);
+  ASSERT_EQ(loaded.Restore(closer.Archive(map), map), 0);
+  EXPECT_TRUE(loaded.SequenceCandidates(KeyframeId(51), map).empty());
+}
+
+TEST(LoopCloser, RestoreComputesAgainTheStoredVectorsThatAreOutOfOrder) {
+  const Places places(20);
+  std::vector<int> route;
+  for (int k = 0; k < 10; ++k) route.push_back(k);
+  LoopCloser closer(LoopClosingOptions{}, places.vocabulary, true);
+  const Map map = places.Drive(route, &closer);
+  const std::optional<PlaceArchive> good = closer.Archive(map);
+  ASSERT_TRUE(good.has_value());
+  std::optional<PlaceArchive> bad = good;
+  // Keyframe 3's words in decreasing order, keyframe 6's rows in decreasing order, keyframe 8's
+  // node listed twice: each still in range, each wrong for the merge joins.
+  BowVector& bow = bad->bows.at(KeyframeId(3));
+  ASSERT_EQ(bow.words.size(), 1u);
+  const WordId word = bow.words[0].first, other_word = word == 0 ? 1 : 0;
+  bow.words = {{std::max(word, other_word), 0.5}, {std::min(word, other_word), 0.5}};
+  std::vector<int>& rows = bad->features.at(KeyframeId(6)).nodes.at(0).second;
+  ASSERT_GT(rows.size(), 1u);
+  std::reverse(rows.begin(), rows.end());
+  FeatureVector& twice = bad->features.at(KeyframeId(8));
+  twice.nodes.push_back(twice.nodes.back());
+
+  LoopCloser loaded(LoopClosingOptions{}, places.vocabulary, true);
+  EXPECT_EQ(loaded.Restore(bad, map), 3);  // those three computed again, the rest as stored
+  const std::optional<PlaceArchive> again = loaded.Archive(map);
+  ASSERT_TRUE(again.has_value());
+  for (const auto& [id, b] : good->bows) {
+    EXPECT_EQ(again->bows.at(id).words, b.words) << id.value;
+    EXPECT_EQ(again->features.at(id).nodes, good->features.at(id).nodes) << id.value;
+  }
+}
+
 TEST(LoopCloser, BadSequenceOptionsAreRejected) {
   LoopClosingOptions o = SequenceOptions();
   std::string why;
