@@ -188,7 +188,6 @@ struct LoopStats {
   int corrections = 0;                   // loop corrections applied
   int global_bas = 0;                    // global BAs applied
   int global_bas_aborted = 0;
-  int stale_outcomes = 0;         // outcomes dropped because a later correction made them obsolete
   int map_copies = 0;             // jobs carrying a copy of the map
   int map_edit_jobs = 0;          // jobs carrying the edits since the previous job instead
   int64_t map_edits = 0;          // map deltas those carried
