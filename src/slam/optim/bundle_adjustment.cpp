@@ -31,8 +31,6 @@ struct PreparedObservation {
   optim::WeightedLoss loss;          // weight * rho
 };
 
-// Huber rho(s) as Ceres defines it, for delta^2 = threshold.
-
 class BundleAdjuster {
  public:
   BundleAdjuster(const StereoRig& rig, const std::vector<BaKeyframe>& keyframes,

@@ -59,8 +59,8 @@ struct BundleAdjustmentResult {
   std::vector<SE3> cam_from_world;          // per keyframe (fixed ones unchanged)
   std::vector<Eigen::Vector3d> p_in_world;  // per point
   std::vector<bool> observation_inlier;     // per observation
-  // 0.5 * sum of Huber(chi2) over the observations that entered the first solve, at the input
-  // and at the output estimate (comparable numbers; an observation whose point ends up behind
+  // 0.5 * sum of weight * Huber(chi2) over the observations that entered the first solve, at the
+  // input and at the output estimate (comparable numbers; an observation whose point ends up behind
   // its camera counts as Huber(chi2 threshold)).
   double initial_cost = 0, final_cost = 0;
   int iterations = 0;  // solver iterations over both solves
@@ -77,9 +77,9 @@ struct BundleAdjustmentResult {
 // - Observations enter the first solve when their values are finite, information > 0, weight > 0
 //   and the point is in front of the camera at the input estimate; others are outliers.
 // - First solve: Huber (delta = sqrt(chi2 threshold)), max_iterations LM iterations. With
-//   optimise_twice, observations with chi2 > threshold or depth <= 0 are dropped and the rest is
-//   re-solved without the kernel (max_iterations again). Final classification at the output:
-//   inlier iff it entered the last solve, depth > 0 and chi2 <= threshold.
+//   optimise_twice, observations with chi2 > threshold or depth <= kMinDepthM are dropped and the
+//   rest is re-solved without the kernel (max_iterations again). Final classification at the
+//   output: inlier iff it entered the last solve, depth > kMinDepthM and chi2 <= threshold.
 // - Fixed keyframes, keyframes without usable observations and points without usable
 //   observations are returned bitwise unchanged.
 // - Deterministic (bitwise) for num_threads == 1; with more threads Ceres' parallel reductions

@@ -48,9 +48,9 @@ struct PoseOptimizationResult {
 //   folded into the information would hide exactly the suspect points from the chi2 test).
 // - Rounds: each round solves (LM, DENSE_QR, one thread, iterations_per_round iterations) over
 //   the active observations, then re-classifies every usable observation at the new pose:
-//   inlier iff depth > 0 and chi2 <= threshold; the inliers are the next round's active set (an
-//   outlier may come back). Huber loss (delta = sqrt(threshold)) in every round except the last
-//   when rounds >= 2. The first round's active set is the usable observations in front of the
+//   inlier iff depth > kMinDepthM and chi2 <= threshold; the inliers are the next round's active
+//   set (an outlier may come back). Huber loss (delta = sqrt(threshold)) in every round except the
+//   last when rounds >= 2. The first round's active set is the usable observations in front of the
 //   initial pose.
 // - Excluded observations and those with non-finite values, information <= 0 or weight <= 0 are
 //   never used and are reported as outliers.

@@ -5,11 +5,12 @@
 // For a camera pose cam_from_world = (R, t) and a point X (world frame, metres), p = R X + t and
 //   mono   (2 rows): r = s * ([u, v] - [fx p.x/p.z + cx, fy p.y/p.z + cy])
 //   stereo (3 rows): r = s * ([u, v, u_right] - [..., fx (p.x - b)/p.z + cx])
-// with s = sqrt(information * weight), so that chi2 = r.squaredNorm() is the weighted squared
-// error. Pose Jacobians are taken w.r.t. the left perturbation cam_from_world <- Exp(delta) *
-// cam_from_world (delta = [rho; phi], see se3.h) and written in the "lifted" 7-column layout of
-// LeftSe3Manifold (last column zero). Evaluation fails (returns false) when p.z <= kMinDepthM,
-// which makes Ceres reject a step that moves a point behind the camera.
+// with s = sqrt(information) (the measurement noise alone), so that chi2 = r.squaredNorm() is
+// the whitened squared error; a caller's weight scales the cost through the loss, not s. Pose
+// Jacobians are taken w.r.t. the left perturbation cam_from_world <- Exp(delta) * cam_from_world
+// (delta = [rho; phi], see se3.h) and written in the "lifted" 7-column layout of LeftSe3Manifold
+// (last column zero). Evaluation fails (returns false) when p.z <= kMinDepthM, which makes Ceres
+// reject a step that moves a point behind the camera.
 #include <ceres/sized_cost_function.h>
 
 #include <Eigen/Core>
