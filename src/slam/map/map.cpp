@@ -5,6 +5,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <unordered_set>
 
 namespace pcr {
 
@@ -116,7 +117,8 @@ const Keyframe* Map::keyframe(KeyframeId id) const {
 const MapPoint* Map::point(MapPointId id) const { return points_.find(id); }
 
 MapPointId Map::Resolve(MapPointId id) const {
-  for (int hops = 0; id.valid() && hops < 1000; ++hops) {
+  // Chains are acyclic and shorter than the number of replacements (compaction shortens them).
+  for (size_t hops = 0; id.valid() && hops <= replaced_by_.size(); ++hops) {
     if (points_.find(id)) return id;
     const auto it = replaced_by_.find(id);
     if (it == replaced_by_.end()) return MapPointId();
@@ -173,6 +175,11 @@ Map::Bookkeeping Map::bookkeeping() const {
 
 namespace {
 
+// Restore's limits on a stored map: ids and counters (incremented as the map grows) and the span
+// of the live point ids, which the point index holds one slot each (2^26 slots: 512 MiB).
+constexpr int64_t kMaxMapId = int64_t{1} << 62;
+constexpr int64_t kMaxPointIdSpan = int64_t{1} << 26;
+
 [[noreturn]] void Inconsistent(const std::string& what) {
   throw std::invalid_argument("inconsistent map: " + what);
 }
@@ -194,9 +201,20 @@ Map Map::Restore(std::map<KeyframeId, Keyframe> keyframes, std::map<MapPointId, 
   } else if (!keyframes.count(b.first_keyframe) || !keyframes.count(b.last_keyframe)) {
     Inconsistent("the first or last keyframe is not in the map");
   }
+  // Ids and counters far below int64's end (they are incremented), and live point ids within a
+  // span the point index can hold (one slot per id between the lowest and the highest).
+  if (b.next_point_id < 0 || b.next_point_id > kMaxMapId || b.next_keyframe_index < 0 ||
+      b.next_keyframe_index > kMaxMapId)
+    Inconsistent("an id counter is negative or beyond " + std::to_string(kMaxMapId));
+  if (!points.empty() &&
+      points.rbegin()->first.value - points.begin()->first.value >= kMaxPointIdSpan)
+    Inconsistent("the live point ids span " +
+                 std::to_string(points.rbegin()->first.value - points.begin()->first.value) +
+                 " ids, more than " + std::to_string(kMaxPointIdSpan));
   std::set<int64_t> indices;
   for (const auto& [id, kf] : keyframes) {
-    if (!id.valid() || kf.id != id) Inconsistent(Kf(id) + " stored under another id");
+    if (!id.valid() || kf.id != id || id.value > kMaxMapId)
+      Inconsistent(Kf(id) + " stored under another id, or beyond " + std::to_string(kMaxMapId));
     if (!kf.frame || kf.frame->id() != id.value) Inconsistent(Kf(id) + " has no frame of its id");
     if (kf.index < 0 || kf.index >= b.next_keyframe_index || !indices.insert(kf.index).second)
       Inconsistent(Kf(id) + " has an index beyond the counter or used twice");
@@ -261,7 +279,8 @@ Map Map::Restore(std::map<KeyframeId, Keyframe> keyframes, std::map<MapPointId, 
   for (const auto& [from, into] : b.replaced_by)
     if (!from.valid() || points.count(from)) Inconsistent(Pt(from) + " is merged and live");
   for (const auto& [id, erased] : b.erased_keyframes)
-    if (!id.valid() || keyframes.count(id) || !Finite(erased.cam_from_parent))
+    if (!id.valid() || id.value > kMaxMapId || keyframes.count(id) ||
+        !Finite(erased.cam_from_parent))
       Inconsistent(Kf(id) + " is erased and live, or has a pose that is not finite");
 
   Map map;
@@ -415,7 +434,15 @@ void Map::EraseKeyframe(KeyframeId id) {
   erased_keyframes_[id] = erased;
   keyframes_.erase(id);
   touched_keyframes_.erase(id);
-  if (last_keyframe_ == id) last_keyframe_ = keyframes_.empty() ? KeyframeId() : parent;
+  if (last_keyframe_ == id) {  // the newest keyframe left
+    last_keyframe_ = KeyframeId();
+    int64_t newest = -1;
+    for (const auto& [other_id, other] : keyframes_)
+      if (other.index > newest) {
+        newest = other.index;
+        last_keyframe_ = other_id;
+      }
+  }
 }
 
 void Map::RefreshPoint(MapPoint& point) const {
@@ -569,7 +596,9 @@ MapApplyResult Map::Apply(const MapDelta& delta) {
     result.new_point_ids.push_back(id);
   }
 
+  std::unordered_set<MapPointId> merged_from;
   for (const PointMerge& merge : delta.merges) {
+    if (!merged_from.insert(merge.from).second) continue;  // merges once per delta
     const MapPointId from = Resolve(merge.from), into = Resolve(merge.into);
     if (!from.valid() || !into.valid() || from == into) continue;
     MergePoint(from, into);

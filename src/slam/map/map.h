@@ -137,6 +137,9 @@ struct ObservationEdit {
 struct PointMerge {
   MapPointId from;  // erased; its observations move to `into` where the keyframe has none
   MapPointId into;
+  // A point merges once per delta: a later merge of the same `from` in the same delta is
+  // skipped (resolved, it would merge the first `into` with the second, two points nothing
+  // compared).
 };
 
 struct MapDelta {

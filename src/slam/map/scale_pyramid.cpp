@@ -38,8 +38,14 @@ bool ScalePyramid::IsValid(std::string* why) const {
     return fail("scale pyramid vectors differ in size");
   if (scale_factors[0] != 1.0) return fail("scale pyramid level 0 must have scale 1");
   for (size_t i = 1; i < scale_factors.size(); ++i)
-    if (!(scale_factors[i] > scale_factors[i - 1]))
+    if (!(scale_factors[i] > scale_factors[i - 1]) || !std::isfinite(scale_factors[i]))
       return fail("scale pyramid factors must increase with the level");
+  // The variances weight every observation of the level: finite, positive, and the inverses
+  // their inverses.
+  for (size_t i = 0; i < scale_factors.size(); ++i)
+    if (!(level_sigma2[i] > 0) || !std::isfinite(level_sigma2[i]) ||
+        !(std::abs(inv_level_sigma2[i] * level_sigma2[i] - 1.0) <= 1e-9))
+      return fail("scale pyramid level variances must be finite, positive and inverted");
   return true;
 }
 

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <random>
 
 #include "slam/map/scale_pyramid.h"
@@ -274,6 +275,55 @@ TEST_F(ThreeKeyframeMap, MergeRemovalAndCounters) {
   EXPECT_FALSE(map.keyframe(k0)->points[39].valid());
 }
 
+TEST_F(ThreeKeyframeMap, APointMergesOncePerDelta) {
+  // Point 45 (K1 and K2) claimed by two points in one delta, as a loop's fusion can claim one
+  // point through two keyframes' slots: it merges into the first; the second merge would merge
+  // point 5 into point 6, which nothing compared, and is skipped.
+  MapDelta merge;
+  merge.merges = {{MapPointId(45), MapPointId(5)}, {MapPointId(45), MapPointId(6)}};
+  EXPECT_EQ(map.Apply(merge).num_merged, 1);
+  EXPECT_EQ(map.Resolve(MapPointId(45)), MapPointId(5));
+  ASSERT_NE(map.point(MapPointId(5)), nullptr);
+  ASSERT_NE(map.point(MapPointId(6)), nullptr);
+  EXPECT_EQ(map.point(MapPointId(6))->observations.size(), 2u);
+  // In a later delta the merged id stands for its point, as any merged id does.
+  merge.merges = {{MapPointId(45), MapPointId(6)}};
+  EXPECT_EQ(map.Apply(merge).num_merged, 1);
+  EXPECT_EQ(map.point(MapPointId(5)), nullptr);
+  EXPECT_EQ(map.Resolve(MapPointId(45)), MapPointId(6));
+}
+
+TEST_F(ThreeKeyframeMap, ErasingTheNewestKeyframeLeavesTheNewestRemainingOneLast) {
+  // K3 (newest) hangs from K1; erased, the last keyframe is K2, the newest left, not K3's
+  // parent. The map then saves and restores as it is.
+  std::vector<std::pair<int, MapPointId>> a3;
+  for (int i = 0; i < 20; ++i) a3.emplace_back(i, MapPointId(i));
+  map.Apply(NewKeyframeDelta(TinyFrame(3, 40), a3));
+  ASSERT_EQ(map.last_keyframe(), KeyframeId(3));
+  ASSERT_NE(map.keyframe(KeyframeId(3))->parent, k2);
+  MapDelta erase;
+  erase.removed_keyframes = {KeyframeId(3)};
+  ASSERT_EQ(map.Apply(erase).num_keyframes_removed, 1);
+  EXPECT_EQ(map.last_keyframe(), k2);
+  EXPECT_NO_THROW(Map::Restore(map.keyframes(), map.points(), map.bookkeeping()));
+}
+
+TEST(MapReplacements, ALongChainOfMergesResolves) {
+  // 1012 points, each merged into the next one delta at a time: 1011 replacements, fewer than
+  // the 1025 at which Apply first compacts them, so the first point's chain is 1011 hops long.
+  Map map;
+  constexpr int kPoints = 1012;
+  MapDelta d = NewKeyframeDelta(TinyFrame(0, kPoints));
+  for (int i = 0; i < kPoints; ++i) d.new_points.push_back(Point({0, 0, 10}, {{KeyframeId(0), i}}));
+  map.Apply(d);
+  for (int i = 0; i + 1 < kPoints; ++i) {
+    MapDelta m;
+    m.merges = {{MapPointId(i), MapPointId(i + 1)}};
+    ASSERT_EQ(map.Apply(m).num_merged, 1) << i;
+  }
+  for (int i = 0; i < kPoints; ++i) EXPECT_EQ(map.Resolve(MapPointId(i)), MapPointId(kPoints - 1));
+}
+
 TEST(Map, RepresentativeDescriptorIsTheMedoid) {
   // Three keyframes see one point with descriptors A, B, C where B lies between A and C.
   Map map;
@@ -446,6 +496,47 @@ TEST_F(ThreeKeyframeMap, ACopyOfTheMapLooksUpItsOwnPoints) {
   const Map restored = Map::Restore(map.keyframes(), map.points(), map.bookkeeping());
   for (const auto& [pid, p] : map.points())
     EXPECT_EQ(restored.point(pid), &restored.points().at(pid));
+}
+
+TEST_F(ThreeKeyframeMap, RestoreRejectsIdsBeyondWhatTheMapCanHold) {
+  ASSERT_NO_THROW(Map::Restore(map.keyframes(), map.points(), map.bookkeeping()));
+  // Counters that incrementing would overflow.
+  Map::Bookkeeping b = map.bookkeeping();
+  b.next_point_id = std::numeric_limits<int64_t>::max();
+  EXPECT_THROW(Map::Restore(map.keyframes(), map.points(), b), std::invalid_argument);
+  b = map.bookkeeping();
+  b.next_keyframe_index = std::numeric_limits<int64_t>::max();
+  EXPECT_THROW(Map::Restore(map.keyframes(), map.points(), b), std::invalid_argument);
+  // Point 39 (K0's only) stored as point 2^26: the live ids would span 2^26 + 1 index slots (a
+  // span just below would allocate 512 MiB here, so it is not tried).
+  {
+    const int64_t moved = int64_t{1} << 26;
+    std::map<KeyframeId, Keyframe> keyframes = map.keyframes();
+    std::map<MapPointId, MapPoint> points = map.points();
+    MapPoint p = points.at(MapPointId(39));
+    ASSERT_EQ(p.observations.size(), 1u);
+    points.erase(MapPointId(39));
+    p.id = MapPointId(moved);
+    points.emplace(p.id, p);
+    keyframes.at(k0).points[39] = p.id;
+    b = map.bookkeeping();
+    b.next_point_id = moved + 1;
+    EXPECT_THROW(Map::Restore(keyframes, points, b), std::invalid_argument);
+  }
+}
+
+TEST(ScalePyramid, VariancesThatCannotWeightAnObservationAreInvalid) {
+  std::string why;
+  for (const double bad : {0.0, -1.0, std::numeric_limits<double>::quiet_NaN(),
+                           std::numeric_limits<double>::infinity()}) {
+    ScalePyramid s = ScalePyramid::Make(1.2, 8);
+    s.level_sigma2[3] = bad;
+    EXPECT_FALSE(s.IsValid(&why)) << bad;
+    EXPECT_NE(why.find("variances"), std::string::npos);
+  }
+  ScalePyramid s = ScalePyramid::Make(1.2, 8);
+  s.inv_level_sigma2[2] = 2 * s.inv_level_sigma2[2];  // not the inverse
+  EXPECT_FALSE(s.IsValid(&why));
 }
 
 }  // namespace
