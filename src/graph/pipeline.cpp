@@ -20,6 +20,7 @@
 #include <string_view>
 #include <thread>
 #include <tuple>
+#include <unordered_set>
 #include <utility>
 #include <vector>
 
@@ -58,6 +59,11 @@ struct LoopWork {
 };
 template <typename In, typename... Out>
 using StageNode = tf::multifunction_node<In, std::tuple<Out...>>;
+
+// The error's stage when an exception escaped a node body (the bodies catch their own).
+constexpr const char* kGraphStage = "graph";
+// How often the clock looks whether the graph was cancelled, at the longest.
+constexpr std::chrono::milliseconds kCancelPoll(50);
 
 // cv::setNumThreads for the scope of a run.
 class CvThreadsScope {
@@ -391,17 +397,28 @@ class GraphRun {
   }
   // The loop lane's work on a job (verification and correction, then the global BA), each step
   // profiled; `post` receives the outcomes. Inline (sequential) or on the loop node.
+  // Whatever `post` throws (the sequential policy applies the outcome to the map there) is
+  // recorded as the loop stage's error, as the stages' own exceptions are.
   void RunLoopJob(const LoopWork& work, const std::function<void(nodes::LoopOutcomePtr)>& post) {
     nodes::LoopJobPtr resolved;
     const auto corrected =
         Guarded(kStageLoop, work.ticket, [&] { return loop_node_.Close(work.job, &resolved); });
     if (!corrected) return;
-    post(*corrected);
+    const auto posted = [&](const nodes::LoopOutcomePtr& o) {
+      return Guarded(
+          kStageLoop, work.ticket,
+          [&] {
+            post(o);
+            return true;
+          },
+          /*profile=*/false);
+    };
+    if (!posted(*corrected)) return;
     if (!nodes::LoopNode::FollowsWithGlobalBundleAdjustment(*resolved, **corrected)) return;
     if (auto ba = Guarded(kStageGlobalBa, work.ticket, [&] {
           return nodes::LoopNode::GlobalBundleAdjustment(*resolved, **corrected, &loop_abort_);
         }))
-      post(*ba);
+      posted(*ba);
   }
   void ClockLoop();
   void Complete(const FrameResultPtr& result);
@@ -649,6 +666,8 @@ PipelineResult GraphRun::Run() {
           Complete(result);
         } catch (const std::exception& e) {
           RecordError("sink", result->ticket, e.what());
+        } catch (...) {
+          RecordError("sink", result->ticket, "unknown exception");
         }
         return tf::continue_msg();
       });
@@ -685,18 +704,26 @@ PipelineResult GraphRun::Run() {
   g.reserve_wait();  // released by the clock when it is done
   TsanSetupDone();
   std::thread clock([this] { ClockLoop(); });
+  // Stage bodies catch everything; an exception that still escapes one cancels the graph, which
+  // the clock notices (it stops and releases the graph), and is reported like any stage error.
+  std::string escaped;
   try {
     g.wait_for_all();
+  } catch (const std::exception& e) {
+    escaped = e.what();
   } catch (...) {
-    // Stage bodies catch everything; anything else still must not leave the clock running.
+    escaped = "unknown exception";
+  }
+  if (!escaped.empty() || context_->is_group_execution_cancelled()) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (!error_) error_ = FrameError{-1, -1, "graph", "unexpected exception in the flow graph"};
+      if (!error_ || error_->stage == kGraphStage)
+        error_ =
+            FrameError{-1, -1, kGraphStage,
+                       "exception in the flow graph" + (escaped.empty() ? "" : ": " + escaped)};
       ++wake_epoch_;
     }
     wake_.notify_all();
-    clock.join();
-    throw;
   }
   clock.join();
   TsanAfterBodies();
@@ -707,6 +734,11 @@ void GraphRun::ClockLoop() {
   std::unique_lock<std::mutex> lock(mutex_);
   while (true) {
     const int64_t now = NowNs();
+    if (context_->is_group_execution_cancelled()) {
+      // An exception escaped a node body (they catch their own): no frame will complete.
+      if (!error_) error_ = FrameError{-1, -1, kGraphStage, "exception in the flow graph"};
+      break;
+    }
     if (error_ && completed_ >= error_->seq) {
       // Every frame before the failing one is done: stop the rest.
       graph_->cancel();
@@ -740,11 +772,11 @@ void GraphRun::ClockLoop() {
       wake_at_ns = *deadline;
     const uint64_t epoch = wake_epoch_;
     auto woken = [&] { return wake_epoch_ != epoch; };
-    if (wake_at_ns >= 0) {
-      wake_.wait_until(lock, start_ + std::chrono::nanoseconds(wake_at_ns), woken);
-    } else {
-      wake_.wait(lock, woken);
-    }
+    // Nothing wakes the clock when the graph is cancelled: it looks again at least this often.
+    const auto latest = std::chrono::steady_clock::now() + kCancelPoll;
+    const auto until =
+        wake_at_ns >= 0 ? std::min(latest, start_ + std::chrono::nanoseconds(wake_at_ns)) : latest;
+    wake_.wait_until(lock, until, woken);
   }
   lock.unlock();
   graph_->release_wait();
@@ -835,17 +867,34 @@ PipelineResult GraphRun::Collect() {
   out.dropped_release_ns = std::move(dropped_release_ns_);
   // Loop outcomes that came after the last frame's mapping (the graph has finished: this thread
   // is the map's owner now), so that no correction is lost at the end of a run.
-  for (const nodes::LoopOutcomePtr& o : TakeLoopOutcomes()) mapping_.ApplyLoopOutcome(*o, -1);
-  // Then the final global BA (loop.final_global_ba), profiled as a global BA after the last frame.
-  if (mapping_.NeedsFinishLoopClosing()) {
-    FrameTicket after_last;
-    after_last.seq = std::max<int64_t>(admitted_ - 1, 0);
-    Guarded(kStageGlobalBa, after_last, [&] { return mapping_.FinishLoopClosing(); });
+  FrameTicket after_last;
+  after_last.seq = std::max<int64_t>(admitted_ - 1, 0);
+  for (const nodes::LoopOutcomePtr& o : TakeLoopOutcomes()) {
+    const auto applied = Guarded(
+        kStageLoop, after_last,
+        [&] {
+          mapping_.ApplyLoopOutcome(*o, -1);
+          return true;
+        },
+        /*profile=*/false);
+    if (!applied) break;
   }
+  // Then the final global BA (loop.final_global_ba), profiled as a global BA after the last
+  // frame; not after an error (the run stops there).
+  if (!error_ && mapping_.NeedsFinishLoopClosing())
+    Guarded(kStageGlobalBa, after_last, [&] { return mapping_.FinishLoopClosing(); });
   out.loop_events = slam_->loop_events();
   out.loop_stats = slam_->loop_closer().stats();
   out.relocalisation_stats = slam_->relocalisation_stats();
   out.tracked = slam_->RefinedTrajectory();
+  if (error_) {
+    // The poses of the completed frames only: frames after the failing one may have been tracked
+    // already when the graph was cancelled, and their records are not in the result.
+    std::unordered_set<int64_t> completed;
+    for (const FrameRecord& f : out.frames) completed.insert(f.frame_index);
+    std::erase_if(out.tracked,
+                  [&](const StampedPose& p) { return !completed.count(p.frame_index); });
+  }
   out.keyframes = slam_->map().num_keyframes();
   out.map_points = slam_->map().num_points();
   if (options_.keep_final_map)
@@ -881,8 +930,9 @@ PipelineResult GraphRun::Collect() {
   if (error_) {
     out.error_frame_index = error_->frame_index;
     out.error_stage = error_->stage;
-    out.error = "frame " + std::to_string(error_->frame_index) + ", stage " + error_->stage + ": " +
-                error_->what;
+    out.error = (error_->frame_index >= 0 ? "frame " + std::to_string(error_->frame_index) + ", "
+                                          : std::string()) +
+                "stage " + error_->stage + ": " + error_->what;
   }
 
   PipelineStats& s = out.stats;

@@ -297,6 +297,30 @@ TEST(PipelineTest, ExceptionInTheSerialBackEndSurfaces) {
   for (const StampedPose& p : r.tracked) EXPECT_LT(p.frame_index, 5);
 }
 
+TEST(PipelineTest, AnExceptionOfAnyTypeFromOnFrameStopsTheRunWithThePosesBeforeIt) {
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 8);
+  for (const bool standard : {false, true}) {
+    for (Policy policy : {Policy::kSequential, Policy::kPipelined}) {
+      SCOPED_TRACE(std::string(ToString(policy)) + (standard ? ", std::runtime_error" : ", int"));
+      PipelineOptions options = Options(policy, 4);
+      options.on_frame = [standard](size_t, size_t, const FrameRecord& record) {
+        if (record.frame_index != 2) return;
+        if (standard) throw std::runtime_error("caller gave up");
+        throw 42;  // not a std::exception: it used to escape the sink and hang the run
+      };
+      const PipelineResult r = RunPipeline(clip, SlamOptions{}, options);
+      EXPECT_NE(r.error.find("frame 2, stage sink"), std::string::npos) << r.error;
+      EXPECT_NE(r.error.find(standard ? "caller gave up" : "unknown exception"), std::string::npos)
+          << r.error;
+      ASSERT_EQ(r.frames.size(), 2u);
+      // Frames after the failing one may have been tracked when the graph stopped: the result
+      // holds the completed frames' poses only, whatever the timing.
+      ASSERT_EQ(r.tracked.size(), 2u);
+      for (size_t i = 0; i < 2; ++i) EXPECT_EQ(r.tracked[i].frame_index, int64_t(i));
+    }
+  }
+}
+
 TEST(PipelineTest, RealtimeDropsFramesWhenProcessingIsSlow) {
   const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 16);
   PipelineOptions options = Options(Policy::kRealtime, 2);
