@@ -489,7 +489,6 @@ void GraphRun::EmitMask(const SegmentationPtr& msg) {
 }
 
 PipelineResult GraphRun::Run() {
-  start_ = std::chrono::steady_clock::now();
   context_ = std::make_unique<oneapi::tbb::task_group_context>();
   graph_ = std::make_unique<tf::graph>(*context_);
   tf::graph& g = *graph_;
@@ -702,6 +701,9 @@ PipelineResult GraphRun::Run() {
   tokens.try_put(Token{0});
 
   g.reserve_wait();  // released by the clock when it is done
+  // Time 0 of the run (release times, profiles), set when the graph is built and the loop lane
+  // started, so that the first frames are not overdue when the clock first looks.
+  start_ = std::chrono::steady_clock::now();
   TsanSetupDone();
   std::thread clock([this] { ClockLoop(); });
   // Stage bodies catch everything; an exception that still escapes one cancels the graph, which
@@ -744,21 +746,26 @@ void GraphRun::ClockLoop() {
       graph_->cancel();
       break;
     }
-    for (const nodes::WaitingFrame& d : source_node_.ReleaseDue(now)) {
-      dropped_indices_.push_back(source_.frame_indices[d.entry]);
-      dropped_release_ns_.push_back(d.release_ns);
-    }
-    while (!error_ && source_node_.HasWaiting()) {
-      const nodes::QualitySettings& settings =
-          options_.adaptive ? options_.levels.At(level_) : fixed_settings_;
-      const FrameTicket ticket = source_node_.PeekTicket(level_, settings);
-      if (!limiter_->try_put(ticket)) break;  // no free token
-      const nodes::WaitingFrame w = source_node_.Admit(ticket);
-      admissions_.push_back({w.release_ns, NowNs()});
-      ++admitted_;
-      max_observed_in_flight_ =
-          std::max(max_observed_in_flight_, static_cast<size_t>(admitted_ - completed_));
-    }
+    // Frames due are released one at a time, each admitted while a slot is free, so the waiting
+    // room drops a frame only when the slots are taken. After an error nothing is released.
+    do {
+      if (error_) break;
+      for (const nodes::WaitingFrame& d : source_node_.ReleaseDue(now, 1)) {
+        dropped_indices_.push_back(source_.frame_indices[d.entry]);
+        dropped_release_ns_.push_back(d.release_ns);
+      }
+      while (!error_ && source_node_.HasWaiting()) {
+        const nodes::QualitySettings& settings =
+            options_.adaptive ? options_.levels.At(level_) : fixed_settings_;
+        const FrameTicket ticket = source_node_.PeekTicket(level_, settings);
+        if (!limiter_->try_put(ticket)) break;  // no free token
+        const nodes::WaitingFrame w = source_node_.Admit(ticket);
+        admissions_.push_back({w.release_ns, NowNs()});
+        ++admitted_;
+        max_observed_in_flight_ =
+            std::max(max_observed_in_flight_, static_cast<size_t>(admitted_ - completed_));
+      }
+    } while (source_node_.NextReleaseNs() && *source_node_.NextReleaseNs() <= now);
     board_->ExpireDue(NowNs());
     if (!error_ && source_node_.AllReleased() && !source_node_.HasWaiting() &&
         completed_ == admitted_)

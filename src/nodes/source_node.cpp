@@ -34,9 +34,11 @@ std::optional<int64_t> SourceNode::NextReleaseNs() const {
   return ReleaseTimeNs(next_entry_);
 }
 
-std::vector<WaitingFrame> SourceNode::ReleaseDue(int64_t now_ns) {
+std::vector<WaitingFrame> SourceNode::ReleaseDue(int64_t now_ns, size_t max_frames) {
   std::vector<WaitingFrame> dropped;
-  while (!AllReleased() && ReleaseTimeNs(next_entry_) <= now_ns) {
+  for (size_t released = 0;
+       released < max_frames && !AllReleased() && ReleaseTimeNs(next_entry_) <= now_ns;
+       ++released) {
     waiting_.push_back({next_entry_, options_.paced ? ReleaseTimeNs(next_entry_) : now_ns});
     ++next_entry_;
     if (options_.waiting_capacity > 0 && waiting_.size() > options_.waiting_capacity) {

@@ -7,6 +7,7 @@
 // of the run.
 #include <cstdint>
 #include <deque>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -42,8 +43,11 @@ class SourceNode {
   std::optional<int64_t> NextReleaseNs() const;
   bool AllReleased() const { return next_entry_ >= frame_indices_.size(); }
 
-  // Releases every frame due at now_ns into the waiting room; returns the frames dropped.
-  std::vector<WaitingFrame> ReleaseDue(int64_t now_ns);
+  // Releases the frames due at now_ns (at most max_frames of them, oldest first) into the
+  // waiting room; returns the frames dropped. A caller admitting frames releases one at a time,
+  // so that a frame is dropped only when no in-flight slot was free for the one before it.
+  std::vector<WaitingFrame> ReleaseDue(int64_t now_ns,
+                                       size_t max_frames = std::numeric_limits<size_t>::max());
 
   bool HasWaiting() const { return !waiting_.empty(); }
   size_t num_waiting() const { return waiting_.size(); }

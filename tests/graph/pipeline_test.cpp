@@ -346,6 +346,24 @@ TEST(PipelineTest, RealtimeDropsFramesWhenProcessingIsSlow) {
   EXPECT_GT(r.stats.latency.p95_ms, 60.0);
 }
 
+TEST(PipelineTest, RealtimeFillsTheFreeSlotsBeforeItDropsAFrame) {
+  // Rate 0: all 12 frames are released at once. The 4 slots take frames 0-3 at once, so at most
+  // 12 - 4 - 1 are dropped (the last one waits for a slot); frames due together used to go
+  // through the 1-frame waiting room before any was admitted, which dropped all but the last.
+  const nodes::FrameSource clip = test::KittiOdometryClip(Seq06(), 0, 12);
+  PipelineOptions options = Options(Policy::kRealtime, 4);
+  options.rate = 0;
+  options.waiting_capacity = 1;
+  const PipelineResult r = RunPipeline(clip, SlamOptions{}, options);
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  EXPECT_EQ(r.stats.frames_completed + r.stats.frames_dropped, 12u);
+  EXPECT_GE(r.stats.frames_completed, 5u);
+  EXPECT_LE(r.stats.max_in_flight_observed, 4u);
+  ASSERT_GE(r.frames.size(), 4u);
+  for (int64_t i = 0; i < 4; ++i) EXPECT_EQ(r.frames[static_cast<size_t>(i)].frame_index, i);
+  EXPECT_EQ(r.frames.back().frame_index, 11);
+}
+
 TEST(PipelineTest, RealtimeCarriesMasksForwardWhenInferenceIsLate) {
   // 16 frames, one every ~50 ms (rate 0.5): the camera releases the last ones at 600-750 ms,
   // after the first inference (400 ms) is done, whatever the machine's load. Masks may be carried

@@ -39,6 +39,10 @@ TEST(SourceNodeTest, PacedReleaseFollowsTimestampsTimesRate) {
   EXPECT_EQ(source.ReleaseDue(120'000'000).size(), 0u);
   EXPECT_EQ(source.num_waiting(), 3u);  // released at 0, 50 and 100 ms
   EXPECT_EQ(source.NextReleaseNs(), 150'000'000);
+  // At most max_frames at a time: of the frames due at 300 ms (150, 200, 250, 300), one.
+  EXPECT_TRUE(source.ReleaseDue(300'000'000, 1).empty());
+  EXPECT_EQ(source.num_waiting(), 4u);
+  EXPECT_EQ(source.NextReleaseNs(), 200'000'000);
 }
 
 TEST(SourceNodeTest, FullWaitingRoomDropsTheOldestFrame) {
