@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <opencv2/calib3d.hpp>
+#include <optional>
 #include <set>
+#include <unordered_set>
 
 #include "slam/common/error.h"
 #include "slam/common/lie.h"
@@ -144,6 +146,7 @@ void Tracker::Reset() {
   velocity_ = SE3::Identity();
   reference_ = KeyframeId();
   last_keyframe_t_ns_ = 0;
+  last_keyframe_ = KeyframeId();
   frames_since_relocalisation_ = 1 << 30;
 }
 
@@ -202,6 +205,7 @@ void Tracker::StartFromInitialisation(const FramePtr& frame, const SE3& cam_from
   reference_ = last_.reference;
   last_keyframe_t_ns_ = frame->t_ns();
   last_keyframe_cam_from_world_ = cam_from_world;
+  last_keyframe_ = last_.reference;
 }
 
 SE3 Tracker::PredictedMotion(int64_t t_ns) const {
@@ -374,11 +378,16 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, const PlaceQuery& p
     }
     int good = OptimizeAndPrune(frame, &candidate_pose, m, nullptr);
     if (good < options_.min_relocalisation_inliers && good >= options_.min_pose_inliers) {
-      // More matches by projecting the candidate keyframe's points with a wide window.
+      // More matches by projecting the candidate keyframe's points with a wide window; those
+      // already matched are left out (one point, one keypoint).
+      std::unordered_set<MapPointId> found;
+      for (int i = 0; i < frame.size(); ++i)
+        if (m->kind[i] == 1 && m->point[i].valid()) found.insert(m->point[i]);
       std::vector<FramePointCandidate> more;
       std::vector<MapPointId> more_point;
       for (int j : b) {
         const MapPoint* mp = map.point(kf->points[j]);
+        if (found.count(mp->id)) continue;
         more.push_back(
             {mp->p_in_world, mp->descriptor, kf->frame->octave(j), kf->frame->keypoint(j).angle});
         more_point.push_back(mp->id);
@@ -625,6 +634,7 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
   // Localisation mode, weak tracking: relocalisation in the whole map, kept when the local map
   // confirms it better.
   ++frames_since_place_check_;
+  bool switched_place = false;
   const bool weak = m.CountMapPoints() < options_.localisation_relocalise_below;
   const bool recheck = options_.localisation_recheck_frames > 0 &&
                        frames_since_place_check_ >= options_.localisation_recheck_frames;
@@ -638,9 +648,11 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
     int n0 = 0;
     TrackingResult other_result;
     KeyframeId other_reference;
+    const KeyframeId kept_reference = reference_;  // Relocalise sets it to its keyframe
     if (Relocalise(frame, map, place, &other_pose, &other, &n0) &&
         TrackLocalMap(frame, map, true, &other_pose, &other, &other_result, &other_reference) &&
         other.CountMapPoints() > needed) {
+      switched_place = true;  // no velocity across the switch: it holds the jump between places
       pose = other_pose;
       m = std::move(other);
       if (other_reference.valid()) reference_ = other_reference;
@@ -651,6 +663,8 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
       result.map_delta = std::move(other_result.map_delta);
       result.keyframe_input.motion_quality = other_result.keyframe_input.motion_quality;
       frames_since_relocalisation_ = 0;
+    } else {
+      reference_ = kept_reference;
     }
   }
 
@@ -674,9 +688,9 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
   result.status = TrackingStatus::kOk;
   result.cam_from_world = pose;
   result.reference_keyframe = reference_;
-  // The motion model needs two consecutive tracked frames.
-  has_velocity_ = previous_ok;
-  if (previous_ok) {
+  // The motion model needs two consecutive tracked frames in one place.
+  has_velocity_ = previous_ok && !switched_place;
+  if (has_velocity_) {
     velocity_ = pose * last_.cam_from_world.inverse();
     velocity_dt_ns_ = frame.t_ns() - last_.frame->t_ns();
   }
@@ -700,8 +714,14 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
   in.filtered_points = frame.num_excluded();
   in.total_points = frame.size();
   in.seconds_since_last_keyframe = NsToSeconds(frame.t_ns() - last_keyframe_t_ns_);
+  // Against the last keyframe's pose as the map holds it now (a loop correction or a global BA
+  // may have moved it since it was inserted; erased, it keeps its pose relative to its parent).
+  const std::optional<SE3> last_keyframe_pose =
+      last_keyframe_.valid() ? map.CamFromWorld(last_keyframe_) : std::nullopt;
+  const SE3& keyframe_pose =
+      last_keyframe_pose ? *last_keyframe_pose : last_keyframe_cam_from_world_;
   in.rotation_since_keyframe_rad =
-      RotationAngleRad(pose.linear() * last_keyframe_cam_from_world_.linear().transpose());
+      RotationAngleRad(pose.linear() * keyframe_pose.linear().transpose());
   in.keyframes_in_map = static_cast<int>(map.num_keyframes());
   in.recently_relocalised = frames_since_relocalisation_ < options_.relocalised_frames;
   in.stereo = stereo;
@@ -714,6 +734,7 @@ void Tracker::OnKeyframeInserted(KeyframeId id, const Map& map) {
   reference_ = id;
   last_keyframe_t_ns_ = kf->frame->t_ns();
   last_keyframe_cam_from_world_ = kf->cam_from_world;
+  last_keyframe_ = id;
   if (last_.frame && last_.frame->id() == kf->frame->id()) {
     last_.points = kf->points;
     last_.cam_from_world = kf->cam_from_world;

@@ -219,7 +219,8 @@ class Tracker {
   KeyframeId reference_;
   int64_t last_keyframe_t_ns_ = 0;
   RelocalisationStats relocalisation_stats_;
-  SE3 last_keyframe_cam_from_world_ = SE3::Identity();
+  SE3 last_keyframe_cam_from_world_ = SE3::Identity();  // when it was inserted
+  KeyframeId last_keyframe_;  // its pose in the map is read when it is there
   int64_t frames_since_relocalisation_ = 1 << 30;
 };
 

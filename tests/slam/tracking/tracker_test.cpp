@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+#include <random>
+#include <set>
+
 #include "slam/common/error.h"
 #include "slam/map/stereo_points.h"
 #include "slam/map/synthetic_scene.h"
@@ -171,6 +175,166 @@ FramePtr FrameWithRepeats(test::SyntheticScene& scene, int64_t id, const SE3& po
 // map shows at the predicted pose. The motion model's window finds those and its optimisation
 // agrees with them: a wrong pose with a few, consistent inliers. The consistency check compares
 // it with reference-keyframe tracking and keeps the true pose; the next frames go on from there.
+// Keypoints per map point in a result (more than one: a point tracked twice).
+int DuplicateAssociations(const TrackingResult& r) {
+  std::map<MapPointId, int> uses;
+  for (MapPointId p : r.points)
+    if (p.valid()) ++uses[p];
+  int duplicates = 0;
+  for (const auto& [id, count] : uses) duplicates += count - 1;
+  return duplicates;
+}
+
+TEST(Tracker, RelocalisationMatchesAMapPointToOneKeypointOnly) {
+  test::SyntheticScene scene(23);
+  TrackerRun run;
+  TrackFrames(scene, 0, 8, &run);
+  test::SyntheticScene::Options junk_options;
+  junk_options.num_points = 0;
+  junk_options.num_clutter = 1500;
+  test::SyntheticScene junk(99, junk_options);
+  ASSERT_EQ(run.tracker.Track(junk.MakeFrame(8, SE3::Identity(), nullptr), run.map).status,
+            TrackingStatus::kLost);
+  // Back at frame 5's place, with most descriptors 72 bits off (beyond the descriptor matching's
+  // distance, within the projection search's), so that PnP finds few matches and the search by
+  // projection runs; and every keypoint found again one level up (one corner, two keypoints).
+  test::RenderedFrame rendered = scene.Render(TruePose(5));
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> bit(0, 255);
+  const int n = static_cast<int>(rendered.features.keypoints.size());
+  for (int i = 0; i < n; ++i) {
+    if (i % 40 == 0) continue;
+    std::set<int> bits;
+    while (bits.size() < 72) bits.insert(bit(rng));
+    for (int b : bits)
+      rendered.features.descriptors.at<uint8_t>(i, b / 8) ^= static_cast<uint8_t>(1u << (b % 8));
+  }
+  OrbFeatures features = rendered.features;
+  StereoMatches stereo = rendered.stereo;
+  std::vector<cv::Mat> rows{rendered.features.descriptors};
+  for (int i = 0; i < n; ++i) {
+    cv::KeyPoint kp = rendered.features.keypoints[i];
+    if (kp.octave >= 7) continue;
+    kp.octave += 1;
+    kp.pt += cv::Point2f(0.4f, -0.3f);
+    features.keypoints.push_back(kp);
+    rows.push_back(rendered.features.descriptors.row(i).clone());
+    stereo.u_right_px.push_back(rendered.stereo.u_right_px[i]);
+    stereo.depth_m.push_back(rendered.stereo.depth_m[i]);
+  }
+  cv::vconcat(rows, features.descriptors);
+  const FramePtr back =
+      Frame::Create(9, 9 * 100'000'000, scene.rig(), scene.scale(), features, stereo);
+  const TrackingResult r = run.tracker.Track(back, run.map);
+  ASSERT_EQ(r.status, TrackingStatus::kOk);
+  EXPECT_EQ(r.method, TrackingMethod::kRelocalisation);
+  EXPECT_EQ(DuplicateAssociations(r), 0);
+}
+
+TEST(Tracker, RotationSinceTheLastKeyframeIsAgainstItsPoseInTheMapNow) {
+  test::SyntheticScene scene(21);
+  TrackerRun run;
+  TrackFrames(scene, 0, 8, &run);
+  {  // a keyframe at frame 8
+    const FramePtr f = scene.MakeFrame(8, TruePose(8), nullptr);
+    TrackingResult r = run.tracker.Track(f, run.map);
+    run.map.Apply(r.map_delta);
+    InsertKeyframe(f, r, &run.map, &run.tracker);
+  }
+  // A correction turns the whole map 12 degrees (every keyframe and point, as a loop correction
+  // does to its part of the map): the next frame has turned only as the camera did since.
+  SE3 turn = SE3::Identity();
+  turn.linear() = Eigen::AngleAxisd(12.0 * M_PI / 180, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  MapDelta correction;
+  for (const auto& [id, kf] : run.map.keyframes())
+    correction.keyframe_poses.emplace_back(id, SE3(kf.cam_from_world * turn.inverse()));
+  for (const auto& [id, mp] : run.map.points())
+    correction.point_positions.emplace_back(id, turn * mp.p_in_world);
+  run.map.Apply(correction);
+  const TrackingResult r = run.tracker.Track(scene.MakeFrame(9, TruePose(9), nullptr), run.map);
+  ASSERT_EQ(r.status, TrackingStatus::kOk);
+  const SE3 keyframe_now = run.map.keyframe(run.map.last_keyframe())->cam_from_world;
+  const double turned =
+      RotationAngleRad(r.cam_from_world.linear() * keyframe_now.linear().transpose());
+  EXPECT_LT(turned * 180 / M_PI, 2.0);
+  EXPECT_NEAR(r.keyframe_input.rotation_since_keyframe_rad, turned, 1e-9);
+}
+
+// Localisation mode on a map that holds one place twice: keyframe 100 (copy A, at the place's
+// true pose) and keyframe 200 (copy B, the same place 3 m to the side in the map), each with its
+// points; one copy dense, the other with every `sparse`-th stereo point only.
+struct TwoCopies {
+  explicit TwoCopies(bool dense_b) : scene(31) {
+    AddCopy(100, Eigen::Vector3d::Zero(), dense_b ? 4 : 1);
+    AddCopy(200, Eigen::Vector3d(3, 0, 0), dense_b ? 1 : 3);
+  }
+  static SE3 Pose(double s) { return test::CamFromWorld({0.05 * s, 0.0, 1.0 * s}, 0.01 * s); }
+  void AddCopy(int64_t id, const Eigen::Vector3d& offset, int every) {
+    const FramePtr f = scene.MakeFrame(id, Pose(5), nullptr);
+    SE3 true_from_copy = SE3::Identity();
+    true_from_copy.translation() = -offset;
+    const SE3 cam_from_copy = Pose(5) * true_from_copy;
+    MapDelta delta;
+    NewKeyframe kf;
+    kf.frame = f;
+    kf.cam_from_world = cam_from_copy;
+    delta.new_keyframe = kf;
+    int k = 0;
+    for (int i = 0; i < f->size(); ++i) {
+      if (!f->has_stereo(i) || (k++ % every)) continue;
+      NewMapPoint p;
+      p.p_in_world = cam_from_copy.inverse() * f->UnprojectStereo(i);
+      p.observations.push_back({KeyframeId(id), i});
+      delta.new_points.push_back(p);
+    }
+    map.Apply(delta);
+  }
+  // Frames 1..5 along the route; the place query answers copy A first, then copy B.
+  std::vector<TrackingResult> Drive() {
+    TrackerOptions o;
+    o.localisation_recheck_frames = 2;
+    o.min_relocalisation_confirmations = 0;  // the toy map has no covisible keyframes
+    Tracker tracker(o);
+    tracker.SetLocalisationMode(true);
+    int call = 0;
+    const PlaceQuery place = [&](const Frame&) {
+      return std::vector<KeyframeId>{KeyframeId(++call == 1 ? 100 : 200)};
+    };
+    std::vector<TrackingResult> results;
+    for (int k = 0; k < 5; ++k)
+      results.push_back(
+          tracker.Track(scene.MakeFrame(k + 1, Pose(5 + 0.3 * k), nullptr), map, place));
+    return results;
+  }
+  test::SyntheticScene scene;
+  Map map;
+};
+
+TEST(Tracker, LocalisationModeSwitchingPlacesStartsTheMotionModelAfresh) {
+  // Copy B is denser: the check at frame 2 moves tracking onto it. The velocity across that
+  // switch would hold the 3 m between the copies; frame 3 has none and is not mispredicted.
+  TwoCopies copies(/*dense_b=*/true);
+  const std::vector<TrackingResult> r = copies.Drive();
+  ASSERT_EQ(r[1].status, TrackingStatus::kOk);
+  ASSERT_EQ(r[1].reference_keyframe, KeyframeId(200));
+  for (size_t k = 2; k < r.size(); ++k) {
+    ASSERT_EQ(r[k].status, TrackingStatus::kOk) << k;
+    EXPECT_EQ(r[k].motion_model_rejected, 0) << k;
+    EXPECT_EQ(r[k].reference_keyframe, KeyframeId(200)) << k;
+  }
+}
+
+TEST(Tracker, LocalisationModeKeepsItsReferenceWhenTheOtherPlaceIsNotBetter) {
+  // Copy B is sparser: each check finds it and keeps copy A, and with it copy A's keyframe.
+  TwoCopies copies(/*dense_b=*/false);
+  const std::vector<TrackingResult> r = copies.Drive();
+  for (size_t k = 0; k < r.size(); ++k) {
+    ASSERT_EQ(r[k].status, TrackingStatus::kOk) << k;
+    EXPECT_EQ(r[k].reference_keyframe, KeyframeId(100)) << k;
+    EXPECT_LT(r[k].cam_from_world.inverse().translation().x(), 1.0) << k;  // on copy A
+  }
+}
+
 TEST(Tracker, AWrongMotionPredictionIsCaughtAndRecoveredFrom) {
   for (const bool check : {true, false}) {
     test::SyntheticScene scene(25);
