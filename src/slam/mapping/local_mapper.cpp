@@ -106,7 +106,9 @@ MapDelta LocalMapper::CullRecentPoints(KeyframeId id, const Map& map,
   const Keyframe* kf = map.keyframe(id);
   if (!kf) return delta;
   for (MapPointId p : input) {
-    const MapPoint* mp = map.point(map.Resolve(p));
+    // A recent point merged into another one leaves the list: the point it went into is judged
+    // on its own terms (an established point must not be culled as a recent one).
+    const MapPoint* mp = map.point(p);
     if (!mp) continue;
     const int64_t age = kf->index - mp->first_keyframe_index;
     if (mp->FoundRatio() < options_.min_found_ratio) {

@@ -165,6 +165,28 @@ TEST(LocalMapper, CullsRecentPointsByFoundRatioAndObservations) {
   EXPECT_TRUE(still.empty());
 }
 
+TEST(LocalMapper, ARecentPointMergedIntoAnEstablishedOneDoesNotCullIt) {
+  SceneMap s(35);
+  const KeyframeId k0 = s.AddKeyframe(0, TruePose(0), true);
+  ASSERT_GE(s.map.num_points(), 2u);
+  const MapPointId established = s.map.points().begin()->first;
+  const MapPointId recent = std::next(s.map.points().begin())->first;
+  // The established point is found in 1 of 10 frames it should be seen in (below 0.25): as a
+  // recent point it would go. The recent point is merged into it.
+  MapDelta counters;
+  for (int k = 0; k < 9; ++k) counters.visible_increments.push_back(established);
+  MapDelta merge;
+  merge.merges = {{recent, established}};
+  s.map.Apply(counters);
+  s.map.Apply(merge);
+  ASSERT_EQ(s.map.Resolve(recent), established);
+  LocalMapper mapper{LocalMapperOptions{}};
+  std::vector<MapPointId> still;
+  const MapDelta cull = mapper.CullRecentPoints(k0, s.map, {recent}, &still);
+  EXPECT_TRUE(cull.removed_points.empty());
+  EXPECT_TRUE(still.empty());
+}
+
 TEST(LocalMapper, FusesDuplicatePoints) {
   SceneMap s(34);
   const KeyframeId k0 = s.AddKeyframe(0, TruePose(0), true);
