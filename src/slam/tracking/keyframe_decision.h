@@ -39,9 +39,11 @@ struct KeyframeDecisionOptions {
   // view (and the points the map can offer) changes faster than the tracked counts fall, and a
   // keyframe too far behind leaves nothing to track against a few frames later.
   double max_rotation_since_keyframe_deg = 10.0;
-  double min_interval_s = 0.0;         // never insert more often (unless tracking is weak)
-  double min_motion_quality = 0.5;     // below: the pose is weakly constrained, insert
-  double max_filtered_fraction = 0.6;  // above (and tracking not weak): not a keyframe
+  double min_interval_s = 0.0;      // never insert more often (unless tracking is weak)
+  double min_motion_quality = 0.5;  // below: the pose is weakly constrained, insert
+  // Above: not a keyframe, unless (stereo) tracking is weak or close points are needed; in mono
+  // nothing overrides it, so a view mostly covered by moving objects adds no keyframe.
+  double max_filtered_fraction = 0.6;
   bool IsValid(std::string* why) const;
 };
 
