@@ -69,6 +69,15 @@ void TrackFrames(test::SyntheticScene& scene, int first, int last, TrackerRun* r
   }
 }
 
+// Tracks a frame of unrelated keypoints (a scene of clutter only, of this seed): lost.
+TrackingResult TrackJunk(TrackerRun* run, uint32_t seed, int64_t frame_id) {
+  test::SyntheticScene::Options junk_options;
+  junk_options.num_points = 0;
+  junk_options.num_clutter = 1500;
+  test::SyntheticScene junk(seed, junk_options);
+  return run->tracker.Track(junk.MakeFrame(frame_id, SE3::Identity(), nullptr), run->map);
+}
+
 TEST(Tracker, TracksASyntheticStereoTrajectory) {
   test::SyntheticScene scene(21);
   TrackerRun run;
@@ -130,12 +139,7 @@ TEST(Tracker, LosesTrackOnGarbageAndRelocalises) {
   TrackFrames(scene, 0, 8, &run);
   ASSERT_EQ(run.tracker.status(), TrackingStatus::kOk);
   // A frame of unrelated keypoints: tracking is lost.
-  test::SyntheticScene::Options junk_options;
-  junk_options.num_points = 0;
-  junk_options.num_clutter = 1500;
-  test::SyntheticScene junk(99, junk_options);
-  const FramePtr garbage = junk.MakeFrame(8, SE3::Identity(), nullptr);
-  const TrackingResult lost = run.tracker.Track(garbage, run.map);
+  const TrackingResult lost = TrackJunk(&run, 99, 8);
   EXPECT_EQ(lost.status, TrackingStatus::kLost);
   EXPECT_EQ(run.tracker.status(), TrackingStatus::kLost);
   EXPECT_TRUE(lost.map_delta.found_increments.empty());
@@ -189,12 +193,7 @@ TEST(Tracker, RelocalisationMatchesAMapPointToOneKeypointOnly) {
   test::SyntheticScene scene(23);
   TrackerRun run;
   TrackFrames(scene, 0, 8, &run);
-  test::SyntheticScene::Options junk_options;
-  junk_options.num_points = 0;
-  junk_options.num_clutter = 1500;
-  test::SyntheticScene junk(99, junk_options);
-  ASSERT_EQ(run.tracker.Track(junk.MakeFrame(8, SE3::Identity(), nullptr), run.map).status,
-            TrackingStatus::kLost);
+  ASSERT_EQ(TrackJunk(&run, 99, 8).status, TrackingStatus::kLost);
   // Back at frame 5's place, with most descriptors 72 bits off (beyond the descriptor matching's
   // distance, within the projection search's), so that PnP finds few matches and the search by
   // projection runs; and every keypoint found again one level up (one corner, two keypoints).
@@ -386,12 +385,7 @@ TEST(Tracker, ARelocalisationCandidateTheLocalMapDoesNotConfirmIsRejected) {
     if (!verify) options.min_relocalisation_confirmations = 0;
     run.tracker = Tracker(options);
     TrackFrames(scene, 0, 8, &run);
-    test::SyntheticScene::Options junk_options;
-    junk_options.num_points = 0;
-    junk_options.num_clutter = 1500;
-    test::SyntheticScene junk(98, junk_options);
-    ASSERT_EQ(run.tracker.Track(junk.MakeFrame(8, SE3::Identity(), nullptr), run.map).status,
-              TrackingStatus::kLost);
+    ASSERT_EQ(TrackJunk(&run, 98, 8).status, TrackingStatus::kLost);
 
     test::SyntheticScene::Options other_options;
     other_options.num_clutter = 0;
