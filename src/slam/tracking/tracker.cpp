@@ -327,7 +327,7 @@ bool Tracker::TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* po
 }
 
 bool Tracker::Relocalise(const Frame& frame, const Map& map, const PlaceQuery& place, SE3* pose,
-                         Matches* m, int* n0) {
+                         Matches* m, int* n0, KeyframeId* keyframe) {
   // Candidates: keyframes anywhere in the map that look like the frame (place recognition), then
   // the most recent keyframes, then the reference keyframe's covisible ones.
   RelocalisationStats& st = relocalisation_stats_;
@@ -426,7 +426,7 @@ bool Tracker::Relocalise(const Frame& frame, const Map& map, const PlaceQuery& p
     ++st.accepted;
     *pose = candidate_pose;
     *n0 = static_cast<int>(pairs.size());
-    reference_ = id;
+    *keyframe = id;
     return true;
   }
   return false;
@@ -619,8 +619,10 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
   }
   ++frames_since_relocalisation_;
   if (!ok) {
-    ok = Relocalise(frame, map, place, &pose, &m, &result.num_matches_initial);
+    KeyframeId relocalised_at;
+    ok = Relocalise(frame, map, place, &pose, &m, &result.num_matches_initial, &relocalised_at);
     if (ok) {
+      reference_ = relocalised_at;
       result.method = TrackingMethod::kRelocalisation;
       frames_since_relocalisation_ = 0;
     }
@@ -647,15 +649,14 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
     SE3 other_pose = SE3::Identity();
     int n0 = 0;
     TrackingResult other_result;
-    KeyframeId other_reference;
-    const KeyframeId kept_reference = reference_;  // Relocalise sets it to its keyframe
-    if (Relocalise(frame, map, place, &other_pose, &other, &n0) &&
+    KeyframeId other_reference, relocalised_at;
+    if (Relocalise(frame, map, place, &other_pose, &other, &n0, &relocalised_at) &&
         TrackLocalMap(frame, map, true, &other_pose, &other, &other_result, &other_reference) &&
         other.CountMapPoints() > needed) {
       switched_place = true;  // no velocity across the switch: it holds the jump between places
       pose = other_pose;
       m = std::move(other);
-      if (other_reference.valid()) reference_ = other_reference;
+      reference_ = other_reference.valid() ? other_reference : relocalised_at;
       result.method = TrackingMethod::kRelocalisation;
       result.num_matches_initial = n0;
       result.num_local_projected = other_result.num_local_projected;
@@ -663,8 +664,6 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
       result.map_delta = std::move(other_result.map_delta);
       result.keyframe_input.motion_quality = other_result.keyframe_input.motion_quality;
       frames_since_relocalisation_ = 0;
-    } else {
-      reference_ = kept_reference;
     }
   }
 

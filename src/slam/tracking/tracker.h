@@ -191,8 +191,10 @@ class Tracker {
                  std::vector<int>* inliers) const;
   bool TrackReferenceKeyframe(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
                               int* n1);
+  // *keyframe: the keyframe the accepted pose was found from (the caller decides whether it
+  // becomes the reference).
   bool Relocalise(const Frame& frame, const Map& map, const PlaceQuery& place, SE3* pose,
-                  Matches* m, int* n0);
+                  Matches* m, int* n0, KeyframeId* keyframe);
   // relocalised: the frame counts as recently relocalised (wider window, more inliers needed).
   // *local_reference: the local keyframe sharing most points (invalid when none).
   bool TrackLocalMap(const Frame& frame, const Map& map, bool relocalised, SE3* pose, Matches* m,
