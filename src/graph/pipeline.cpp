@@ -707,7 +707,8 @@ PipelineResult GraphRun::Run() {
   TsanSetupDone();
   std::thread clock([this] { ClockLoop(); });
   // Stage bodies catch everything; an exception that still escapes one cancels the graph, which
-  // the clock notices (it stops and releases the graph), and is reported like any stage error.
+  // the clock notices (it stops and releases the graph), and wait_for_all rethrows it: it is
+  // reported like any stage error.
   std::string escaped;
   try {
     g.wait_for_all();
@@ -716,7 +717,7 @@ PipelineResult GraphRun::Run() {
   } catch (...) {
     escaped = "unknown exception";
   }
-  if (!escaped.empty() || context_->is_group_execution_cancelled()) {
+  if (!escaped.empty()) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!error_ || error_->stage == kGraphStage)
