@@ -446,6 +446,14 @@ TwoViewResult InitializeTwoView(const PinholeCamera& camera, const Points& uv_re
   }
   if (!camera.IsValid(&why)) throw std::invalid_argument("InitializeTwoView: camera: " + why);
   if (!options.IsValid(&why)) throw ConfigError("TwoViewOptions: " + why);
+  // One non-finite point would make the shared normalising transforms NaN and fail every model
+  // with a misleading reason; the extractor never gives one, so it is a caller's error.
+  for (size_t i = 0; i < uv_ref.size(); ++i) {
+    if (!uv_ref[i].allFinite() || !uv_cur[i].allFinite()) {
+      throw std::invalid_argument("InitializeTwoView: correspondence " + std::to_string(i) +
+                                  " is not finite");
+    }
+  }
 
   const size_t n = uv_ref.size();
   TwoViewResult result;

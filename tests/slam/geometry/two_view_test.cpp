@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <limits>
 #include <random>
 
 #include "slam/common/error.h"
@@ -250,6 +251,11 @@ TEST(TwoView, TooFewMatchesAndBadInput) {
   EXPECT_NE(r.failure_reason.find("too few"), std::string::npos);
   std::vector<Eigen::Vector2d> shorter(s.uv_cur.begin(), s.uv_cur.end() - 1);
   EXPECT_THROW(InitializeTwoView(KittiCamera(), s.uv_ref, shorter, TwoViewOptions{}),
+               std::invalid_argument);
+  const Scene big = GeneralScene(ForwardMotion(), 100, 0.5, 9);
+  std::vector<Eigen::Vector2d> with_nan = big.uv_cur;
+  with_nan[5].x() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(InitializeTwoView(KittiCamera(), big.uv_ref, with_nan, TwoViewOptions{}),
                std::invalid_argument);
   TwoViewOptions bad;
   bad.min_parallax_deg = -1;
