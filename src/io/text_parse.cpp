@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <Eigen/SVD>
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -38,6 +39,45 @@ std::string Quote(std::string_view token) {
   return out + "'";
 }
 
+// Strips one leading '+' (from_chars accepts only '-'); false when a second sign follows it.
+bool StripPlus(std::string_view* digits) {
+  if (digits->empty() || digits->front() != '+') return true;
+  digits->remove_prefix(1);
+  return digits->empty() || (digits->front() != '-' && digits->front() != '+');
+}
+
+// For a decimal number that from_chars parsed whole but found out of double range: true when its
+// magnitude is below 1, i.e. it underflowed rather than overflowed.
+bool IsUnderflow(std::string_view digits) {
+  if (!digits.empty() && digits.front() == '-') digits.remove_prefix(1);
+  const size_t e = digits.find_first_of("eE");
+  const std::string_view mantissa = digits.substr(0, e);
+  constexpr int64_t kMaxExponent = 1'000'000'000'000;  // saturates; the sign is what counts
+  int64_t exponent = 0;
+  if (e != std::string_view::npos) {
+    std::string_view text = digits.substr(e + 1);
+    const bool negative = !text.empty() && text.front() == '-';
+    if (!text.empty() && (text.front() == '-' || text.front() == '+')) text.remove_prefix(1);
+    for (char c : text) exponent = std::min(exponent * 10 + (c - '0'), kMaxExponent);
+    if (negative) exponent = -exponent;
+  }
+  // Decimal order of the mantissa's first non-zero digit: 0 for "1.5", -3 for "0.0012".
+  const size_t dot = mantissa.find('.');
+  const std::string_view whole = mantissa.substr(0, dot);
+  const std::string_view frac =
+      dot == std::string_view::npos ? std::string_view() : mantissa.substr(dot + 1);
+  int64_t order = 0;
+  const size_t first_whole = whole.find_first_not_of('0');
+  if (first_whole != std::string_view::npos) {
+    order = static_cast<int64_t>(whole.size() - first_whole) - 1;
+  } else {
+    const size_t first_frac = frac.find_first_not_of('0');
+    if (first_frac == std::string_view::npos) return true;  // zero (not out of range anyway)
+    order = -static_cast<int64_t>(first_frac) - 1;
+  }
+  return order + exponent < 0;
+}
+
 }  // namespace
 
 std::vector<std::string_view> SplitWhitespace(std::string_view text) {
@@ -60,14 +100,18 @@ bool IsBlank(std::string_view line) {
 
 double ParseFiniteDouble(std::string_view token, const std::string& name, int line) {
   std::string_view digits = token;
-  if (!digits.empty() && digits.front() == '+') digits.remove_prefix(1);
+  if (!StripPlus(&digits)) throw InputError(name, line, "not a number: " + Quote(token));
   double value = 0;
   const char* end = digits.data() + digits.size();
   const auto [ptr, ec] = std::from_chars(digits.data(), end, value);
   if (digits.empty() || ptr != end || (ec != std::errc() && ec != std::errc::result_out_of_range))
     throw InputError(name, line, "not a number: " + Quote(token));
-  if (ec == std::errc::result_out_of_range)
-    throw InputError(name, line, "number out of double range: " + Quote(token));
+  if (ec == std::errc::result_out_of_range) {
+    // from_chars reports underflow too (and leaves value alone); strtod's answer there is a zero.
+    if (!IsUnderflow(digits))
+      throw InputError(name, line, "number out of double range: " + Quote(token));
+    value = digits.front() == '-' ? -0.0 : 0.0;
+  }
   if (std::isnan(value)) throw InputError(name, line, "NaN is not allowed: " + Quote(token));
   if (!std::isfinite(value))
     throw InputError(name, line, "infinite value is not allowed: " + Quote(token));
@@ -76,7 +120,7 @@ double ParseFiniteDouble(std::string_view token, const std::string& name, int li
 
 int64_t ParseInt(std::string_view token, const std::string& name, int line) {
   std::string_view digits = token;
-  if (!digits.empty() && digits.front() == '+') digits.remove_prefix(1);
+  if (!StripPlus(&digits)) throw InputError(name, line, "not an integer: " + Quote(token));
   int64_t value = 0;
   const char* end = digits.data() + digits.size();
   const auto [ptr, ec] = std::from_chars(digits.data(), end, value);

@@ -19,11 +19,12 @@ std::vector<std::string_view> SplitWhitespace(std::string_view text);
 // True when the line holds only whitespace.
 bool IsBlank(std::string_view line);
 
-// Parses a whole token as a finite double (leading '+' allowed). Throws InputError on a
-// non-numeric token, trailing characters, NaN, infinity or a value out of double range.
+// Parses a whole token as a finite double (one leading '+' or '-' allowed). Throws InputError on
+// a non-numeric token, trailing characters, NaN, infinity or a value beyond the double range; a
+// value too small for a subnormal is a (signed) zero, as strtod gives.
 double ParseFiniteDouble(std::string_view token, const std::string& name, int line);
 
-// Parses a whole token as a base-10 integer.
+// Parses a whole token as a base-10 integer (one leading '+' or '-' allowed).
 int64_t ParseInt(std::string_view token, const std::string& name, int line);
 
 // Parses a decimal time in seconds ("1317384506.123456789", "1.044989e-01") to nanoseconds.

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <random>
 #include <sstream>
@@ -203,6 +204,28 @@ TEST(TextParse, SecondsToNsIsExactForDecimals) {
   EXPECT_THROW(io::ParseSecondsToNs(".", "x", 1), InputError);
   EXPECT_THROW(io::ParseSecondsToNs("1.2.3", "x", 1), InputError);
   EXPECT_THROW(io::ParseSecondsToNs("99999999999", "x", 1), InputError);
+}
+
+TEST(TextParse, PlusSignIsNotFollowedByASecondSign) {
+  EXPECT_EQ(io::ParseFiniteDouble("+5", "x", 1), 5.0);
+  EXPECT_EQ(io::ParseInt("+5", "x", 1), 5);
+  ExpectInputError([] { io::ParseFiniteDouble("+-5", "x", 3); }, "x", 3, "not a number: '+-5'");
+  ExpectInputError([] { io::ParseInt("+-5", "x", 3); }, "x", 3, "not an integer: '+-5'");
+  ExpectInputError([] { io::ParseFiniteDouble("+-inf", "x", 3); }, "x", 3, "not a number");
+}
+
+TEST(TextParse, UnderflowIsZeroButOverflowIsAnError) {
+  // As strtod: a magnitude below the smallest subnormal rounds to (signed) zero.
+  EXPECT_EQ(io::ParseFiniteDouble("1e-400", "x", 1), 0.0);
+  EXPECT_TRUE(std::signbit(io::ParseFiniteDouble("-1e-400", "x", 1)));
+  EXPECT_EQ(io::ParseFiniteDouble("+0.00001e-99999999999999999999", "x", 1), 0.0);
+  EXPECT_EQ(io::ParseFiniteDouble("1e-310", "x", 1), 1e-310);  // subnormal, as it was
+  ExpectInputError([] { io::ParseFiniteDouble("1e400", "x", 2); }, "x", 2, "out of double range");
+  ExpectInputError([] { io::ParseFiniteDouble("-1e400", "x", 2); }, "x", 2, "out of double range");
+  ExpectInputError([] { io::ParseFiniteDouble("0.000001e316", "x", 2); }, "x", 2,
+                   "out of double range");  // 1e310
+  ExpectInputError([] { io::ParseFiniteDouble("123456e99999999999999999999", "x", 2); }, "x", 2,
+                   "out of double range");
 }
 
 TEST(TextParse, IstreamOverloadsUseTheGivenName) {
