@@ -437,6 +437,38 @@ TEST(LkFlow, AnEngineOverASequenceMatchesFreshEngines) {
   }
 }
 
+// cv::buildOpticalFlowPyramid stops below max_level once a level would be no larger than the
+// window; the filter's passes then use the levels there are, on every engine, as OpenCV does.
+TEST(LkFlow, PyramidsShorterThanMaxLevelTrackAsOnOpenCv) {
+  LkOptions options;
+  options.max_level = 6;
+  cv::Mat prev(80, 120, CV_8U);
+  cv::RNG rng(4);
+  rng.fill(prev, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(prev, prev, cv::Size(0, 0), 1.5);
+  cv::Mat cur;
+  cv::warpAffine(prev, cur, cv::Matx23d(1, 0, 2, 0, 1, 1), prev.size(), cv::INTER_LINEAR,
+                 cv::BORDER_REFLECT);
+  const std::vector<cv::Mat> prev_pyr = BuildLkPyramid(prev, options);
+  const std::vector<cv::Mat> cur_pyr = BuildLkPyramid(cur, options);
+  ASSERT_LT(prev_pyr.size() / 2, static_cast<size_t>(options.max_level + 1));
+  std::vector<cv::Point2f> pts;
+  for (int v = 20; v <= 60; v += 10) {
+    for (int u = 20; u <= 100; u += 10) pts.emplace_back(static_cast<float>(u), v * 1.0f);
+  }
+  const FlowTracks on_opencv = TrackIntoPrevious(prev_pyr, cur_pyr, pts, options);
+  EXPECT_GT(on_opencv.num_valid, static_cast<int>(pts.size()) / 2);
+  for (const std::string& device : Devices()) {
+    SCOPED_TRACE(device);
+    std::unique_ptr<FlowEngine> engine = MakeLkFlowEngine(device);
+    FlowTracks on_engine;
+    ASSERT_NO_THROW(on_engine =
+                        TrackIntoPrevious(prev_pyr, cur_pyr, pts, options, {}, engine.get()));
+    EXPECT_EQ(on_engine.num_valid, on_opencv.num_valid);
+    EXPECT_EQ(on_engine.valid, on_opencv.valid);
+  }
+}
+
 TEST(LkFlow, NoPointsGiveEmptyOutputs) {
   const std::vector<cv::Mat> pyr = BuildLkPyramid(LoadGray(Odometry06(0)), PyramidOptions());
   for (const std::string& device : Devices()) {

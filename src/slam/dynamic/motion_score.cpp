@@ -159,6 +159,14 @@ FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
     opencv = MakeOpenCvFlowEngine();
     engine = opencv.get();
   }
+  // cv::buildOpticalFlowPyramid stops early once a level would be no larger than the window,
+  // so a pyramid can hold fewer levels than options.max_level asks for; cv::calcOpticalFlowPyrLK
+  // quietly uses what there is, and every engine is given no more (the pyramids hold each level
+  // with its derivatives).
+  const int top_level =
+      std::min(options.max_level,
+               static_cast<int>(std::min(prev_pyramid.size(), cur_pyramid.size()) / 2) - 1);
+  if (top_level < 0) throw std::invalid_argument("TrackIntoPrevious: a pyramid without levels");
   LkPass pass;
   pass.window_px = options.window_px;
   pass.max_iterations = options.max_iterations;
@@ -195,7 +203,7 @@ FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
     if (!guess_start.empty()) {
       std::vector<uint8_t> guess_status;
       std::vector<float> errors;
-      pass.max_level = std::min(options.refine_max_level, options.max_level);
+      pass.max_level = std::min(options.refine_max_level, top_level);
       pass.use_initial_flow = true;
       engine->Track(cur_pyramid, prev_pyramid, guess_start, guess_uv, guess_status, errors, pass);
       for (size_t k = 0; k < guess_index.size(); ++k) {
@@ -228,7 +236,7 @@ FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
   if (!zero_start.empty()) {
     std::vector<cv::Point2f> zero_uv;
     std::vector<uint8_t> zero_status;
-    pass.max_level = options.max_level;
+    pass.max_level = top_level;
     pass.use_initial_flow = false;
     engine->Track(cur_pyramid, prev_pyramid, zero_start, zero_uv, zero_status, error, pass);
     for (size_t k = 0; k < zero_index.size(); ++k) {
@@ -262,7 +270,7 @@ FlowTracks TrackIntoPrevious(const std::vector<cv::Mat>& prev_pyramid,
   }
   if (!back_start.empty()) {
     std::vector<uint8_t> back_status;
-    pass.max_level = options.max_level;
+    pass.max_level = top_level;
     pass.use_initial_flow = true;
     engine->Track(prev_pyramid, cur_pyramid, back_start, back_uv, back_status, error, pass);
     for (size_t k = 0; k < back_index.size(); ++k) {
