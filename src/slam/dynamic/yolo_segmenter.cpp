@@ -318,10 +318,18 @@ std::vector<Instance> DecodeYoloOutputs(const cv::Mat& detections, const cv::Mat
   const cv::Mat det = DetectionView(detections, layout);
   const std::vector<YoloCandidate> candidates =
       DecodeYoloCandidates(detections, layout, params.conf_threshold);
+  // Boxes entirely in the letterbox's padding are dropped before the suppression, so that they
+  // neither suppress a box of the frame nor take a slot of max_detections.
   std::vector<cv::Rect2f> boxes;
   std::vector<float> scores;
   std::vector<int> classes;
-  for (const YoloCandidate& c : candidates) {
+  std::vector<int> candidate_of;
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    const YoloCandidate& c = candidates[i];
+    const cv::Rect2f in_image =
+        ClipBox(letterbox.ImageFromInput(c.box_input_px), letterbox.image_size);
+    if (PixelsInBox(in_image, letterbox.image_size).empty()) continue;  // in the padding
+    candidate_of.push_back(static_cast<int>(i));
     boxes.push_back(c.box_input_px);
     scores.push_back(c.score);
     classes.push_back(c.class_id);
@@ -336,13 +344,12 @@ std::vector<Instance> DecodeYoloOutputs(const cv::Mat& detections, const cv::Mat
   std::vector<Instance> instances;
   std::vector<float> coeffs(layout.num_mask_coeffs);
   for (int k : kept) {
-    const YoloCandidate& c = candidates[k];
+    const YoloCandidate& c = candidates[candidate_of[k]];
     Instance inst;
     inst.class_id = c.class_id;
     inst.class_name = class_names[c.class_id];
     inst.confidence = c.score;
     inst.box_px = ClipBox(letterbox.ImageFromInput(c.box_input_px), letterbox.image_size);
-    if (PixelsInBox(inst.box_px, letterbox.image_size).empty()) continue;  // in the padding
     if (layout.has_prototypes()) {
       const int first = 4 + layout.num_classes;
       for (int m = 0; m < layout.num_mask_coeffs; ++m) {

@@ -211,6 +211,15 @@ TEST(YoloDecode, SyntheticSegmentationOutputsGiveKnownInstancesAndMasks) {
   EXPECT_EQ(cv::countNonZero(person.mask), 16 * 16);
   EXPECT_EQ(CountNonZero(person.mask, cv::Rect(96, 16, 16, 16)), 16 * 16);
 
+  // A box in the padding takes no slot of max_detections (the tree scores highest).
+  YoloDecodeParams two = params;
+  two.max_detections = 2;
+  const std::vector<Instance> capped =
+      DecodeYoloOutputs(s.detections, s.prototypes, layout, s.letterbox, s.names, two);
+  ASSERT_EQ(capped.size(), 2u);
+  EXPECT_EQ(capped[0].class_name, "car");
+  EXPECT_EQ(capped[1].class_name, "person");
+
   // Class-agnostic NMS and a higher threshold change what survives.
   params.conf_threshold = 0.7f;
   EXPECT_EQ(
