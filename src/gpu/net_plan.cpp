@@ -315,9 +315,12 @@ class Lowering {
     g.dilation_h = static_cast<int>(dilations[0]);
     g.dilation_w = static_cast<int>(dilations[1]);
     Pads2d(n, &g.pad_top, &g.pad_left);
-    g.h_out = (g.h_in + 2 * g.pad_top - g.dilation_h * (g.kh - 1) - 1) / g.stride_h + 1;
-    g.w_out = (g.w_in + 2 * g.pad_left - g.dilation_w * (g.kw - 1) - 1) / g.stride_w + 1;
-    if (g.h_out <= 0 || g.w_out <= 0) Fail(n, "empty output");
+    // A negative span is an empty output (integer division would round it up to one row).
+    const int span_h = g.h_in + 2 * g.pad_top - g.dilation_h * (g.kh - 1) - 1;
+    const int span_w = g.w_in + 2 * g.pad_left - g.dilation_w * (g.kw - 1) - 1;
+    if (span_h < 0 || span_w < 0) Fail(n, "empty output");
+    g.h_out = span_h / g.stride_h + 1;
+    g.w_out = span_w / g.stride_w + 1;
     const int bias = OptionalBias(n, g.c_out);
     const Shape out_shape = {1, g.c_out, g.h_out, g.w_out};
     ConvStep step{x.buffer, -1, w.buffer, bias, g, Activation::kNone};
@@ -654,9 +657,11 @@ class Lowering {
     g.stride_h = static_cast<int>(strides[0]);
     g.stride_w = static_cast<int>(strides[1]);
     Pads2d(n, &g.pad_top, &g.pad_left);
-    g.h_out = (g.h_in + 2 * g.pad_top - g.kh) / g.stride_h + 1;
-    g.w_out = (g.w_in + 2 * g.pad_left - g.kw) / g.stride_w + 1;
-    if (g.h_out <= 0 || g.w_out <= 0) Fail(n, "empty output");
+    const int span_h = g.h_in + 2 * g.pad_top - g.kh;
+    const int span_w = g.w_in + 2 * g.pad_left - g.kw;
+    if (span_h < 0 || span_w < 0) Fail(n, "empty output");  // as for Conv
+    g.h_out = span_h / g.stride_h + 1;
+    g.w_out = span_w / g.stride_w + 1;
     const int in = x.buffer;
     const int out = Define(n, 0, Shape{1, g.channels, g.h_out, g.w_out});
     Emit(n, MaxPoolStep{in, out, g});

@@ -481,6 +481,25 @@ TEST(NetPlan, FuzzFindingsAreRefusedOrComputedCleanly) {
           .Output("y")
           .Model();
   EXPECT_THROW(BuildNetPlan(wild_pads, 2, 2), std::invalid_argument);
+  // A kernel larger than its padded input, with stride 2: integer division would round the
+  // negative span up to one output row and column.
+  const auto small_conv =
+      OnnxWriter()
+          .Input("x", {1, 3, 1, 1})
+          .Floats("w", {1, 3, 2, 2}, std::vector<float>(12, 1.0f))
+          .Node("Conv", {"x", "w"}, {"y"},
+                {OnnxAttr::Ints("kernel_shape", {2, 2}), OnnxAttr::Ints("strides", {2, 2})})
+          .Output("y")
+          .Model();
+  EXPECT_THROW(BuildNetPlan(small_conv, 1, 1), std::invalid_argument);
+  const auto small_pool =
+      OnnxWriter()
+          .Input("x", {1, 3, 1, 1})
+          .Node("MaxPool", {"x"}, {"y"},
+                {OnnxAttr::Ints("kernel_shape", {2, 2}), OnnxAttr::Ints("strides", {2, 2})})
+          .Output("y")
+          .Model();
+  EXPECT_THROW(BuildNetPlan(small_pool, 1, 1), std::invalid_argument);
   // Initializers of data type 0 (undefined) as a Conv bias and as a graph output.
   const auto undefined = test::Cat(
       {test::VarintField(1, 1), test::VarintField(2, 0), test::BytesField(8, test::Str("u"))});
