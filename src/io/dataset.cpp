@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <set>
 #include <stdexcept>
 
 #include "io/kitti_odometry.h"
@@ -109,6 +111,60 @@ std::vector<std::string> ListFiles(const std::string& dir, const std::string& ex
   }
   std::sort(paths.begin(), paths.end());
   return paths;
+}
+
+std::string NormalDirectoryPath(const std::string& dir) {
+  std::error_code ec;
+  fs::path path = fs::absolute(fs::path(dir), ec);
+  if (ec) path = fs::path(dir);
+  path = path.lexically_normal();
+  if (path.filename().empty() && path.has_relative_path()) path = path.parent_path();  // "a/b/"
+  return path.string();
+}
+
+std::vector<std::string> ListFrameFiles(const std::string& dir, const std::string& extension,
+                                        std::vector<int64_t>* numbers) {
+  std::vector<std::pair<int64_t, std::string>> frames;
+  for (std::string& path : ListFiles(dir, extension)) {
+    const std::string name = fs::path(path).filename().string();
+    const std::string_view stem = std::string_view(name).substr(0, name.size() - extension.size());
+    int64_t number = 0;
+    const auto [end, ec] = std::from_chars(stem.data(), stem.data() + stem.size(), number);
+    if (stem.empty() || stem.front() == '-' || end != stem.data() + stem.size() ||
+        ec != std::errc())
+      throw InputError(path, 0,
+                       "file name is not a frame number (want e.g. 000042" + extension + ")");
+    frames.emplace_back(number, std::move(path));
+  }
+  std::sort(frames.begin(), frames.end());
+  numbers->clear();
+  std::vector<std::string> paths;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    if (i > 0 && frames[i].first == frames[i - 1].first)
+      throw InputError(frames[i].second, 0,
+                       "frame " + std::to_string(frames[i].first) + " is also " +
+                           fs::path(paths.back()).filename().string());
+    numbers->push_back(frames[i].first);
+    paths.push_back(std::move(frames[i].second));
+  }
+  return paths;
+}
+
+void CheckSameFileNames(const std::vector<std::string>& left, const std::string& left_dir,
+                        const std::vector<std::string>& other, const std::string& other_dir) {
+  const auto names = [](const std::vector<std::string>& paths) {
+    std::vector<std::string> out;
+    for (const std::string& path : paths) out.push_back(fs::path(path).filename().string());
+    return out;
+  };
+  const std::vector<std::string> left_names = names(left), other_names = names(other);
+  const std::set<std::string> left_set(left_names.begin(), left_names.end());
+  const std::set<std::string> other_set(other_names.begin(), other_names.end());
+  for (const std::string& name : left_names)
+    if (!other_set.count(name))
+      throw InputError(other_dir, 0, "no " + name + " to pair with " + left_dir + "/" + name);
+  for (const std::string& name : other_names)
+    if (!left_set.count(name)) throw InputError(other_dir, 0, name + " has no pair in " + left_dir);
 }
 
 cv::Mat LoadGreyImage(const std::string& path) {

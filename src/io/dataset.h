@@ -77,6 +77,21 @@ void SetRigFromProjections(const Eigen::Matrix<double, 3, 4>& p_left,
 // Sorted paths of the files in `dir` whose names end with `extension` (e.g. ".png").
 std::vector<std::string> ListFiles(const std::string& dir, const std::string& extension);
 
+// `dir` made absolute and lexically normal, without a trailing separator or "." ("07", "./07/.",
+// "seq/07/" -> "<cwd>/.../07"), so that its file name and parents are those of the directory.
+std::string NormalDirectoryPath(const std::string& dir);
+
+// The files of `dir` ending with `extension` whose names are frame numbers ("000042.png": 42),
+// sorted by number; *numbers gets the numbers. Throws InputError naming a file whose name before
+// the extension is not a decimal number, or the second of two files of one number.
+std::vector<std::string> ListFrameFiles(const std::string& dir, const std::string& extension,
+                                        std::vector<int64_t>* numbers);
+
+// Throws InputError naming `other_dir` unless `other` holds exactly the file names of `left`
+// (paired frames of two cameras), naming the first file that is not in both.
+void CheckSameFileNames(const std::vector<std::string>& left, const std::string& left_dir,
+                        const std::vector<std::string>& other, const std::string& other_dir);
+
 // Opens a KITTI odometry sequence directory or a KITTI raw drive directory, decided by the
 // layout (calib.txt + image_0/image_2 vs image_00/data). raw_truth: a raw drive's ground truth.
 Dataset OpenDataset(const std::string& path, KittiCameras cams = KittiCameras::kGray,

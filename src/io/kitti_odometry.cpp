@@ -11,11 +11,25 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Images of one camera folder, or an empty list when the folder does not exist.
-std::vector<std::string> CameraImages(const fs::path& dir) {
+// Images of an optional camera folder, or an empty list when the folder does not exist.
+std::vector<std::string> CameraImages(const fs::path& dir, std::vector<int64_t>* numbers) {
   std::error_code ec;
+  numbers->clear();
   if (!fs::is_directory(dir, ec)) return {};
-  return ListFiles(dir.string(), ".png");
+  return ListFrameFiles(dir.string(), ".png", numbers);
+}
+
+// Throws "N <what> but <of>: none for frame K (<image name>)" naming `file` when a frame number
+// has no line in it.
+void RequireLines(size_t lines, const std::vector<int64_t>& numbers,
+                  const std::vector<std::string>& images, const std::string& file,
+                  const std::string& what, const std::string& of) {
+  for (size_t i = 0; i < numbers.size(); ++i)
+    if (static_cast<uint64_t>(numbers[i]) >= lines)
+      throw InputError(file, 0,
+                       std::to_string(lines) + " " + what + " but " + of + ": none for frame " +
+                           std::to_string(numbers[i]) + " (" +
+                           fs::path(images[i]).filename().string() + ")");
 }
 
 }  // namespace
@@ -24,8 +38,7 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
   std::error_code ec;
   if (!fs::is_directory(sequence_dir, ec))
     throw InputError(sequence_dir, 0, "sequence directory not found");
-  fs::path dir = fs::path(sequence_dir);
-  if (dir.filename().empty()) dir = dir.parent_path();  // trailing '/'
+  const fs::path dir = NormalDirectoryPath(sequence_dir);
 
   Dataset dataset;
   dataset.root = dir.string();
@@ -37,23 +50,35 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
   const fs::path left_dir = dir / left_dir_name;
   if (!fs::is_directory(left_dir, ec))
     throw InputError(left_dir.string(), 0, "image directory not found");
-  dataset.left_paths = ListFiles(left_dir.string(), ".png");
+  std::vector<int64_t> numbers, other_numbers;
+  dataset.left_paths = ListFrameFiles(left_dir.string(), ".png", &numbers);
   if (dataset.left_paths.empty()) throw InputError(left_dir.string(), 0, "no PNG images");
-  dataset.right_paths = CameraImages(dir / right_dir_name);
-  if (!dataset.right_paths.empty() && dataset.right_paths.size() != dataset.left_paths.size())
-    throw InputError((dir / right_dir_name).string(), 0,
-                     std::to_string(dataset.right_paths.size()) + " images but " + left_dir_name +
-                         " has " + std::to_string(dataset.left_paths.size()));
-  dataset.left_color_paths = color ? dataset.left_paths : CameraImages(dir / "image_2");
-  if (dataset.left_color_paths.size() != dataset.left_paths.size())
-    dataset.left_color_paths.clear();  // a partial colour folder is not used
+  const fs::path right_dir = dir / right_dir_name;
+  dataset.right_paths = CameraImages(right_dir, &other_numbers);
+  if (!dataset.right_paths.empty()) {
+    if (dataset.right_paths.size() != dataset.left_paths.size())
+      throw InputError(right_dir.string(), 0,
+                       std::to_string(dataset.right_paths.size()) + " images but " + left_dir_name +
+                           " has " + std::to_string(dataset.left_paths.size()));
+    CheckSameFileNames(dataset.left_paths, left_dir_name, dataset.right_paths, right_dir.string());
+  }
+  if (color) {
+    dataset.left_color_paths = dataset.left_paths;
+  } else {
+    // A colour folder that does not hold exactly the left images' names is not used.
+    try {
+      dataset.left_color_paths = CameraImages(dir / "image_2", &other_numbers);
+      if (other_numbers != numbers) dataset.left_color_paths.clear();
+    } catch (const InputError&) {
+      dataset.left_color_paths.clear();
+    }
+  }
 
   const std::string times_path = (dir / "times.txt").string();
-  dataset.t_ns = ReadKittiTimes(times_path);
-  if (dataset.t_ns.size() != dataset.left_paths.size())
-    throw InputError(times_path, 0,
-                     std::to_string(dataset.t_ns.size()) + " timestamps but " +
-                         std::to_string(dataset.left_paths.size()) + " images in " + left_dir_name);
+  const std::vector<int64_t> times = ReadKittiTimes(times_path);
+  RequireLines(times.size(), numbers, dataset.left_paths, times_path, "timestamps",
+               std::to_string(dataset.size()) + " images in " + left_dir_name);
+  for (const int64_t number : numbers) dataset.t_ns.push_back(times[number]);
 
   const CalibFile calib = CalibFile::Read((dir / "calib.txt").string());
   SetRigFromProjections(calib.Matrix3x4(color ? "P2" : "P0"), calib.Matrix3x4(color ? "P3" : "P1"),
@@ -61,14 +86,17 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
 
   const fs::path poses_path = dir.parent_path().parent_path() / "poses" / (dataset.name + ".txt");
   if (fs::is_regular_file(poses_path, ec)) {
-    Trajectory poses = ReadKittiTrajectory(poses_path.string());
-    if (poses.size() < dataset.size())
-      throw InputError(poses_path.string(), 0,
-                       std::to_string(poses.size()) + " poses but " +
-                           std::to_string(dataset.size()) + " frames");
-    poses.resize(dataset.size());
-    for (size_t i = 0; i < poses.size(); ++i) poses[i].t_ns = dataset.t_ns[i];
-    dataset.ground_truth = std::move(poses);
+    const Trajectory poses = ReadKittiTrajectory(poses_path.string());
+    RequireLines(poses.size(), numbers, dataset.left_paths, poses_path.string(), "poses",
+                 std::to_string(dataset.size()) + " frames");
+    Trajectory truth;
+    for (size_t i = 0; i < numbers.size(); ++i) {
+      StampedPose pose = poses[numbers[i]];
+      pose.t_ns = dataset.t_ns[i];
+      pose.frame_index = static_cast<int64_t>(i);
+      truth.push_back(pose);
+    }
+    dataset.ground_truth = std::move(truth);
     dataset.ground_truth_source = poses_path.string();
   }
   return dataset;

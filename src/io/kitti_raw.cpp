@@ -1,5 +1,6 @@
 #include "io/kitti_raw.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -68,21 +69,31 @@ SE3 MakePose(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation
   return pose;
 }
 
-// The first `frames` times of a timestamps.txt, else InputError naming it.
-std::vector<int64_t> ReadTimestampsFor(const fs::path& path, size_t frames) {
-  std::vector<int64_t> t_ns = ReadRawTimestamps(path.string());
-  if (t_ns.size() < frames)
-    throw InputError(
-        path.string(), 0,
-        std::to_string(t_ns.size()) + " timestamps but " + std::to_string(frames) + " images");
-  t_ns.resize(frames);
+// The times of the frames `numbers` (line k + 1 for frame k) of a timestamps.txt, else
+// InputError naming it and the first frame without a line (`images` are the frames' files).
+std::vector<int64_t> ReadTimestampsFor(const fs::path& path, const std::vector<int64_t>& numbers,
+                                       const std::vector<std::string>& images) {
+  const std::vector<int64_t> times = ReadRawTimestamps(path.string());
+  std::vector<int64_t> t_ns;
+  for (size_t i = 0; i < numbers.size(); ++i) {
+    if (static_cast<uint64_t>(numbers[i]) >= times.size())
+      throw InputError(path.string(), 0,
+                       std::to_string(times.size()) + " timestamps but " +
+                           std::to_string(numbers.size()) + " images: none for frame " +
+                           std::to_string(numbers[i]) + " (" +
+                           fs::path(images[i]).filename().string() + ")");
+    t_ns.push_back(times[numbers[i]]);
+  }
   return t_ns;
 }
 
-std::vector<std::string> CameraDataImages(const fs::path& camera_dir) {
+// Images of an optional camera folder (CAMERA/data), or an empty list when it does not exist.
+std::vector<std::string> CameraDataImages(const fs::path& camera_dir,
+                                          std::vector<int64_t>* numbers) {
   std::error_code ec;
+  numbers->clear();
   if (!fs::is_directory(camera_dir / "data", ec)) return {};
-  return ListFiles((camera_dir / "data").string(), ".png");
+  return ListFrameFiles((camera_dir / "data").string(), ".png", numbers);
 }
 
 }  // namespace
@@ -221,25 +232,36 @@ Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE
   return trajectory;
 }
 
-std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir, size_t frames) {
+std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir,
+                                        const std::vector<int64_t>& frame_numbers) {
   const fs::path oxts_dir = fs::path(drive_dir) / "oxts" / "data";
   std::error_code ec;
   if (!fs::is_directory(oxts_dir, ec)) return {};
-  const std::vector<std::string> paths = ListFiles(oxts_dir.string(), ".txt");
-  if (paths.size() < frames)
-    throw InputError(
-        oxts_dir.string(), 0,
-        std::to_string(paths.size()) + " OXTS records but " + std::to_string(frames) + " images");
+  std::vector<int64_t> numbers;
+  const std::vector<std::string> paths = ListFrameFiles(oxts_dir.string(), ".txt", &numbers);
   std::vector<OxtsPacket> packets;
-  for (size_t i = 0; i < frames; ++i) packets.push_back(ReadOxtsPacket(paths[i]));
+  for (const int64_t frame : frame_numbers) {
+    const auto at = std::lower_bound(numbers.begin(), numbers.end(), frame);
+    if (at == numbers.end() || *at != frame)
+      throw InputError(oxts_dir.string(), 0,
+                       std::to_string(paths.size()) + " OXTS records but " +
+                           std::to_string(frame_numbers.size()) + " images: none for frame " +
+                           std::to_string(frame));
+    packets.push_back(ReadOxtsPacket(paths[static_cast<size_t>(at - numbers.begin())]));
+  }
   return packets;
+}
+
+std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir, size_t frames) {
+  std::vector<int64_t> frame_numbers(frames);
+  for (size_t i = 0; i < frames; ++i) frame_numbers[i] = static_cast<int64_t>(i);
+  return ReadOxtsPackets(drive_dir, frame_numbers);
 }
 
 Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth truth) {
   std::error_code ec;
   if (!fs::is_directory(drive_dir, ec)) throw InputError(drive_dir, 0, "drive directory not found");
-  fs::path dir(drive_dir);
-  if (dir.filename().empty()) dir = dir.parent_path();
+  const fs::path dir = NormalDirectoryPath(drive_dir);
   const fs::path calib_dir = dir.parent_path();
 
   Dataset dataset;
@@ -252,32 +274,45 @@ Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth t
   const fs::path left_dir = dir / left_name;
   if (!fs::is_directory(left_dir / "data", ec))
     throw InputError((left_dir / "data").string(), 0, "image directory not found");
-  dataset.left_paths = ListFiles((left_dir / "data").string(), ".png");
+  std::vector<int64_t> numbers, other_numbers;
+  dataset.left_paths = ListFrameFiles((left_dir / "data").string(), ".png", &numbers);
   if (dataset.left_paths.empty())
     throw InputError((left_dir / "data").string(), 0, "no PNG images");
-  dataset.right_paths = CameraDataImages(dir / right_name);
-  if (!dataset.right_paths.empty() && dataset.right_paths.size() != dataset.left_paths.size())
-    throw InputError((dir / right_name / "data").string(), 0,
-                     std::to_string(dataset.right_paths.size()) + " images but " + left_name +
-                         " has " + std::to_string(dataset.left_paths.size()));
-  dataset.left_color_paths = color ? dataset.left_paths : CameraDataImages(dir / "image_02");
-  if (dataset.left_color_paths.size() != dataset.left_paths.size())
-    dataset.left_color_paths.clear();
+  dataset.right_paths = CameraDataImages(dir / right_name, &other_numbers);
+  if (!dataset.right_paths.empty()) {
+    const std::string right_data = (dir / right_name / "data").string();
+    if (dataset.right_paths.size() != dataset.left_paths.size())
+      throw InputError(right_data, 0,
+                       std::to_string(dataset.right_paths.size()) + " images but " + left_name +
+                           " has " + std::to_string(dataset.left_paths.size()));
+    CheckSameFileNames(dataset.left_paths, left_name + "/data", dataset.right_paths, right_data);
+  }
+  if (color) {
+    dataset.left_color_paths = dataset.left_paths;
+  } else {
+    // A colour folder that does not hold exactly the left images' names is not used.
+    try {
+      dataset.left_color_paths = CameraDataImages(dir / "image_02", &other_numbers);
+      if (other_numbers != numbers) dataset.left_color_paths.clear();
+    } catch (const InputError&) {
+      dataset.left_color_paths.clear();
+    }
+  }
 
-  dataset.t_ns = ReadTimestampsFor(left_dir / "timestamps.txt", dataset.size());
+  dataset.t_ns = ReadTimestampsFor(left_dir / "timestamps.txt", numbers, dataset.left_paths);
 
   const CalibFile cam_to_cam = CalibFile::Read((calib_dir / "calib_cam_to_cam.txt").string());
   SetRigFromProjections(cam_to_cam.Matrix3x4(color ? "P_rect_02" : "P_rect_00"),
                         cam_to_cam.Matrix3x4(color ? "P_rect_03" : "P_rect_01"), cam_to_cam.name(),
                         &dataset);
 
-  const std::vector<OxtsPacket> packets = ReadOxtsPackets(dir.string(), dataset.size());
+  const std::vector<OxtsPacket> packets = ReadOxtsPackets(dir.string(), numbers);
   if (!packets.empty()) {
     std::vector<int64_t> packet_t_ns;
     std::string times_note = "oxts/timestamps.txt";
     const fs::path oxts_times = dir / "oxts" / "timestamps.txt";
     if (truth == RawTruth::kIns && fs::exists(oxts_times, ec)) {
-      packet_t_ns = ReadTimestampsFor(oxts_times, dataset.size());
+      packet_t_ns = ReadTimestampsFor(oxts_times, numbers, dataset.left_paths);
     } else if (truth == RawTruth::kIns) {
       times_note = "the image times";
     }

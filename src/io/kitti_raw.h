@@ -51,16 +51,26 @@ Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE
                                 const std::vector<int64_t>& t_ns, RawTruth truth = RawTruth::kGps,
                                 const std::vector<int64_t>& packet_t_ns = {});
 
-// The OXTS records of the first `frames` frames of a raw drive (DRIVE/oxts/data/*.txt in name
-// order); empty without an oxts/data folder. Throws InputError naming the folder when it holds
-// fewer records, or the file of a bad record.
+// The OXTS records of the frames `frame_numbers` of a raw drive (frame k: the file of number k in
+// DRIVE/oxts/data, e.g. 0000000042.txt); empty without an oxts/data folder. Throws InputError
+// naming the folder and the frame when a frame has no record, the file of a bad record, or a file
+// whose name is not a frame number.
+std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir,
+                                        const std::vector<int64_t>& frame_numbers);
+// The same for frames 0 .. frames - 1.
 std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir, size_t frames);
 
 // Rig from P_rect_00/P_rect_01 (kGray) or P_rect_02/P_rect_03 (kColor), baseline
-// (P_left[0][3] - P_right[0][3]) / fx. timestamps.txt may hold more lines than there are images
-// (the first N are used) but not fewer. Ground truth from oxts/data when present (OXTS files
-// must then cover every frame) by `truth`; kIns integrates over oxts/timestamps.txt (the image
-// timestamps when it is missing). image_02 fills left_color_paths when present.
+// (P_left[0][3] - P_right[0][3]) / fx. Frames are paired by the number in the image names, not by
+// position: image 0000000042.png takes line 43 of the timestamps files and oxts/data/0000000042.txt
+// (a clip that starts after frame 0, or has a gap, gets its own lines; lines and records without
+// an image are not used), and the right (and colour) images must carry the left images' names.
+// Ground truth from oxts/data when present (OXTS files must then cover every frame) by `truth`;
+// kIns integrates over oxts/timestamps.txt (the image timestamps when it is missing); its
+// frame_index is the position in the dataset. image_02 fills left_color_paths when it holds the
+// left images' names. drive_dir may be relative or end with '/' or "/.": the calibration is read
+// from the parent of the directory itself. Throws InputError naming the file and the frame when
+// an image has no timestamp or OXTS record, or an image name is not a number.
 Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams = KittiCameras::kGray,
                      RawTruth truth = RawTruth::kIns);
 

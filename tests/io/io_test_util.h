@@ -36,4 +36,18 @@ inline void ExpectInputError(const std::function<void()>& fn, const std::string&
   }
 }
 
+// Makes `dir` the working directory for its lifetime (tests of relative paths).
+class WorkingDirectory {
+ public:
+  explicit WorkingDirectory(const std::string& dir) : previous_(std::filesystem::current_path()) {
+    std::filesystem::current_path(dir);
+  }
+  ~WorkingDirectory() { std::filesystem::current_path(previous_); }
+  WorkingDirectory(const WorkingDirectory&) = delete;
+  WorkingDirectory& operator=(const WorkingDirectory&) = delete;
+
+ private:
+  std::filesystem::path previous_;
+};
+
 }  // namespace pcr::test

@@ -156,6 +156,91 @@ TEST_F(SyntheticOdometry, TruncatedPngIsRejectedNamingTheFile) {
   ExpectInputError([&] { OpenKittiOdometry(seq_); }, "image_0/000000.png", 0, "IHDR");
 }
 
+TEST_F(SyntheticOdometry, RelativePathsFindTheGroundTruth) {
+  // The poses are looked up beside the sequences folder of the directory itself, however the
+  // path is spelled.
+  const auto expect_truth = [&](const std::string& path) {
+    const Dataset d = OpenDataset(path);
+    EXPECT_EQ(d.name, "03") << path;
+    ASSERT_TRUE(d.ground_truth.has_value()) << path;
+    EXPECT_EQ(d.ground_truth->size(), 3u) << path;
+    EXPECT_TRUE(fs::equivalent(d.ground_truth_source, root_ + "/poses/03.txt")) << path;
+    EXPECT_TRUE(fs::equivalent(d.root, seq_)) << path;
+  };
+  {
+    const test::WorkingDirectory cwd(root_ + "/sequences");
+    for (const char* path : {"03", "./03", "03/", "03/.", "./03/./"}) expect_truth(path);
+  }
+  {
+    const test::WorkingDirectory cwd(seq_);
+    expect_truth(".");
+    expect_truth("./");
+    expect_truth("../03");
+  }
+  {
+    const test::WorkingDirectory cwd(seq_ + "/image_0");
+    expect_truth("..");
+  }
+  expect_truth(seq_ + "/.");
+  expect_truth(root_ + "/sequences/../sequences/03");
+}
+
+TEST_F(SyntheticOdometry, FramesArePairedByTheNumberInTheImageName) {
+  // A sequence without frame 1: frame 2 keeps line 3 of times.txt and of the poses.
+  fs::remove(seq_ + "/image_0/000001.png");
+  fs::remove(seq_ + "/image_1/000001.png");
+  Dataset d = OpenKittiOdometry(seq_);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_EQ(d.t_ns, (std::vector<int64_t>{0, 200'000'000}));
+  ASSERT_TRUE(d.ground_truth.has_value());
+  ASSERT_EQ(d.ground_truth->size(), 2u);
+  EXPECT_DOUBLE_EQ((*d.ground_truth)[1].world_from_cam.translation().z(), 2.0);
+  EXPECT_EQ((*d.ground_truth)[1].t_ns, 200'000'000);
+  EXPECT_EQ((*d.ground_truth)[1].frame_index, 1);  // the position in the dataset
+  EXPECT_EQ(d.LoadLeft(1).at<uint8_t>(0, 0), 20);  // 000002.png
+  // A clip that starts at frame 1 gets lines 2 and 3.
+  WriteImages("image_0", 2, CV_8UC1);
+  WriteImages("image_1", 2, CV_8UC1);
+  fs::remove(seq_ + "/image_0/000000.png");
+  fs::remove(seq_ + "/image_1/000000.png");
+  d = OpenKittiOdometry(seq_);
+  EXPECT_EQ(d.t_ns, (std::vector<int64_t>{100'000'000, 200'000'000}));
+  EXPECT_DOUBLE_EQ((*d.ground_truth)[0].world_from_cam.translation().z(), 1.0);
+  EXPECT_DOUBLE_EQ((*d.ground_truth)[1].world_from_cam.translation().z(), 2.0);
+  EXPECT_EQ((*d.ground_truth)[0].frame_index, 0);
+  // An image without its line is named.
+  WriteImages("image_0", 3, CV_8UC1);
+  WriteImages("image_1", 3, CV_8UC1);
+  fs::rename(seq_ + "/image_0/000002.png", seq_ + "/image_0/000007.png");
+  fs::rename(seq_ + "/image_1/000002.png", seq_ + "/image_1/000007.png");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "times.txt", 0,
+                   "none for frame 7 (000007.png)");
+  WriteText(seq_ + "/times.txt", "0.0\n0.1\n0.2\n0.3\n0.4\n0.5\n0.6\n0.7\n");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "poses/03.txt", 0,
+                   "4 poses but 3 frames: none for frame 7 (000007.png)");
+}
+
+TEST_F(SyntheticOdometry, RightImagesMustCarryTheLeftNames) {
+  // As many right images as left ones, but one of another frame: not paired silently.
+  fs::rename(seq_ + "/image_1/000001.png", seq_ + "/image_1/000004.png");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "image_1", 0, "no 000001.png");
+  fs::rename(seq_ + "/image_1/000004.png", seq_ + "/image_1/000001.png");
+  // Image names are frame numbers.
+  WriteImages("image_0", 3, CV_8UC1);
+  fs::copy_file(seq_ + "/image_0/000000.png", seq_ + "/image_0/left.png");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "image_0/left.png", 0, "not a frame number");
+  fs::remove(seq_ + "/image_0/left.png");
+  fs::copy_file(seq_ + "/image_0/000002.png", seq_ + "/image_0/2.png");
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "image_0/2.png", 0,
+                   "frame 2 is also 000002.png");
+  fs::remove(seq_ + "/image_0/2.png");
+  // A colour folder of other frames is not used.
+  WriteImages("image_2", 3, CV_8UC3);
+  EXPECT_TRUE(OpenKittiOdometry(seq_).has_color());
+  fs::rename(seq_ + "/image_2/000002.png", seq_ + "/image_2/000003.png");
+  EXPECT_FALSE(OpenKittiOdometry(seq_).has_color());
+}
+
 TEST(RealOdometry, Sequence06IsStereo) {
   const Dataset d = OpenKittiOdometry(test::SharedPath("data/kitti/sequences/06"));
   EXPECT_EQ(d.name, "06");
@@ -191,6 +276,14 @@ TEST(RealOdometry, Sequence00IsMonocular) {
   EXPECT_EQ(d.ground_truth->size(), 100u);
   EXPECT_EQ(d.LoadLeft(99).size(), cv::Size(1241, 376));
   EXPECT_THROW(d.LoadRight(0), std::out_of_range);
+}
+
+TEST(RealOdometry, RelativeSequencePathKeepsTheGroundTruth) {
+  const test::WorkingDirectory cwd(test::SharedPath("data/kitti/sequences"));
+  const Dataset d = OpenDataset("07");
+  EXPECT_EQ(d.name, "07");
+  ASSERT_TRUE(d.ground_truth.has_value());
+  EXPECT_EQ(d.ground_truth->size(), 160u);
 }
 
 TEST(RealOdometry, Sequence07AndAutoDetect) {

@@ -214,6 +214,113 @@ TEST_F(SyntheticRaw, OxtsMustCoverEveryFrame) {
   EXPECT_NO_THROW(OpenKittiRaw(drive_, KittiCameras::kGray, RawTruth::kGps));  // not needed
 }
 
+// An OXTS record at (lat, lon) facing yaw, all other fields 0.
+std::string OxtsRecord(double lat, double lon, double yaw) {
+  std::string record =
+      std::to_string(lat) + " " + std::to_string(lon) + " 100 0 0 " + std::to_string(yaw);
+  for (int i = 6; i < 30; ++i) record += " 0";
+  return record + "\n";
+}
+
+TEST_F(SyntheticRaw, RelativeAndDotPathsFindTheCalibration) {
+  // The calibration is read from the parent of the drive directory itself.
+  const auto expect_open = [&](const std::string& path) {
+    const Dataset d = OpenKittiRaw(path);
+    EXPECT_EQ(d.name, "2011_09_26_drive_0001_sync") << path;
+    EXPECT_EQ(d.size(), 3u) << path;
+    EXPECT_TRUE(fs::equivalent(d.root, drive_)) << path;
+  };
+  expect_open(drive_ + "/.");
+  expect_open(drive_ + "/./");
+  {
+    const test::WorkingDirectory cwd(root_ + "/2011_09_26");
+    for (const char* path : {"2011_09_26_drive_0001_sync", "./2011_09_26_drive_0001_sync/.",
+                             "2011_09_26_drive_0001_sync/"})
+      expect_open(path);
+  }
+  {
+    const test::WorkingDirectory cwd(drive_);
+    expect_open(".");
+    EXPECT_EQ(OpenDataset(".").name, "2011_09_26_drive_0001_sync");
+  }
+}
+
+TEST_F(SyntheticRaw, FramesArePairedByTheNumberInTheImageName) {
+  // Three OXTS records facing three different ways, the images of frames 1 and 2 only: frame 1
+  // keeps line 2 of the timestamps and record 1 (not the first line and record 0).
+  for (int i = 0; i < 3; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "/oxts/data/%010d.txt", i);
+    WriteText(drive_ + name, OxtsRecord(49.0, 8.4 + 1e-4 * i, 0.5 * i));
+  }
+  for (const char* cam : {"image_00", "image_01"})
+    fs::remove(drive_ + "/" + cam + "/data/0000000000.png");
+  const Dataset d = OpenKittiRaw(drive_, KittiCameras::kGray, RawTruth::kGps);
+  ASSERT_EQ(d.size(), 2u);
+  const int64_t t0 = (k20110926T130432 * 1000 + 0) * 1'000'000;  // 13:04:32.0
+  EXPECT_EQ(d.t_ns, (std::vector<int64_t>{t0 + 100'000'000, t0 + 200'000'000}));
+  EXPECT_EQ(d.LoadLeft(0).at<uint8_t>(0, 0), 1);
+  ASSERT_TRUE(d.ground_truth.has_value());
+  ASSERT_EQ(d.ground_truth->size(), 2u);
+  // Record 1 faces 0.5 rad and record 2 1.0 rad: 0.5 rad between the two frames.
+  EXPECT_NEAR(Eigen::AngleAxisd((*d.ground_truth)[1].world_from_cam.rotation()).angle(), 0.5, 1e-9);
+  EXPECT_EQ((*d.ground_truth)[1].frame_index, 1);
+  // A frame without its OXTS record is named, even when the folder holds as many records.
+  fs::rename(drive_ + "/oxts/data/0000000002.txt", drive_ + "/oxts/data/0000000003.txt");
+  ExpectInputError([&] { OpenKittiRaw(drive_); }, "oxts/data", 0,
+                   "3 OXTS records but 2 images: none for frame 2");
+  // ... and so is one without its timestamp.
+  fs::rename(drive_ + "/oxts/data/0000000003.txt", drive_ + "/oxts/data/0000000002.txt");
+  for (const char* cam : {"image_00", "image_01"})
+    fs::rename(drive_ + "/" + cam + "/data/0000000002.png",
+               drive_ + "/" + cam + "/data/0000000009.png");
+  ExpectInputError([&] { OpenKittiRaw(drive_); }, "image_00/timestamps.txt", 0,
+                   "4 timestamps but 2 images: none for frame 9 (0000000009.png)");
+}
+
+TEST_F(SyntheticRaw, RightImagesMustCarryTheLeftNames) {
+  fs::rename(drive_ + "/image_01/data/0000000001.png", drive_ + "/image_01/data/0000000003.png");
+  ExpectInputError([&] { OpenKittiRaw(drive_); }, "image_01/data", 0, "no 0000000001.png");
+  fs::rename(drive_ + "/image_01/data/0000000003.png", drive_ + "/image_01/data/0000000001.png");
+  WriteText(drive_ + "/oxts/data/0000000000.txt", OxtsRecord(49.0, 8.4, 0));
+  WriteText(drive_ + "/oxts/data/notes.txt", "a note\n");
+  ExpectInputError([&] { OpenKittiRaw(drive_); }, "oxts/data/notes.txt", 0, "not a frame number");
+}
+
+TEST(RealRaw, Drive0005WithoutItsFirstImageKeepsEachFramesTimeAndOxts) {
+  // Drive 0005 mirrored with links, image 0000000000.png left out of both cameras: every frame
+  // keeps its own timestamp and OXTS record.
+  const std::string src = test::SharedPath(kDrive);
+  const std::string date = test::MakeTempDir("pcr_raw_gap") + "/2011_09_26";
+  const std::string drive = date + "/2011_09_26_drive_0005_sync";
+  fs::create_directories(date);
+  for (const char* f : {"calib_cam_to_cam.txt", "calib_imu_to_velo.txt", "calib_velo_to_cam.txt"})
+    fs::create_symlink(test::SharedPath("data/kitti_raw/2011_09_26/") + f, date + "/" + f);
+  for (const char* sub : {"image_00", "image_01"}) {
+    fs::create_directories(drive + "/" + sub + "/data");
+    fs::create_symlink(src + "/" + sub + "/timestamps.txt", drive + "/" + sub + "/timestamps.txt");
+    for (const std::string& path : ListFiles(src + "/" + sub + "/data", ".png"))
+      if (fs::path(path).filename() != "0000000000.png")
+        fs::create_symlink(path, drive + "/" + sub + "/data/" + fs::path(path).filename().string());
+  }
+  fs::create_directory_symlink(src + "/oxts", drive + "/oxts");
+  const Dataset full = OpenKittiRaw(src, KittiCameras::kGray, RawTruth::kGps);
+  const Dataset clip = OpenKittiRaw(drive, KittiCameras::kGray, RawTruth::kGps);
+  ASSERT_EQ(clip.size(), 90u);
+  ASSERT_TRUE(clip.ground_truth.has_value());
+  const SE3 origin = (*full.ground_truth)[1].world_from_cam.inverse();
+  for (size_t i = 0; i < clip.size(); ++i) {
+    ASSERT_EQ(clip.t_ns[i], full.t_ns[i + 1]) << i;
+    const SE3 expected = origin * (*full.ground_truth)[i + 1].world_from_cam;
+    EXPECT_LT(
+        (clip.ground_truth->at(i).world_from_cam.translation() - expected.translation()).norm(),
+        1e-3)
+        << i;
+    EXPECT_TRUE(clip.ground_truth->at(i).world_from_cam.linear().isApprox(expected.linear(), 1e-9))
+        << i;
+  }
+}
+
 TEST(RealRaw, Drive0005RigAndTimes) {
   const Dataset d = OpenDataset(test::SharedPath(kDrive));
   EXPECT_EQ(d.name, "2011_09_26_drive_0005_sync");
