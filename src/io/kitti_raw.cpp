@@ -40,10 +40,13 @@ std::vector<int64_t> SplitInts(std::string_view text, char sep, size_t n, const 
 int64_t ParseDateTimeNs(std::string_view date, std::string_view time, const std::string& name,
                         int line) {
   const std::vector<int64_t> ymd = SplitInts(date, '-', 3, name, line, "date (want YYYY-MM-DD)");
+  // Ranges checked before the casts, which would wrap a month or day of 2^32 + 9 to 9.
+  if (ymd[0] < 1970 || ymd[0] > 2200 || ymd[1] < 1 || ymd[1] > 12 || ymd[2] < 1 || ymd[2] > 31)
+    throw InputError(name, line, "invalid date");
   const std::chrono::year_month_day day{std::chrono::year(static_cast<int>(ymd[0])),
                                         std::chrono::month(static_cast<unsigned>(ymd[1])),
                                         std::chrono::day(static_cast<unsigned>(ymd[2]))};
-  if (ymd[0] < 1970 || ymd[0] > 2200 || !day.ok()) throw InputError(name, line, "invalid date");
+  if (!day.ok()) throw InputError(name, line, "invalid date");
   const size_t first_colon = time.find(':');
   const size_t second_colon =
       first_colon == std::string_view::npos ? first_colon : time.find(':', first_colon + 1);

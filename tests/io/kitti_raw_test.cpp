@@ -42,6 +42,21 @@ TEST(RawTimestamps, ParsesNanosecondsAndRejectsBadLines) {
   ExpectInputError([&] { parse("2011/09/26 13:04:32.1\n"); }, "ts", 1, "malformed date");
 }
 
+TEST(RawTimestamps, HugeMonthOrDayDoesNotWrapIntoRange) {
+  const auto parse = [](const std::string& text) {
+    std::istringstream s(text);
+    ReadRawTimestamps(s, "ts");
+  };
+  // 4294967305 = 2^32 + 9: as an unsigned it would be September, or the 9th.
+  ExpectInputError([&] { parse("2011-4294967305-26 13:04:32.1\n"); }, "ts", 1, "invalid date");
+  ExpectInputError([&] { parse("2011-09-4294967305 13:04:32.1\n"); }, "ts", 1, "invalid date");
+  ExpectInputError([&] { parse("2011-13-26 13:04:32.1\n"); }, "ts", 1, "invalid date");
+  ExpectInputError([&] { parse("2011-00-26 13:04:32.1\n"); }, "ts", 1, "invalid date");
+  ExpectInputError([&] { parse("2011-09-00 13:04:32.1\n"); }, "ts", 1, "invalid date");
+  std::istringstream ok("2011-09-26 13:04:32.1\n");
+  EXPECT_EQ(ReadRawTimestamps(ok, "ts").size(), 1u);
+}
+
 TEST(Oxts, ParsesRecordAndRejectsWrongCount) {
   std::string record;
   for (int i = 1; i <= 30; ++i) record += std::to_string(i) + (i < 30 ? " " : "\n");
