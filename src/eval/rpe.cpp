@@ -19,6 +19,7 @@ IndexPairs ConsecutivePairs(const std::vector<size_t>& ids) {
 }
 
 IndexPairs PairsByFrames(size_t n, size_t delta, bool all_pairs) {
+  if (delta == 0 || delta >= n) return {};
   if (all_pairs) {
     IndexPairs pairs;
     for (size_t i = 0; i + delta < n; ++i) pairs.emplace_back(i, i + delta);
@@ -86,6 +87,9 @@ bool RpeOptions::IsValid(std::string* why) const {
   };
   if (!std::isfinite(delta) || delta <= 0)
     return fail("RPE delta must be positive, got " + std::to_string(delta));
+  if (delta > kMaxRpeDelta)  // beyond it a frame count would not survive the cast to size_t
+    return fail("RPE delta must be at most " + std::to_string(kMaxRpeDelta) + ", got " +
+                std::to_string(delta));
   if (unit == DeltaUnit::kFrames && delta != std::floor(delta))
     return fail("RPE delta in frames must be a whole number, got " + std::to_string(delta));
   if (!std::isfinite(rel_tol) || rel_tol < 0)

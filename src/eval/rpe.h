@@ -30,8 +30,11 @@ enum class DeltaUnit { kFrames, kMeters };
 std::string_view ToString(DeltaUnit unit);                    // "f", "m"
 bool ParseDeltaUnit(std::string_view text, DeltaUnit* unit);  // "f"/"frames", "m"/"meters"
 
+// The largest RPE delta, in frames or metres.
+inline constexpr double kMaxRpeDelta = 1e9;
+
 struct RpeOptions {
-  double delta = 1;  // frames (a whole number >= 1) or metres (> 0)
+  double delta = 1;  // frames (a whole number >= 1) or metres (> 0), at most kMaxRpeDelta
   DeltaUnit unit = DeltaUnit::kFrames;
   bool all_pairs = false;
   double rel_tol = 0.1;  // metres with all_pairs only: accepted |path - delta| <= rel_tol * delta

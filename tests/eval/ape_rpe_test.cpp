@@ -180,6 +180,24 @@ TEST(RpeTest, ScaleOnlyMattersThroughTranslations) {
   EXPECT_NEAR(ComputeRpe(reference, corrected, {}).trans_m.max, 0.0, 1e-12);
 }
 
+TEST(RpeTest, HugeDeltaIsRejectedOrGivesNoPairs) {
+  // 1e20 frames does not fit a size_t (the cast gave 0: an endless loop of ids).
+  std::string why;
+  ASSERT_FALSE((RpeOptions{1e20, DeltaUnit::kFrames, false, 0.1}).IsValid(&why));
+  EXPECT_NE(why.find("at most"), std::string::npos) << why;
+  EXPECT_THROW(SelectRpePairs(StraightLine(3), {1e20, DeltaUnit::kFrames, false, 0.1}),
+               std::invalid_argument);
+  EXPECT_THROW(SelectRpePairs(StraightLine(3), {1e20, DeltaUnit::kFrames, true, 0.1}),
+               std::invalid_argument);
+  EXPECT_FALSE((RpeOptions{1e300, DeltaUnit::kMeters, true, 10}).IsValid(&why));
+  // A delta of at least the trajectory's length gives no pairs.
+  for (const bool all : {false, true}) {
+    EXPECT_TRUE(SelectRpePairs(StraightLine(3), {3, DeltaUnit::kFrames, all, 0.1}).empty());
+    EXPECT_TRUE(SelectRpePairs(StraightLine(3), {1e9, DeltaUnit::kFrames, all, 0.1}).empty());
+    EXPECT_EQ(SelectRpePairs(StraightLine(3), {2, DeltaUnit::kFrames, all, 0.1}).size(), 1u);
+  }
+}
+
 TEST(RpeTest, OptionsValidation) {
   std::string why;
   EXPECT_FALSE((RpeOptions{1.5, DeltaUnit::kFrames, false, 0.1}).IsValid(&why));
