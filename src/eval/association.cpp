@@ -50,12 +50,17 @@ AssociatedTrajectories AssociateByFrameIndex(const Trajectory& reference,
 }
 
 bool TimeAssociationOptions::IsValid(std::string* why) const {
-  if (!std::isfinite(max_diff_s) || max_diff_s < 0) {
-    if (why) *why = "max_diff must be >= 0 s, got " + std::to_string(max_diff_s);
+  // Bounded so that both fit int64 nanoseconds (1e9 s = 1e18 ns; 9.2e18 is the limit).
+  if (!std::isfinite(max_diff_s) || max_diff_s < 0 || max_diff_s > kMaxTimeAssociationS) {
+    if (why)
+      *why = "max_diff must be in [0, " + std::to_string(kMaxTimeAssociationS) + "] s, got " +
+             std::to_string(max_diff_s);
     return false;
   }
-  if (!std::isfinite(offset_s)) {
-    if (why) *why = "time offset must be finite";
+  if (!std::isfinite(offset_s) || std::abs(offset_s) > kMaxTimeAssociationS) {
+    if (why)
+      *why = "time offset must be finite and at most " + std::to_string(kMaxTimeAssociationS) +
+             " s in magnitude, got " + std::to_string(offset_s);
     return false;
   }
   return true;
@@ -69,7 +74,13 @@ AssociatedTrajectories AssociateByTimestamp(const Trajectory& reference, const T
   const int64_t max_diff_ns = SecondsToNs(options.max_diff_s);
   std::vector<int64_t> ref_ns, est_ns;
   for (const StampedPose& p : reference) ref_ns.push_back(p.t_ns);
-  for (const StampedPose& p : estimate) est_ns.push_back(p.t_ns + offset_ns);
+  for (const StampedPose& p : estimate) {
+    int64_t t_ns = 0;
+    if (__builtin_add_overflow(p.t_ns, offset_ns, &t_ns))
+      throw std::invalid_argument("estimate stamp " + std::to_string(p.t_ns) + " ns plus the " +
+                                  "time offset is beyond the int64 nanosecond range");
+    est_ns.push_back(t_ns);
+  }
   RequireIncreasing(ref_ns, "ground truth");
   RequireIncreasing(est_ns, "estimate");
 
@@ -81,16 +92,18 @@ AssociatedTrajectories AssociateByTimestamp(const Trajectory& reference, const T
   constexpr size_t kNone = static_cast<size_t>(-1);
   std::vector<size_t> partner(short_ns.size(), kNone);    // short index -> long index
   std::vector<size_t> claimed_by(long_ns.size(), kNone);  // long index -> short index
+  // |a - b| of two int64 stamps always fits a uint64 (a signed difference can overflow).
   auto distance = [&](size_t s, size_t l) {
-    const int64_t d = short_ns[s] - long_ns[l];
-    return d < 0 ? -d : d;
+    const uint64_t a = static_cast<uint64_t>(short_ns[s]), b = static_cast<uint64_t>(long_ns[l]);
+    return short_ns[s] >= long_ns[l] ? a - b : b - a;
   };
+  const uint64_t max_diff = static_cast<uint64_t>(max_diff_ns);
   for (size_t s = 0; s < short_ns.size(); ++s) {
     if (long_ns.empty()) break;
     const auto it = std::lower_bound(long_ns.begin(), long_ns.end(), short_ns[s]);
     size_t l = static_cast<size_t>(it - long_ns.begin());
     if (l == long_ns.size() || (l > 0 && distance(s, l - 1) <= distance(s, l))) l = l - 1;
-    if (distance(s, l) > max_diff_ns) continue;
+    if (distance(s, l) > max_diff) continue;
     const size_t rival = claimed_by[l];
     if (rival != kNone) {
       if (distance(rival, l) <= distance(s, l)) continue;  // the earlier, closer claim stays

@@ -97,5 +97,35 @@ TEST(AssociationTest, RejectsUnsortedStampsAndBadOptions) {
   EXPECT_EQ(AssociateByTimestamp(reference, {}, {}).matched(), 0u);
 }
 
+TEST(AssociationTest, HugeMaxDiffAndOffsetAreRejectedNotWrapped) {
+  const Trajectory reference = {At(0, 0), At(1, 100 * kMs), At(2, 200 * kMs)};
+  const Trajectory estimate = {At(10, 1 * kMs), At(11, 101 * kMs), At(12, 201 * kMs)};
+  // 1e10 s is 1e19 ns, beyond int64: it matched nothing (max_diff) or garbage (offset).
+  std::string why;
+  EXPECT_FALSE((TimeAssociationOptions{1e10, 0}).IsValid(&why));
+  EXPECT_NE(why.find("max_diff"), std::string::npos) << why;
+  EXPECT_FALSE((TimeAssociationOptions{0.01, 1e10}).IsValid(&why));
+  EXPECT_FALSE((TimeAssociationOptions{0.01, -1e10}).IsValid(&why));
+  EXPECT_NE(why.find("offset"), std::string::npos) << why;
+  EXPECT_THROW(AssociateByTimestamp(reference, estimate, {1e10, 0}), std::invalid_argument);
+  EXPECT_THROW(AssociateByTimestamp(reference, estimate, {0.01, 1e10}), std::invalid_argument);
+  // The largest allowed max_diff matches every pose, one to one.
+  const AssociatedTrajectories all = AssociateByTimestamp(reference, estimate, {1e9, 0});
+  ASSERT_EQ(all.matched(), 3u);
+  EXPECT_EQ(all.estimate[2].world_from_cam.translation().x(), 12);
+}
+
+TEST(AssociationTest, StampsFarApartDoNotOverflow) {
+  // The stamps differ by 1.8e19 ns, more than int64 holds: no match, even with max_diff 1e9 s.
+  constexpr int64_t kFar = 9'000'000'000'000'000'000;
+  EXPECT_EQ(AssociateByTimestamp({At(0, -kFar)}, {At(1, kFar)}, {1e9, 0}).matched(), 0u);
+  EXPECT_EQ(AssociateByTimestamp({At(0, kFar)}, {At(1, -kFar)}, {1e9, 0}).matched(), 0u);
+  // An offset that carries an estimate stamp beyond int64 is an error.
+  EXPECT_THROW(AssociateByTimestamp({At(0, kFar)}, {At(1, kFar)}, {0.01, 5e8}),
+               std::invalid_argument);
+  EXPECT_EQ(AssociateByTimestamp({At(0, kFar)}, {At(1, kFar - 2 * kMs)}, {0.01, 0.002}).matched(),
+            1u);
+}
+
 }  // namespace
 }  // namespace pcr::eval
