@@ -219,9 +219,13 @@ std::map<int, TrackMotion> ComputeTrackMotion(const TrackingLabels& labels,
       if (span_s > 0)
         motion.speed_mps[i] = (motion.p_in_world[k] - motion.p_in_world[j]).norm() / span_s;
     }
+    // The median as eval::Statistics takes it: the mean of the two middle values of an even count.
     std::vector<double> sorted = motion.speed_mps;
     std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
     motion.median_speed_mps = sorted[n / 2];
+    if (n % 2 == 0)
+      motion.median_speed_mps =
+          0.5 * (*std::max_element(sorted.begin(), sorted.begin() + n / 2) + sorted[n / 2]);
     motion.displacement_m = (motion.p_in_world.back() - motion.p_in_world.front()).norm();
   }
   return motions;

@@ -72,8 +72,8 @@ struct TrackMotion {
   std::vector<int> frames;                  // frames where the track has an ego pose
   std::vector<Eigen::Vector3d> p_in_world;  // box centre in the ego world frame, per frame
   std::vector<double> speed_mps;            // windowed speed per frame (see ComputeTrackMotion)
-  double median_speed_mps = 0;
-  double displacement_m = 0;  // first to last world position
+  double median_speed_mps = 0;  // of speed_mps; an even count averages the two middle values
+  double displacement_m = 0;    // first to last world position
 };
 
 // World motion of every track, using ego poses world_from_cam0 indexed by frame (frame_index
