@@ -40,8 +40,9 @@ bool PipelineOptions::IsValid(std::string* why) const {
   if (!(std::isfinite(mask_deadline_ms) && mask_deadline_ms >= 0))
     return fail("mask_deadline_ms must be finite and >= 0");
   if (trim_heap_every < 0) return fail("trim_heap_every must be >= 0");
-  if (!(std::isfinite(tracking_delay_ms) && tracking_delay_ms >= 0))
-    return fail("tracking_delay_ms must be finite and >= 0");
+  // At most a minute a frame: the delay is slept in whole microseconds (an int64).
+  if (!(std::isfinite(tracking_delay_ms) && tracking_delay_ms >= 0 && tracking_delay_ms <= 6e4))
+    return fail("tracking_delay_ms must be in [0, 60000]");
   std::string inner;
   if (!levels.IsValid(&inner)) return fail("levels: " + inner);
   if (!controller.IsValid(&inner)) return fail("controller: " + inner);

@@ -665,6 +665,9 @@ TEST(PipelineTest, RejectsInvalidOptions) {
   options = PipelineOptions{};
   options.trim_heap_every = -1;
   EXPECT_THROW(RunPipeline(clip, SlamOptions{}, options), ConfigError);
+  options = PipelineOptions{};
+  options.tracking_delay_ms = 1e300;  // would overflow the microseconds it is slept in
+  EXPECT_THROW(RunPipeline(clip, SlamOptions{}, options), ConfigError);
   nodes::FrameSource broken = clip;
   broken.load_right = nullptr;
   EXPECT_THROW(RunPipeline(broken, SlamOptions{}, PipelineOptions{}), ConfigError);
