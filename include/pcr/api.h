@@ -15,8 +15,9 @@
 // as KITTI and TUM trajectory files store them.
 //
 // Link: find_package(pcr_orb) and target_link_libraries(you PRIVATE pcr_orb::pcr_orb).
-// Thread-safety: Run() may be called from any thread; concurrent runs do not share state, but
-// each uses `threads` cores.
+// Thread-safety: Run() may be called from any thread; concurrent runs share no SLAM state, and
+// each uses `threads` cores. One setting is process-wide: OpenCV's thread count, which a run sets
+// to `threads` and puts back when it ends, so overlapping runs can leave it at another run's value.
 #include <Eigen/Core>
 #include <cstdint>
 #include <functional>
