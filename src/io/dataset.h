@@ -30,7 +30,7 @@ RawTruth ParseRawTruth(const std::string& text);
 
 struct Dataset {
   std::string name;  // "06", "2011_09_26_drive_0005_sync"
-  std::string root;  // the directory that was opened
+  std::string root;  // the directory that was opened, absolute and lexically normal
   StereoRig rig;     // rectified left camera; baseline_m = 0 when there is no right image stream
   std::vector<int64_t> t_ns;  // per frame, strictly increasing
   // world_from_cam0 (rectified camera 0) per frame, t_ns and frame_index set; frame 0 is the
