@@ -78,7 +78,8 @@
 // WORK/loopS`: WORK/loopS/sequences/00, WORK/loopS/poses/00.txt) and as
 // WORK/loop_sS_vSPEED_mMOVERS_fFRAMES/ (_lLAPS appended for --laps other than synth's default); a
 // directory is reused when its synth_options.txt has the same frames, seed, movers, speed, laps
-// (renders without a laps line drove 1.15) and route and its times.txt all the frames; otherwise
+// (renders without a laps line drove 1.15), route, parked cars, lead gap, image size, bounce and
+// noise (synth's defaults where a line is missing) and its times.txt all the frames; otherwise
 // the sequence is rendered into the second name (600 full-size frames: ~80 s on 2 cores, 7.7
 // frames/s, 2026-12-04).
 // `--work /tmp/lc` reuses /tmp/lc/loop1..3.
@@ -237,9 +238,17 @@ bool HoldsSequence(const fs::path& out_dir, const pcr::sim::SynthOptions& o) {
   auto number = [&](const std::string& key) {
     return kv.count(key) ? std::strtod(kv[key].c_str(), nullptr) : kNaN;
   };
+  // The settings the bench leaves at synth's defaults, which `pcr_orb synth` can change; a render
+  // without the line predates the setting (it had the default).
+  auto same = [&](const std::string& key, double value) {
+    return !kv.count(key) || number(key) == value;
+  };
   return number("frames") == o.frames && number("seed") == static_cast<double>(o.seed) &&
          number("num_movers") == o.num_movers && number("speed_mps") == o.speed_mps &&
          (kv.count("laps") ? number("laps") : kLapsOfOldRenders) == o.laps &&
+         same("num_parked", o.num_parked) && same("lead_gap_m", o.lead_gap_m) &&
+         same("width_px", o.width_px) && same("height_px", o.height_px) &&
+         same("bounce_scale", o.bounce_scale) && same("noise_sigma", o.noise_sigma) &&
          kv["route"] == "loop" && CountLines(seq / "times.txt") == static_cast<size_t>(o.frames);
 }
 
@@ -1945,7 +1954,8 @@ int main(int argc, char** argv) {
   app.add_option("--seeds", a.seeds, "synthetic loops' seeds (--latency: the first)")
       ->capture_default_str();
   app.add_option("--frames", a.frames, "frames of each synthetic loop")->capture_default_str();
-  app.add_option("--laps", a.laps, "times round each synthetic loop (pcr_orb synth --laps)")
+  app.add_option("--laps", a.laps,
+                 "times round each synthetic loop's streets (pcr_orb synth --laps)")
       ->check(CLI::Range(1.05, 20.0))
       ->capture_default_str();
   app.add_option("--speed", a.speed_mps, "ego speed, m/s")->capture_default_str();

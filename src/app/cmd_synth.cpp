@@ -39,8 +39,10 @@ void AddSynthCommand(CLI::App& app) {
   cmd->add_option("--route", args->route, "straight or loop")
       ->check(CLI::IsMember({"straight", "loop"}))
       ->capture_default_str();
-  cmd->add_option("--laps", args->options.laps,
-                  "loop route: times round the loop (its length is the travel over laps)")
+  cmd->add_option(
+         "--laps", args->options.laps,
+         "loop route: times round the loop's streets (their length is the travel over laps; the "
+         "ego's lane is 6.6 m shorter, so it drives a little more)")
       ->capture_default_str();
   cmd->add_option("--sequence", args->options.sequence, "Two-digit sequence name")
       ->capture_default_str();
