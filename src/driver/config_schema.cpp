@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -14,38 +15,44 @@ namespace {
 
 int LineOf(const YAML::Node& node) { return node.Mark().line >= 0 ? node.Mark().line + 1 : 0; }
 
+// line: the key's (a key with no value has a null node whose mark is the next line's).
 template <typename T>
-T Convert(const YAML::Node& node, const std::string& source, const std::string& what,
+T Convert(const YAML::Node& node, const std::string& source, int line, const std::string& what,
           const char* type_name) {
   if (!node.IsScalar())
-    throw InputError(source, LineOf(node), what + ": expected a " + type_name + " value");
+    throw InputError(source, line, what + ": expected a " + type_name + " value");
   try {
     return node.as<T>();
   } catch (const YAML::Exception&) {
-    throw InputError(source, LineOf(node),
-                     what + ": '" + node.Scalar() + "' is not a valid " + type_name);
+    throw InputError(source, line, what + ": '" + node.Scalar() + "' is not a valid " + type_name);
   }
 }
 
 void Assign(const ConfigSchema::FieldPtr& ptr, const YAML::Node& value, const std::string& source,
-            const std::string& what) {
+            int line, const std::string& what) {
   std::visit(
       [&](auto* field) {
         using T = std::remove_pointer_t<decltype(field)>;
         if constexpr (std::is_same_v<T, int>) {
-          *field = Convert<int>(value, source, what, "integer");
+          *field = Convert<int>(value, source, line, what, "integer");
         } else if constexpr (std::is_same_v<T, double>) {
-          const double v = Convert<double>(value, source, what, "number");
-          if (!std::isfinite(v))
-            throw InputError(source, LineOf(value), what + ": value must be finite");
+          const double v = Convert<double>(value, source, line, what, "number");
+          if (!std::isfinite(v)) throw InputError(source, line, what + ": value must be finite");
           *field = v;
         } else if constexpr (std::is_same_v<T, bool>) {
-          *field = Convert<bool>(value, source, what, "boolean (true/false)");
+          *field = Convert<bool>(value, source, line, what, "boolean (true/false)");
         } else {
-          *field = Convert<std::string>(value, source, what, "string");
+          *field = Convert<std::string>(value, source, line, what, "string");
         }
       },
       ptr);
+}
+
+// A section or key name: a scalar (a sequence or a map as a key is an error naming the line).
+std::string NameOf(const YAML::Node& key, const std::string& source, const char* what) {
+  if (!key.IsScalar())
+    throw InputError(source, LineOf(key), std::string(what) + " names must be plain words");
+  return key.Scalar();
 }
 
 }  // namespace
@@ -69,10 +76,19 @@ const ConfigSchema::Field* ConfigSchema::Find(const std::string& section,
 }
 
 void ConfigSchema::LoadFile(const std::string& path) {
+  // A regular file only: a directory opens and reads as nothing (all defaults), a device or a
+  // FIFO (/dev/zero) is read until memory runs out.
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
+    throw InputError(path, 0,
+                     std::filesystem::is_directory(path, ec)
+                         ? "is a directory, not a configuration file"
+                         : "is not a regular file, not a configuration file");
   std::ifstream in(path);
   if (!in) throw InputError(path, 0, "cannot open configuration file");
   std::stringstream ss;
-  ss << in.rdbuf();
+  ss << in.rdbuf();  // an empty file sets ss's failbit: that is all defaults, not an error
+  if (in.bad()) throw InputError(path, 0, "cannot read configuration file");
   LoadString(ss.str(), path);
 }
 
@@ -90,7 +106,11 @@ void ConfigSchema::LoadString(const std::string& text, const std::string& source
   std::vector<Value> saved;
   for (const Field& f : fields_) std::visit([&](auto* p) { saved.emplace_back(*p); }, f.ptr);
   try {
-    Apply(root, source_name);
+    try {
+      Apply(root, source_name);
+    } catch (const YAML::Exception& e) {
+      throw InputError(source_name, e.mark.line >= 0 ? e.mark.line + 1 : 0, e.msg);
+    }
   } catch (...) {
     for (size_t i = 0; i < fields_.size(); ++i)
       std::visit([&](auto* p) { *p = std::get<std::remove_pointer_t<decltype(p)>>(saved[i]); },
@@ -103,7 +123,7 @@ void ConfigSchema::Apply(const YAML::Node& root, const std::string& source) {
   std::set<std::string> sections;
   for (const Field& f : fields_) sections.insert(f.section);
   for (const auto& sec : root) {
-    const std::string section = sec.first.as<std::string>();
+    const std::string section = NameOf(sec.first, source, "section");
     if (!sections.count(section)) {
       std::string known;
       for (const auto& s : sections) known += (known.empty() ? "" : ", ") + s;
@@ -114,11 +134,11 @@ void ConfigSchema::Apply(const YAML::Node& root, const std::string& source) {
     if (!sec.second.IsMap())
       throw InputError(source, LineOf(sec.second), "section '" + section + "' must be a map");
     for (const auto& kv : sec.second) {
-      const std::string key = kv.first.as<std::string>();
+      const std::string key = NameOf(kv.first, source, "key");
       const Field* f = Find(section, key);
       if (!f)
         throw InputError(source, LineOf(kv.first), "unknown key '" + section + "." + key + "'");
-      Assign(f->ptr, kv.second, source, section + "." + key);
+      Assign(f->ptr, kv.second, source, LineOf(kv.first), section + "." + key);
     }
   }
 }
@@ -132,7 +152,16 @@ void ConfigSchema::Set(const std::string& assignment, const std::string& source_
   const std::string key = assignment.substr(dot + 1, eq - dot - 1);
   const Field* f = Find(section, key);
   if (!f) throw InputError(source_name, 0, "unknown key '" + section + "." + key + "'");
-  Assign(f->ptr, YAML::Load(assignment.substr(eq + 1)), source_name, section + "." + key);
+  const std::string what = section + "." + key;
+  YAML::Node value;
+  try {
+    value = YAML::Load(assignment.substr(eq + 1));
+  } catch (const YAML::Exception& e) {
+    // "--set: orb.num_features: malformed value '[': ...", not yaml-cpp's bare message.
+    throw InputError(source_name, 0,
+                     what + ": malformed value '" + assignment.substr(eq + 1) + "': " + e.msg);
+  }
+  Assign(f->ptr, value, source_name, 0, what);
 }
 
 std::string ConfigSchema::Dump() const {

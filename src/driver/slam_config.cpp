@@ -189,18 +189,24 @@ RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>&
   BindRunConfig(config, schema);
   if (!path.empty()) schema.LoadFile(path);
   for (const std::string& o : overrides) schema.Set(o, "--set");
+  // Where the values checked below came from: "defaults", the file, "--set" or both.
+  std::string source = "defaults";
+  if (!path.empty() && !overrides.empty()) {
+    source = path + " + --set";
+  } else if (!path.empty()) {
+    source = path;
+  } else if (!overrides.empty()) {
+    source = "--set";
+  }
   if (config.subpixel_fit == "parabola") {
     config.slam.stereo.subpixel_fit = SubpixelFit::kParabola;
   } else if (config.subpixel_fit == "equiangular") {
     config.slam.stereo.subpixel_fit = SubpixelFit::kEquiangular;
   } else {
-    throw ConfigError((path.empty() ? std::string("--set") : path) +
-                      ": stereo.subpixel_fit must be parabola or equiangular, not '" +
+    throw ConfigError(source + ": stereo.subpixel_fit must be parabola or equiangular, not '" +
                       config.subpixel_fit + "'");
   }
   std::string why;
-  const std::string source =
-      !path.empty() ? path : (overrides.empty() ? std::string("defaults") : std::string("--set"));
   if (!config.slam.IsValid(&why)) throw ConfigError(source + ": invalid configuration: " + why);
   if (!config.camera.IsValid(&why)) throw ConfigError(source + ": invalid configuration: " + why);
   if (!config.dynamic.options.IsValid(&why)) {

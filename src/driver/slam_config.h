@@ -13,7 +13,8 @@ namespace pcr::driver {
 // Optional camera override (all zero: use the dataset's calibration).
 struct CameraOverride {
   double fx = 0, fy = 0, cx = 0, cy = 0, baseline_m = 0;
-  bool Active() const { return fx > 0 || fy > 0 || cx > 0 || cy > 0 || baseline_m > 0; }
+  // Any field set (a negative one too, so that IsValid rejects it rather than it being ignored).
+  bool Active() const { return fx != 0 || fy != 0 || cx != 0 || cy != 0 || baseline_m != 0; }
   // Either all of fx, fy, cx, cy (and baseline_m for stereo) or none.
   bool IsValid(std::string* why) const;
 };

@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <string>
+
 #include "slam/common/error.h"
+#include "support/data_paths.h"
 
 namespace pcr::driver {
 namespace {
@@ -95,6 +99,56 @@ TEST(ConfigSchema, MissingFileNamed) {
     FAIL();
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/cfg.yaml"), std::string::npos);
+  }
+}
+
+TEST(ConfigSchema, ADirectoryOrADeviceIsNotAConfigurationFile) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  const std::string dir = test::MakeTempDir("pcr_schema");
+  try {
+    s.LoadFile(dir);  // an ifstream opens it and reads nothing: all defaults, silently
+    FAIL() << "loaded a directory";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), dir);
+    EXPECT_NE(std::string(e.what()).find("directory"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(s.LoadFile("/dev/zero"), InputError);  // read until memory runs out
+  std::ofstream(dir + "/empty.yaml").close();
+  EXPECT_NO_THROW(s.LoadFile(dir + "/empty.yaml"));  // an empty file: all defaults
+}
+
+TEST(ConfigSchema, MalformedOverridesAndNonScalarKeysNameTheirSource) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  try {
+    s.Set("orb.count=[", "--set");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--set"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("orb.count"), std::string::npos) << e.what();
+  }
+  for (const char* text : {"orb:\n  [a, b]: 3\n", "[a, b]:\n  count: 3\n"}) {
+    try {
+      s.LoadString(text, "cfg.yaml");
+      FAIL() << "no error for " << text;
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), "cfg.yaml") << e.what();
+      EXPECT_GT(e.line(), 0) << e.what();
+    }
+  }
+  EXPECT_EQ(o.count, 5);
+}
+
+TEST(ConfigSchema, AKeyWithNoValueIsReportedAtItsOwnLine) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  try {
+    s.LoadString("orb:\n  scale: 1.5\n  count:\nmisc:\n  flag: true\n", "cfg.yaml");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 3) << e.what();
+    EXPECT_NE(std::string(e.what()).find("orb.count"), std::string::npos) << e.what();
   }
 }
 

@@ -126,6 +126,39 @@ TEST(FrameRange, Parses) {
   EXPECT_THROW(FrameRange::Parse("a:b", 51), ConfigError);
 }
 
+TEST(RunConfig, AValueSetOnTheCommandLineIsNotBlamedOnTheFile) {
+  const std::string dir = test::MakeTempDir("pcr_cfg");
+  const std::string path = WriteFile(dir, "ok.yaml", "orb:\n  num_features: 1000\n");
+  try {
+    LoadRunConfig(path, {"stereo.subpixel_fit=cubic"}, nullptr);
+    FAIL() << "accepted subpixel_fit cubic";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("--set"), std::string::npos) << e.what();
+  }
+  try {
+    LoadRunConfig(path, {"orb.num_levels=0"}, nullptr);
+    FAIL() << "accepted 0 levels";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("--set"), std::string::npos) << e.what();
+  }
+}
+
+TEST(RunConfig, ANonPositiveCameraValueIsRejectedNotIgnored) {
+  for (const char* bad : {"camera.fx=-700", "camera.cy=-1", "camera.baseline_m=-0.5"}) {
+    try {
+      const RunConfig c = LoadRunConfig("", {bad}, nullptr);
+      ADD_FAILURE() << "accepted " << bad << " (override active: " << c.camera.Active() << ")";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("camera"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(
+      LoadRunConfig("", {"camera.fx=-700", "camera.fy=700", "camera.cx=600", "camera.cy=180"},
+                    nullptr),
+      ConfigError);
+  EXPECT_FALSE(LoadRunConfig("", {}, nullptr).camera.Active());
+}
+
 // A corrupt image in the middle of a run stops it with an error naming the file, and the poses of
 // the frames before it are still written.
 TEST(RunDataset, CorruptImageKeepsEarlierFrames) {
