@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <charconv>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -43,14 +44,20 @@ FrameRange FrameRange::ParseText(const std::string& text) {
   if (text.empty()) return r;
   const auto colon = text.find(':');
   if (colon == std::string::npos) throw ConfigError("--frames '" + text + "' is not A:B");
-  try {
-    const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
-    if (!a.empty()) r.first = std::stoul(a);
-    if (!b.empty()) r.end = std::stoul(b);
-    if (!b.empty() && r.end == 0) throw ConfigError("--frames '" + text + "' selects no frame");
-  } catch (const std::logic_error&) {
-    throw ConfigError("--frames '" + text + "': A and B must be frame numbers");
-  }
+  // A whole frame number or nothing: no sign, no space, no fraction, no exponent, no suffix
+  // (std::stoul took "1e3" as 1, "2.9" as 2 and "-1" as a huge number).
+  auto number = [&text](const std::string& part, size_t* value) {
+    if (part.empty()) return;
+    const char* end = part.data() + part.size();
+    const auto [ptr, ec] = std::from_chars(part.data(), end, *value);
+    if (ec != std::errc() || ptr != end)
+      throw ConfigError("--frames '" + text + "': '" + part +
+                        "' is not a frame number (A and B must be whole numbers >= 0)");
+  };
+  const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
+  number(a, &r.first);
+  number(b, &r.end);
+  if (!b.empty() && r.end == 0) throw ConfigError("--frames '" + text + "' selects no frame");
   return r;
 }
 

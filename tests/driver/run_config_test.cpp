@@ -5,6 +5,7 @@
 
 #include "driver/driver.h"
 #include "driver/slam_config.h"
+#include "pcr/api.h"
 #include "slam/common/error.h"
 #include "support/data_paths.h"
 
@@ -157,6 +158,28 @@ TEST(RunConfig, ANonPositiveCameraValueIsRejectedNotIgnored) {
                     nullptr),
       ConfigError);
   EXPECT_FALSE(LoadRunConfig("", {}, nullptr).camera.Active());
+}
+
+TEST(FrameRange, MalformedNumbersAreRejectedNamingFrames) {
+  for (const char* bad : {"0:1e3", "2.9:4", "1:3x", "0:-1", "-1:3", "+1:3", " 1:3", "1: 3", "0x1:3",
+                          "1:99999999999999999999999"}) {
+    try {
+      const FrameRange r = FrameRange::ParseText(bad);
+      ADD_FAILURE() << "'" << bad << "' parsed as " << r.first << ":" << r.end;
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("--frames"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
+    }
+  }
+  const FrameRange r = FrameRange::ParseText("007:12");
+  EXPECT_EQ(r.first, 7u);
+  EXPECT_EQ(r.end, 12u);
+  try {
+    (void)api::Source::Dataset("kitti/sequences/06", "0:-1");
+    FAIL() << "accepted 0:-1";
+  } catch (const api::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--frames '0:-1'"), std::string::npos) << e.what();
+  }
 }
 
 // A corrupt image in the middle of a run stops it with an error naming the file, and the poses of
