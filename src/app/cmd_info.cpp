@@ -2,12 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
-#include <iterator>
 #include <map>
 #include <string>
 
 #include "app/commands.h"
+#include "driver/binary_file.h"
 #include "gpu/executor.h"
 #include "gpu/net_plan.h"
 #include "io/dataset.h"
@@ -71,10 +70,8 @@ void PrintInfo(const std::string& path, bool color, const std::string& raw_truth
 
 // What a YOLOv8(-seg) ONNX export is and which engines can run it.
 void PrintModelInfo(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, "cannot open the model");
-  const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
-                                   std::istreambuf_iterator<char>());
+  // A regular file only: a device or a FIFO would be read until memory runs out.
+  const std::vector<uint8_t> bytes = driver::ReadFileBytes(path, "model");
   OnnxModel model;
   try {
     model = ParseOnnxModel(bytes);

@@ -119,6 +119,9 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
     options.pipeline.initial_map = std::move(archive);
   }
   options.pipeline.keep_final_map = !config.save_map.empty();
+  // Where the outputs go, checked before any frame runs (they are written after the last one).
+  if (!config.out_dir.empty()) driver::CheckOutputDirectory(config.out_dir, "out_dir (--out)");
+  if (!config.save_map.empty()) driver::CheckOutputFile(config.save_map, "save_map (--save-map)");
   if (source.first < 0 || source.end < 0) throw ConfigError("Source: negative frame number");
   const driver::FrameRange range =
       driver::FrameRange{static_cast<size_t>(source.first), static_cast<size_t>(source.end)}.Within(
@@ -137,17 +140,30 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
     };
 
   const driver::DriverResult run = driver::RunDataset(dataset, run_config, range, options);
+  // The outputs, then the map; one that fails does not keep the others from being written, and
+  // the run's results are returned with the first failure in Result::error.
+  driver::OutputErrors output_errors;
+  if (!config.out_dir.empty())
+    output_errors.Try([&] {
+      driver::WriteDriverOutputs(config.out_dir, run, config_yaml,
+                                 driver::DriverOptionsJson(run_config, options));
+    });
   if (!config.save_map.empty() && run.pipeline.final_map) {
     // Also after a failed frame: the map as it stood (the error is reported below).
-    const MapArchive& map = *run.pipeline.final_map;
-    const size_t bytes = driver::SaveMap(config.save_map, map);
-    spdlog::info("saved map {}: {} keyframes, {} map points{}, {:.1f} MB", config.save_map,
-                 map.map.num_keyframes(), map.map.num_points(),
-                 map.place ? ", place-recognition database" : "", bytes / 1e6);
+    output_errors.Try([&] {
+      const MapArchive& map = *run.pipeline.final_map;
+      const size_t bytes = driver::SaveMap(config.save_map, map);
+      spdlog::info("saved map {}: {} keyframes, {} map points{}, {:.1f} MB", config.save_map,
+                   map.map.num_keyframes(), map.map.num_points(),
+                   map.place ? ", place-recognition database" : "", bytes / 1e6);
+    });
   }
-  if (!config.out_dir.empty())
-    driver::WriteDriverOutputs(config.out_dir, run, config_yaml,
-                               driver::DriverOptionsJson(run_config, options));
+  std::string output_error;
+  try {
+    output_errors.Rethrow();
+  } catch (const std::exception& e) {
+    output_error = e.what();
+  }
 
   Result result;
   const driver::RunSummary& s = run.summary;
@@ -177,6 +193,8 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   }
   result.report = driver::FormatDriverSummary(run);
   result.error = s.error;
+  if (!output_error.empty())
+    result.error += (result.error.empty() ? "" : "; ") + std::string("outputs: ") + output_error;
   return result;
 }
 

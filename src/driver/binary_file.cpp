@@ -26,13 +26,20 @@ void WriteFileAtomically(const std::string& path, const std::vector<uint8_t>& by
   }
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
-  if (ec) throw InputError(path, 0, "cannot rename " + tmp + " to it: " + ec.message());
+  if (ec) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw InputError(path, 0, "cannot rename " + tmp + " to it: " + ec.message());
+  }
 }
 
 std::vector<uint8_t> ReadFileBytes(const std::string& path, const std::string& what) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
     throw InputError(path, 0, "is a directory, not a " + what + " file");
+  // A device or a FIFO (/dev/zero) would be read until memory runs out.
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
+    throw InputError(path, 0, "is not a regular file, not a " + what + " file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, 0, "cannot open the " + what + " file");
   std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),

@@ -214,17 +214,24 @@ nlohmann::json DriverOptionsJson(const RunConfig& config, const DriverOptions& o
 
 void WriteDriverOutputs(const std::string& out_dir, const DriverResult& result,
                         const std::string& config_yaml, const nlohmann::json& options_json) {
+  CreateOutputDirectory(out_dir);
   nlohmann::json pipeline = graph::StatsToJson(result.pipeline.stats);
   pipeline["options"] = options_json;
-  const nlohmann::json map = WriteMapOutputs(out_dir, result.pipeline.map, result.summary);
-  WriteRunOutputs(
-      out_dir, result.summary, config_yaml,
-      {{"pipeline", pipeline},
-       {"map", map},
-       {"loop", graph::LoopToJson(result.pipeline)},
-       {"relocalisation", graph::RelocalisationToJson(result.pipeline.relocalisation_stats)}});
-  graph::WriteChromeTrace(out_dir + "/trace.json", result.pipeline);
-  graph::WriteTimingChart(out_dir + "/timing.png", result.pipeline);
+  // The trajectories, configuration and stats.json first, then the map files and the pictures;
+  // each is tried even when an earlier one failed.
+  OutputErrors errors;
+  errors.Try([&] {
+    WriteRunOutputs(
+        out_dir, result.summary, config_yaml,
+        {{"pipeline", pipeline},
+         {"map", MapOutputsJson(result.pipeline.map, result.summary)},
+         {"loop", graph::LoopToJson(result.pipeline)},
+         {"relocalisation", graph::RelocalisationToJson(result.pipeline.relocalisation_stats)}});
+  });
+  errors.Try([&] { graph::WriteChromeTrace(out_dir + "/trace.json", result.pipeline); });
+  errors.Try([&] { WriteMapFiles(out_dir, result.pipeline.map, result.summary); });
+  errors.Try([&] { graph::WriteTimingChart(out_dir + "/timing.png", result.pipeline); });
+  errors.Rethrow();
 }
 
 std::string FormatDriverSummary(const DriverResult& result) {

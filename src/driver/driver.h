@@ -53,8 +53,10 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
 // The options of a run as recorded in stats.json ("pipeline": {"options": ...}).
 nlohmann::json DriverOptionsJson(const RunConfig& config, const DriverOptions& options);
 
-// Every output of a run: WriteRunOutputs' files (stats.json with the pipeline section, written
-// once), trace.json and timing.png.
+// Every output of a run: WriteRunOutputs' files (stats.json with the pipeline and map sections,
+// written once), trace.json, the map files (map_outputs.h) and timing.png, in that order. A file
+// that cannot be written does not keep the others from being written: the first failure
+// (InputError naming the file) is thrown at the end.
 void WriteDriverOutputs(const std::string& out_dir, const DriverResult& result,
                         const std::string& config_yaml, const nlohmann::json& options_json);
 

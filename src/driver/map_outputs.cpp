@@ -165,33 +165,15 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
   return j;
 }
 
-nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnapshot& map,
-                               const RunSummary& summary) {
-  CreateOutputDirectory(out_dir);
-  std::string body;
-  body.reserve(map.points.size() * 19);
-  for (const graph::MapCloudPoint& p : map.points)
-    PutVertex(&body, p.p_in_world, p.grey, static_cast<int32_t>(p.observations));
-  WritePly(out_dir + "/map.ply", map.points.size(), "", "property int observations", body);
-
-  body.clear();
-  std::string reasons;
+nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& summary) {
   nlohmann::json by_reason = nlohmann::json::object(), by_truth = nlohmann::json::object();
-  for (int r = 0; r < kNumFilterReasons; ++r)
-    reasons += "comment reason " + std::to_string(r) + " = " +
-               FilterReasonName(static_cast<FilterReason>(r)) + "\n";
   for (const RunSummary::RemovedPoint& p : summary.removed_points) {
-    PutVertex(&body, p.p_in_world, p.grey, static_cast<uint8_t>(p.reason));
     by_reason[FilterReasonName(p.reason)] = by_reason.value(FilterReasonName(p.reason), 0) + 1;
     if (p.truth != '-') {
       const char* kind = p.truth == 'm' ? "moving" : (p.truth == 'p' ? "parked" : "static");
       by_truth[kind] = by_truth.value(kind, 0) + 1;
     }
   }
-  WritePly(out_dir + "/map_removed.ply", summary.removed_points.size(), reasons,
-           "property uchar reason", body);
-  WriteTumTrajectory(out_dir + "/keyframes.txt", map.keyframes);
-  WriteMapPicture(out_dir + "/map.png", map, summary);
   nlohmann::json summary_json = {{"points", map.points.size()},
                                  {"removed_points", summary.removed_points.size()},
                                  {"removed_by_reason", by_reason},
@@ -200,6 +182,38 @@ nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnaps
   summary_json["loops"] = map.loops;
   summary_json["ground"] = GroundScaleJson(map, summary);
   return summary_json;
+}
+
+void WriteMapFiles(const std::string& out_dir, const graph::MapSnapshot& map,
+                   const RunSummary& summary) {
+  CreateOutputDirectory(out_dir);
+  OutputErrors errors;
+  errors.Try([&] {
+    std::string body;
+    body.reserve(map.points.size() * 19);
+    for (const graph::MapCloudPoint& p : map.points)
+      PutVertex(&body, p.p_in_world, p.grey, static_cast<int32_t>(p.observations));
+    WritePly(out_dir + "/map.ply", map.points.size(), "", "property int observations", body);
+  });
+  errors.Try([&] {
+    std::string body, reasons;
+    for (int r = 0; r < kNumFilterReasons; ++r)
+      reasons += "comment reason " + std::to_string(r) + " = " +
+                 FilterReasonName(static_cast<FilterReason>(r)) + "\n";
+    for (const RunSummary::RemovedPoint& p : summary.removed_points)
+      PutVertex(&body, p.p_in_world, p.grey, static_cast<uint8_t>(p.reason));
+    WritePly(out_dir + "/map_removed.ply", summary.removed_points.size(), reasons,
+             "property uchar reason", body);
+  });
+  errors.Try([&] { WriteTumTrajectory(out_dir + "/keyframes.txt", map.keyframes); });
+  errors.Try([&] { WriteMapPicture(out_dir + "/map.png", map, summary); });
+  errors.Rethrow();
+}
+
+nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnapshot& map,
+                               const RunSummary& summary) {
+  WriteMapFiles(out_dir, map, summary);
+  return MapOutputsJson(map, summary);
 }
 
 }  // namespace pcr::driver

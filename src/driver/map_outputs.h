@@ -29,11 +29,19 @@ MapGroundScale RoadScale(const graph::MapSnapshot& map);
 // (stats.json's "ate_m" is the Sim(3)-aligned one).
 nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& summary);
 
-// Writes the four files into out_dir (created if needed); returns their summary for stats.json
-// ("points", "removed_points", "removed_by_reason", "removed_by_truth": moving / parked / static
-// against the dataset's ground truth where it has one, "keyframes", "loops": [query, match]
-// pairs of keyframe indices, i.e. of keyframes.txt's pose lines, "ground": GroundScaleJson).
-// Throws InputError naming the file when one cannot be written.
+// The map's summary for stats.json ("points", "removed_points", "removed_by_reason",
+// "removed_by_truth": moving / parked / static against the dataset's ground truth where it has
+// one, "keyframes", "loops": [query, match] pairs of keyframe indices, i.e. of keyframes.txt's
+// pose lines, "ground": GroundScaleJson). Writes nothing.
+nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& summary);
+
+// Writes the four files into out_dir (created if needed). A file that cannot be written does not
+// keep the others from being written: the first failure (InputError naming the file) is thrown
+// at the end.
+void WriteMapFiles(const std::string& out_dir, const graph::MapSnapshot& map,
+                   const RunSummary& summary);
+
+// Both: the files, then their summary.
 nlohmann::json WriteMapOutputs(const std::string& out_dir, const graph::MapSnapshot& map,
                                const RunSummary& summary);
 

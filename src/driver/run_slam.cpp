@@ -1,6 +1,7 @@
 #include "driver/run_slam.h"
 
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <charconv>
@@ -132,18 +133,71 @@ void CreateOutputDirectory(const std::string& out_dir) {
   if (ec) throw InputError(out_dir, 0, "cannot create output directory: " + ec.message());
 }
 
+void CheckOutputDirectory(const std::string& out_dir, const std::string& what) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path p = fs::absolute(out_dir, ec).lexically_normal();
+  if (ec) p = out_dir;
+  // The nearest part of the path that exists: the directory itself, or where it would be made.
+  while (!fs::exists(p, ec)) {
+    const fs::path parent = p.parent_path();
+    if (parent.empty() || parent == p) break;
+    p = parent;
+  }
+  const std::string cannot = what + ": cannot create the output directory: ";
+  if (!fs::is_directory(p, ec))
+    throw InputError(out_dir, 0, cannot + p.string() + " is not a directory");
+  if (access(p.c_str(), W_OK | X_OK) != 0)
+    throw InputError(out_dir, 0, cannot + p.string() + " is not writable");
+}
+
+void CheckOutputFile(const std::string& path, const std::string& what) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path p(path);
+  if (fs::is_directory(p, ec) || p.filename().empty())
+    throw InputError(path, 0, what + ": is a directory, not a file");
+  const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
+  if (!fs::exists(dir, ec))
+    throw InputError(path, 0, what + ": the directory " + dir.string() + " does not exist");
+  if (!fs::is_directory(dir, ec))
+    throw InputError(path, 0, what + ": " + dir.string() + " is not a directory");
+  if (access(dir.c_str(), W_OK | X_OK) != 0)
+    throw InputError(path, 0, what + ": the directory " + dir.string() + " is not writable");
+}
+
+void OutputErrors::Try(const std::function<void()>& write) {
+  try {
+    write();
+  } catch (const std::exception& e) {
+    if (!first_) {
+      first_ = std::current_exception();
+    } else {
+      spdlog::error("{}", e.what());  // the first is thrown by Rethrow
+    }
+  }
+}
+
+void OutputErrors::Rethrow() const {
+  if (first_) std::rethrow_exception(first_);
+}
+
 void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
                      const std::string& config_yaml, const nlohmann::json& extra) {
   CreateOutputDirectory(out_dir);
-  WriteKittiTrajectory(out_dir + "/trajectory.txt", s.per_frame);
-  WriteTumTrajectory(out_dir + "/trajectory_tum.txt", s.tracked);
+  // The trajectories, the configuration and stats.json first; each file is tried even when an
+  // earlier one failed.
+  OutputErrors errors;
+  errors.Try([&] { WriteKittiTrajectory(out_dir + "/trajectory.txt", s.per_frame); });
+  errors.Try([&] { WriteTumTrajectory(out_dir + "/trajectory_tum.txt", s.tracked); });
   // Beside trajectory.txt, line for line: `evo_ape kitti ground_truth.txt trajectory.txt -a`.
-  if (!s.ground_truth.empty()) WriteKittiTrajectory(out_dir + "/ground_truth.txt", s.ground_truth);
-  {
+  if (!s.ground_truth.empty())
+    errors.Try([&] { WriteKittiTrajectory(out_dir + "/ground_truth.txt", s.ground_truth); });
+  errors.Try([&] {
     std::ofstream cfg(out_dir + "/config.yaml");
     cfg << config_yaml;
     if (!cfg) throw InputError(out_dir + "/config.yaml", 0, "cannot write");
-  }
+  });
   nlohmann::json j;
   j["dataset"] = s.dataset_name;
   j["mode"] = ToString(s.mode);
@@ -164,14 +218,6 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
     if (s.parked_points > 0)
       j["filter"]["parked_points"] = {{"total", s.parked_points}, {"kept", s.parked_points_kept}};
   }
-  if (!s.filter_dump.empty()) {
-    std::ofstream dump(out_dir + "/filter_decisions.txt");
-    dump << "# frame keypoint x_px y_px excluded reason score truth(moving|parked|static|-) s_mask "
-            "has_motion m_motion observability residual_px instance mask_depth_outlier "
-            "frame_static_prob chi2 depth_m ground\n";
-    for (const std::string& line : s.filter_dump) dump << line << "\n";
-    if (!dump) throw InputError(out_dir + "/filter_decisions.txt", 0, "cannot write");
-  }
   if (s.evaluation) {
     const eval::EvalResult& e = *s.evaluation;
     j["ate_m"] = {{"rmse", e.ape.trans_m.rmse},
@@ -180,27 +226,48 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
                   {"max", e.ape.trans_m.max},
                   {"matched", e.matched}};
     j["rpe_m"] = {{"rmse", e.rpe.trans_m.rmse}, {"max", e.rpe.trans_m.max}};
-    std::ofstream ev(out_dir + "/evaluation.json");
-    ev << eval::ToJson(e, s.eval_options).dump(2) << "\n";
-    eval::PlotOptions plot;
-    plot.title = "PCR-ORB " + s.dataset_name + " (top view, " +
-                 (s.eval_options.alignment.mode == eval::AlignMode::kSim3 ? "Sim(3)" : "SE(3)") +
-                 "-aligned)";
-    std::vector<eval::PlotSeries> series =
-        eval::GroundTruthAndEstimate(e.reference, e.aligned_estimate);
-    eval::PlotSeries loops{"loop closed", {}, kLoopColour, 2.0, eval::PlotStyle::kRings};
-    for (const StampedPose& p : e.aligned_estimate)
-      if (std::find(s.loops_closed_t_ns.begin(), s.loops_closed_t_ns.end(), p.t_ns) !=
-          s.loops_closed_t_ns.end())
-        loops.trajectory.push_back(p);
-    if (!loops.trajectory.empty()) series.push_back(std::move(loops));
-    eval::WriteTrajectoryPlot(out_dir + "/trajectory.png", series, plot);
   }
   if (extra.is_object())
     for (const auto& [key, value] : extra.items()) j[key] = value;
-  std::ofstream stats(out_dir + "/stats.json");
-  stats << j.dump(2) << "\n";
-  if (!stats) throw InputError(out_dir + "/stats.json", 0, "cannot write");
+  errors.Try([&] {
+    std::ofstream stats(out_dir + "/stats.json");
+    stats << j.dump(2) << "\n";
+    if (!stats) throw InputError(out_dir + "/stats.json", 0, "cannot write");
+  });
+  if (!s.filter_dump.empty()) {
+    errors.Try([&] {
+      std::ofstream dump(out_dir + "/filter_decisions.txt");
+      dump << "# frame keypoint x_px y_px excluded reason score truth(moving|parked|static|-) "
+              "s_mask has_motion m_motion observability residual_px instance mask_depth_outlier "
+              "frame_static_prob chi2 depth_m ground\n";
+      for (const std::string& line : s.filter_dump) dump << line << "\n";
+      if (!dump) throw InputError(out_dir + "/filter_decisions.txt", 0, "cannot write");
+    });
+  }
+  if (s.evaluation) {
+    const eval::EvalResult& e = *s.evaluation;
+    errors.Try([&] {
+      std::ofstream ev(out_dir + "/evaluation.json");
+      ev << eval::ToJson(e, s.eval_options).dump(2) << "\n";
+      if (!ev) throw InputError(out_dir + "/evaluation.json", 0, "cannot write");
+    });
+    errors.Try([&] {
+      eval::PlotOptions plot;
+      plot.title = "PCR-ORB " + s.dataset_name + " (top view, " +
+                   (s.eval_options.alignment.mode == eval::AlignMode::kSim3 ? "Sim(3)" : "SE(3)") +
+                   "-aligned)";
+      std::vector<eval::PlotSeries> series =
+          eval::GroundTruthAndEstimate(e.reference, e.aligned_estimate);
+      eval::PlotSeries loops{"loop closed", {}, kLoopColour, 2.0, eval::PlotStyle::kRings};
+      for (const StampedPose& p : e.aligned_estimate)
+        if (std::find(s.loops_closed_t_ns.begin(), s.loops_closed_t_ns.end(), p.t_ns) !=
+            s.loops_closed_t_ns.end())
+          loops.trajectory.push_back(p);
+      if (!loops.trajectory.empty()) series.push_back(std::move(loops));
+      eval::WriteTrajectoryPlot(out_dir + "/trajectory.png", series, plot);
+    });
+  }
+  errors.Rethrow();
 }
 
 std::string FormatRunSummary(const RunSummary& s) {

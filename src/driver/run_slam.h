@@ -1,5 +1,6 @@
 #pragma once
 // The summary of a run over a dataset frame range (driver/driver.h runs it) and its outputs.
+#include <exception>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -86,9 +87,33 @@ void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool mo
 // Creates out_dir and its parents; throws InputError naming it when that fails.
 void CreateOutputDirectory(const std::string& out_dir);
 
+// Before any frame runs (nothing is created): throws InputError naming out_dir when it could not
+// be created (an ancestor that is a file, not writable) or exists as something else than a
+// directory. `what` names the option in the message ("out_dir (--out)").
+void CheckOutputDirectory(const std::string& out_dir, const std::string& what);
+
+// Before any frame runs: throws InputError naming path when a file could not be written there
+// (its directory missing, not a directory or not writable; path itself a directory).
+void CheckOutputFile(const std::string& path, const std::string& what);
+
+// Writes a run's outputs one after another so that one that fails does not keep the others from
+// being written: Try(write) runs write and keeps the first exception (later ones are logged),
+// Rethrow() throws it once everything was tried.
+class OutputErrors {
+ public:
+  void Try(const std::function<void()>& write);
+  void Rethrow() const;
+  bool empty() const { return !first_; }
+
+ private:
+  std::exception_ptr first_;
+};
+
 // trajectory.txt (KITTI, one line per input frame), trajectory_tum.txt (tracked frames),
-// stats.json, config.yaml (effective configuration) and, with ground truth, evaluation.json and
+// config.yaml (effective configuration), stats.json and, with ground truth, evaluation.json and
 // trajectory.png. Creates out_dir. extra: more top-level keys of stats.json (e.g. "pipeline").
+// A file that cannot be written does not keep the others from being written: the first
+// failure (InputError naming the file) is thrown at the end.
 void WriteRunOutputs(const std::string& out_dir, const RunSummary& summary,
                      const std::string& config_yaml, const nlohmann::json& extra = {});
 
