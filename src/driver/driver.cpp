@@ -119,6 +119,14 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   const DynamicRunOptions& dynamic = config.dynamic;
   if (!dynamic.truth_labels.empty() && !dynamic.filter)
     throw ConfigError("--truth-labels needs --filter on");
+  // Options that would otherwise do nothing, silently.
+  if (dynamic.dump && !dynamic.filter)
+    throw ConfigError("--dump-filter needs --filter on (it writes the filter's decisions)");
+  if ((!options.model_high.empty() || !options.model_low.empty()) && dynamic.segmenter != "yolo")
+    throw ConfigError("--model-high and --model-low need --segmenter yolo, not '" +
+                      dynamic.segmenter + "'");
+  if (dynamic.truth_miss_rate != 0 && dynamic.segmenter != "truth")
+    throw ConfigError("--truth-miss-rate needs --segmenter truth, not '" + dynamic.segmenter + "'");
 
   // One camera for the tracker and the filter.
   const StereoRig rig = EffectiveRig(dataset, config.camera);

@@ -58,7 +58,16 @@ void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report, Ru
   if (instances_) {
     char name[32];
     std::snprintf(name, sizeof(name), "/instance_0/%06zu.png", i);
-    ids = LoadImageChecked(dataset_.root + name, cv::IMREAD_UNCHANGED);
+    const std::string path = dataset_.root + name;
+    ids = LoadImageChecked(path, cv::IMREAD_UNCHANGED);
+    // As TruthSegmenter::Segment: ids are read as uint16 at keypoint positions.
+    if (ids.type() != CV_16UC1)
+      throw InputError(path, 0, "instance image must be 16-bit single channel");
+    const PinholeCamera& camera = dataset_.rig.left;
+    if (camera.width_px > 0 && (ids.cols != camera.width_px || ids.rows != camera.height_px))
+      throw InputError(path, 0,
+                       fmt::format("instance image is {}x{}, the frames are {}x{}", ids.cols,
+                                   ids.rows, camera.width_px, camera.height_px));
   }
   std::vector<LabelTruthKind> label_kinds;
   if (labels_) label_kinds = labels_->Classify(i, keypoints);

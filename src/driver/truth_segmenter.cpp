@@ -47,7 +47,10 @@ Segmentation TruthSegmenter::Segment(const cv::Mat& image) {
   if (ids.type() != CV_16UC1)
     throw InputError(instance_dir_ + name, 0, "instance image must be 16-bit single channel");
   if (!image.empty() && image.size() != ids.size())
-    throw std::invalid_argument("truth segmenter: image size differs from the instance image");
+    throw InputError(instance_dir_ + name, 0,
+                     "instance image is " + std::to_string(ids.cols) + "x" +
+                         std::to_string(ids.rows) + ", the frame is " + std::to_string(image.cols) +
+                         "x" + std::to_string(image.rows));
 
   // Pixel masks of every dynamic-class instance present in the frame.
   std::map<uint16_t, cv::Mat> masks;

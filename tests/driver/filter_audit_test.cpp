@@ -5,9 +5,12 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "driver/driver.h"
 #include "driver/traffic_street.h"
+#include "sim/sequence_writer.h"
 #include "slam/common/error.h"
 #include "support/data_paths.h"
 
@@ -83,6 +86,74 @@ TEST(FilterAudit, BadSegmenterSetupsAreClearErrorsBeforeAnyFrameRuns) {
   o.filter = true;
   o.segmenter = "truth";
   EXPECT_THROW(RunDataset(kitti, config, range, Sequential()), InputError);
+}
+
+// The audit reads the instance images as 16-bit ids: an 8-bit one (read out of bounds) or one of
+// another size is an error naming the file, not garbage truth.
+TEST(FilterAudit, InstanceImagesOfTheWrongTypeOrSizeAreErrorsNamingTheFile) {
+  sim::SynthOptions o = sim::SynthOptions{}.Scaled(0.5);
+  o.frames = 3;
+  o.num_movers = 2;
+  o.num_parked = 2;
+  o.seed = 7;
+  const std::string seq = sim::WriteSequence(o, test::MakeTempDir("pcr_audit")).sequence_dir;
+  const std::string bad = seq + "/instance_0/000001.png";
+  RunConfig config;
+  config.dynamic.filter = true;  // segmenter none: only the audit reads the instance images
+  {
+    const Dataset dataset = OpenDataset(seq);
+    const cv::Mat ids = cv::imread(bad, cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(ids.type(), CV_16UC1);
+    cv::Mat eight;
+    ids.convertTo(eight, CV_8UC1);
+    ASSERT_TRUE(cv::imwrite(bad, eight));
+    const RunSummary s = RunDataset(dataset, config, FrameRange{0, 3}, Sequential()).summary;
+    EXPECT_NE(s.error.find(bad), std::string::npos) << s.error;
+    EXPECT_NE(s.error.find("16-bit"), std::string::npos) << s.error;
+    cv::Mat small;
+    cv::resize(ids, small, {ids.cols / 2, ids.rows / 2}, 0, 0, cv::INTER_NEAREST);
+    ASSERT_TRUE(cv::imwrite(bad, small));
+    const RunSummary t = RunDataset(dataset, config, FrameRange{0, 3}, Sequential()).summary;
+    EXPECT_NE(t.error.find(bad), std::string::npos) << t.error;
+  }
+}
+
+// Options that would do nothing are refused rather than ignored.
+TEST(FilterAudit, OptionsThatWouldDoNothingAreRefused) {
+  const Dataset dataset = OpenDataset(test_street::TrafficStreet());
+  const FrameRange range{0, 2};
+  {
+    RunConfig config;
+    config.dynamic.dump = true;  // --dump-filter without --filter on
+    try {
+      RunDataset(dataset, config, range, Sequential());
+      FAIL() << "accepted --dump-filter without --filter on";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("--dump-filter"), std::string::npos) << e.what();
+    }
+  }
+  {
+    RunConfig config;
+    config.dynamic.filter = true;
+    config.dynamic.segmenter = "truth";
+    DriverOptions options = Sequential();
+    options.model_low = "/nonexistent/low.onnx";  // only a YOLO segmenter has a light network
+    EXPECT_THROW(RunDataset(dataset, config, range, options), ConfigError);
+    options.model_low.clear();
+    options.model_high = "/nonexistent/high.onnx";
+    EXPECT_THROW(RunDataset(dataset, config, range, options), ConfigError);
+  }
+  {
+    RunConfig config;
+    config.dynamic.filter = true;
+    config.dynamic.truth_miss_rate = 0.2;  // the truth segmenter's, with none
+    try {
+      RunDataset(dataset, config, range, Sequential());
+      FAIL() << "accepted --truth-miss-rate without --segmenter truth";
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find("--truth-miss-rate"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace
