@@ -1,6 +1,9 @@
 #include <spdlog/spdlog.h>
 
+#include <charconv>
 #include <exception>
+#include <string>
+#include <system_error>
 
 #include "app/commands.h"
 #include "graph/heap.h"
@@ -24,7 +27,21 @@ int Main(int argc, char** argv) {
                  "glibc malloc only: bytes from which malloc maps blocks on their own, returned "
                  "when freed (0: glibc's dynamic threshold; 131072 keeps RSS lower but slows "
                  "YOLO on the CPU)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::Validator(
+          [](const std::string& text) -> std::string {
+            // glibc's mallopt(M_MMAP_THRESHOLD) takes at most 32 MiB (HEAP_MAX_SIZE / 2 on
+            // 64-bit); larger values were cast to int and could wrap to a small one.
+            constexpr unsigned long long kMax = 32ull << 20;
+            const char* end = text.data() + text.size();
+            unsigned long long v = 0;
+            const auto [ptr, ec] = std::from_chars(text.data(), end, v);
+            if (ec != std::errc() || ptr != end || v > kMax)
+              return "--mmap-threshold " + text + ": give bytes from 0 to " + std::to_string(kMax) +
+                     " (32 MiB, glibc's largest)";
+            return "";
+          },
+          "0..33554432"));
   app.parse_complete_callback([&] {
     spdlog::set_level(spdlog::level::from_str(log_level));
     if (!graph::ConfigureHeap(heap) && heap.mmap_threshold_bytes > 0) {

@@ -140,7 +140,12 @@ void RunFrames(const std::string& name, FrameArgs& a) {
                          fmt::format("tracked {} kf {} pts {}", f.tracked_points, f.map_keyframes,
                                      f.map_points));
       });
-  if (progress) progress->Finish();
+  if (progress) {
+    if (result.error.empty())
+      progress->Finish();
+    else
+      progress->Stop();  // the frames done, not 100%
+  }
   std::printf("%s", result.report.c_str());
   std::printf(
       "outputs: %s/{trajectory.txt,trajectory_tum.txt,stats.json,config.yaml,trace.json,map.ply,"
@@ -156,7 +161,9 @@ void RunFrames(const std::string& name, FrameArgs& a) {
 void AddRunCommand(CLI::App& app) {
   auto args = std::make_shared<FrameArgs>();
   args->config.out_dir = "out/run";
-  args->config.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  // Every core, within PipelineOptions::IsValid's [1, 256].
+  args->config.threads =
+      static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 256u));
   CLI::App* cmd = app.add_subcommand(
       "run",
       "Run SLAM on a KITTI odometry sequence or raw drive (the flow graph's sequential "

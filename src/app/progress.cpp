@@ -15,7 +15,7 @@ Progress::Progress(std::string label, int64_t total)
       last_draw_(start_) {}
 
 Progress::~Progress() {
-  if (!finished_ && done_ > 0) Finish();
+  if (!finished_ && done_ > 0) Stop();
 }
 
 void Progress::Update(int64_t done, const std::string& detail) {
@@ -39,6 +39,12 @@ void Progress::Finish(const std::string& detail) {
   finished_ = true;
   done_ = total_;
   Draw(true, detail);
+}
+
+void Progress::Stop(const std::string& detail) {
+  if (finished_) return;
+  finished_ = true;
+  Draw(true, detail.empty() ? "stopped" : detail);
 }
 
 void Progress::Draw(bool final, const std::string& detail) {

@@ -12,7 +12,11 @@ class Progress {
   Progress(std::string label, int64_t total);
   ~Progress();
   void Update(int64_t done, const std::string& detail = "");
+  // The work is complete: the last line shows total/total.
   void Finish(const std::string& detail = "");
+  // The work stopped early: the last line shows the count reached. The destructor does this
+  // when neither was called (an exception unwinding through the caller).
+  void Stop(const std::string& detail = "");
 
  private:
   void Draw(bool final, const std::string& detail);

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 
@@ -58,6 +59,9 @@ std::string AllocatorName() {
 bool ConfigureHeap(const HeapPolicy& policy) {
   if (ProcessAllocator() == Allocator::kJemalloc) return policy.mmap_threshold_bytes == 0;
 #if defined(__GLIBC__)
+  // mallopt takes an int: a larger threshold would wrap (glibc's largest is 32 MiB anyway).
+  if (policy.mmap_threshold_bytes > static_cast<size_t>(std::numeric_limits<int>::max()))
+    return false;
   bool ok = true;
   if (policy.mmap_threshold_bytes > 0)
     ok = mallopt(M_MMAP_THRESHOLD, static_cast<int>(policy.mmap_threshold_bytes)) == 1 && ok;

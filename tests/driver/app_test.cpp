@@ -1,0 +1,69 @@
+// The command line's own pieces: progress reporting (src/app/progress.h) and the heap options
+// (`pcr_orb --mmap-threshold`, graph/heap.h).
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include "graph/heap.h"
+
+// pcr_app (src/app) is not linked into this binary: its progress reporting is compiled in here.
+#include "app/progress.cpp"  // NOLINT(bugprone-suspicious-include)
+
+namespace pcr::app {
+namespace {
+
+TEST(Progress, WorkThatStoppedEarlyIsNotShownAsComplete) {
+  testing::internal::CaptureStdout();
+  {
+    Progress progress("run", 6);
+    progress.Update(2);
+  }  // not finished: as when an exception unwinds through the run
+  std::string out = testing::internal::GetCapturedStdout();
+  EXPECT_NE(out.find("run: 2/6"), std::string::npos) << out;
+  EXPECT_EQ(out.find("6/6"), std::string::npos) << out;
+  EXPECT_EQ(out.find("100%"), std::string::npos) << out;
+
+  testing::internal::CaptureStdout();
+  {
+    Progress progress("run", 6);
+    progress.Update(6);
+    progress.Finish();
+  }
+  out = testing::internal::GetCapturedStdout();
+  EXPECT_NE(out.find("run: 6/6 (100%)"), std::string::npos) << out;
+}
+
+TEST(HeapPolicy, AnMmapThresholdBeyondMalloptsIntIsRefusedNotWrapped) {
+  if (graph::ProcessAllocator() != graph::Allocator::kGlibc) GTEST_SKIP() << "not glibc malloc";
+  graph::HeapPolicy policy;
+  policy.mmap_threshold_bytes = (size_t{1} << 32) + 131072;  // as an int: 131072
+  policy.max_arenas = 0;
+  EXPECT_FALSE(graph::ConfigureHeap(policy));
+}
+
+#ifdef PCR_TEST_CACHE_DIR
+// The command line refuses an --mmap-threshold glibc cannot take, naming the option.
+TEST(CommandLine, MmapThresholdOutOfRangeIsRefused) {
+  const std::filesystem::path pcr_orb =
+      std::filesystem::path(PCR_TEST_CACHE_DIR).parent_path() / "src" / "pcr_orb";
+  if (!std::filesystem::is_regular_file(pcr_orb)) GTEST_SKIP() << "no " << pcr_orb << " built";
+  for (const char* value : {"4295098368", "33554433", "-1", "1e6"}) {
+    const std::string command = pcr_orb.string() + " --log-level off --mmap-threshold " + value +
+                                " info --model /nonexistent/model.onnx 2>&1";
+    FILE* pipe = popen(command.c_str(), "r");
+    ASSERT_NE(pipe, nullptr);
+    std::string out;
+    char buffer[256];
+    while (std::fgets(buffer, sizeof(buffer), pipe)) out += buffer;
+    const int status = pclose(pipe);
+    EXPECT_NE(status, 0) << value;
+    EXPECT_NE(out.find("--mmap-threshold"), std::string::npos) << value << ": " << out;
+    EXPECT_EQ(out.find("cannot open the model"), std::string::npos) << value << ": " << out;
+  }
+}
+#endif
+
+}  // namespace
+}  // namespace pcr::app
