@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <memory>
+#include <string_view>
 
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
@@ -139,7 +140,15 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
       on_frame(ToFrameResult(r), done, total);
     };
 
-  const driver::DriverResult run = driver::RunDataset(dataset, run_config, range, options);
+  driver::DriverResult run;
+  try {
+    run = driver::RunDataset(dataset, run_config, range, options);
+  } catch (const ConfigError& e) {
+    // SlamSystem::RestoreMap's refusals ("the map was made in stereo mode, ...") name no file.
+    if (!config.load_map.empty() && std::string_view(e.what()).starts_with("the map was made"))
+      throw InputError(config.load_map, 0, std::string("load_map (--load-map): ") + e.what());
+    throw;
+  }
   // The outputs, then the map; one that fails does not keep the others from being written, and
   // the run's results are returned with the first failure in Result::error.
   driver::OutputErrors output_errors;

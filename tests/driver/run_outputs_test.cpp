@@ -99,6 +99,19 @@ TEST(RunOutputs, AnOutputThatCannotBeWrittenDoesNotKeepTheOthersFromBeingWritten
   EXPECT_TRUE(j.contains("map"));
 }
 
+TEST(RunOutputs, AMapThatDoesNotFitTheRunIsAnErrorNamingTheFile) {
+  const std::string map = test::MakeTempDir("pcr_outputs") + "/stereo.map";
+  api::Config c = NoLoops();
+  c.save_map = map;
+  ASSERT_TRUE(api::Run(c, Kitti06(3)).error.empty());
+  c.save_map.clear();
+  c.load_map = map;
+  c.mode = api::Mode::kMono;  // a stereo map
+  const std::string e = ErrorBeforeAnyFrame(c, Kitti06(3));
+  EXPECT_NE(e.find(map), std::string::npos) << e;
+  EXPECT_NE(e.find("stereo"), std::string::npos) << e;
+}
+
 TEST(RunOutputs, WriteRunOutputsWritesWhatItCanAndNamesTheFirstFailure) {
   const std::string out = test::MakeTempDir("pcr_outputs");
   fs::create_directory(out + "/trajectory.txt");  // cannot be written
