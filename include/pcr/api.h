@@ -147,7 +147,9 @@ struct Result {
   std::vector<FrameResult> frames;  // completed frames, in order
   Statistics stats;
   std::string report;  // the human-readable summary `pcr_orb run` prints
-  std::string error;   // non-empty when a frame failed: the results cover the frames before it
+  // Non-empty when a frame failed (the results cover the frames before it) or when an output
+  // (out_dir's files, save_map) could not be written ("outputs: FILE: ..."; the others were).
+  std::string error;
 };
 
 // Raised for an invalid configuration or an unreadable input (naming the file and line).
@@ -159,8 +161,9 @@ class Error : public std::runtime_error {
 // Called after each completed frame, in frame order, from the run's own threads.
 using FrameCallback = std::function<void(const FrameResult& frame, size_t done, size_t total)>;
 
-// Runs the source's frames. Throws Error before any frame runs when the configuration or the
-// input is bad; a failure while processing frames is reported in Result::error instead.
+// Runs the source's frames. Throws Error before any frame runs when the configuration, the input
+// or where the outputs go is bad; a failure while processing frames or writing the outputs is
+// reported in Result::error instead.
 Result Run(const Config& config, const Source& source, const FrameCallback& on_frame = {});
 
 // "0.1.0"

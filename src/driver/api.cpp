@@ -122,7 +122,9 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   options.pipeline.keep_final_map = !config.save_map.empty();
   // Where the outputs go, checked before any frame runs (they are written after the last one).
   if (!config.out_dir.empty()) driver::CheckOutputDirectory(config.out_dir, "out_dir (--out)");
-  if (!config.save_map.empty()) driver::CheckOutputFile(config.save_map, "save_map (--save-map)");
+  // A map saved into --out may name it before it exists: it is made before the map is saved.
+  if (!config.save_map.empty())
+    driver::CheckOutputFile(config.save_map, "save_map (--save-map)", config.out_dir);
   if (source.first < 0 || source.end < 0) throw ConfigError("Source: negative frame number");
   const driver::FrameRange range =
       driver::FrameRange{static_cast<size_t>(source.first), static_cast<size_t>(source.end)}.Within(

@@ -151,13 +151,20 @@ void CheckOutputDirectory(const std::string& out_dir, const std::string& what) {
     throw InputError(out_dir, 0, cannot + p.string() + " is not writable");
 }
 
-void CheckOutputFile(const std::string& path, const std::string& what) {
+void CheckOutputFile(const std::string& path, const std::string& what,
+                     const std::string& made_before) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const fs::path p(path);
   if (fs::is_directory(p, ec) || p.filename().empty())
     throw InputError(path, 0, what + ": is a directory, not a file");
   const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
+  const auto normal = [](const fs::path& d) {
+    std::error_code e;
+    const fs::path a = fs::absolute(d, e).lexically_normal();
+    return (a.filename().empty() ? a.parent_path() : a).string();
+  };
+  if (!made_before.empty() && normal(dir) == normal(made_before)) return;
   if (!fs::exists(dir, ec))
     throw InputError(path, 0, what + ": the directory " + dir.string() + " does not exist");
   if (!fs::is_directory(dir, ec))

@@ -93,8 +93,11 @@ void CreateOutputDirectory(const std::string& out_dir);
 void CheckOutputDirectory(const std::string& out_dir, const std::string& what);
 
 // Before any frame runs: throws InputError naming path when a file could not be written there
-// (its directory missing, not a directory or not writable; path itself a directory).
-void CheckOutputFile(const std::string& path, const std::string& what);
+// (its directory missing, not a directory or not writable; path itself a directory). A missing
+// directory is accepted when it is `made_before` (the run's out_dir, checked with
+// CheckOutputDirectory and made before the file is written).
+void CheckOutputFile(const std::string& path, const std::string& what,
+                     const std::string& made_before = "");
 
 // Writes a run's outputs one after another so that one that fails does not keep the others from
 // being written: Try(write) runs write and keeps the first exception (later ones are logged),

@@ -77,6 +77,19 @@ TEST(RunOutputs, WhereTheOutputsGoIsCheckedBeforeAnyFrameRuns) {
   EXPECT_NE(e.find("not a directory"), std::string::npos) << e;
 }
 
+// --save-map OUT/map.bin with --out OUT: OUT does not exist yet, and the run makes it before it
+// saves the map.
+TEST(RunOutputs, AMapSavedIntoTheOutputDirectoryThatTheRunMakes) {
+  const std::string dir = test::MakeTempDir("pcr_outputs_in_out");
+  api::Config c = NoLoops();
+  c.out_dir = dir + "/run";
+  c.save_map = dir + "/run/map.bin";
+  const api::Result r = api::Run(c, Kitti06(3));
+  EXPECT_TRUE(r.error.empty()) << r.error;
+  EXPECT_TRUE(fs::is_regular_file(dir + "/run/map.bin"));
+  EXPECT_TRUE(fs::is_regular_file(dir + "/run/trajectory.txt"));
+}
+
 TEST(RunOutputs, AnOutputThatCannotBeWrittenDoesNotKeepTheOthersFromBeingWritten) {
   const std::string out = test::MakeTempDir("pcr_outputs") + "/o8";
   fs::create_directories(out + "/map.png");  // the picture cannot be written
