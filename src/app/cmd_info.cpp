@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <string>
 
@@ -21,7 +22,12 @@ namespace {
 // A raw drive's OXTS accuracy fields and the path length by the other ground truth, so that the
 // two can be compared (nothing for other datasets).
 void PrintOxtsAccuracy(const Dataset& dataset, RawTruth truth) {
-  const std::vector<OxtsPacket> packets = ReadOxtsPackets(dataset.root, dataset.size());
+  if (dataset.left_paths.empty()) return;
+  // The records of the images' own frame numbers (a clip may start after 0 or have gaps).
+  std::vector<int64_t> numbers;
+  (void)ListFrameFiles(std::filesystem::path(dataset.left_paths.front()).parent_path().string(),
+                       ".png", &numbers);
+  const std::vector<OxtsPacket> packets = ReadOxtsPackets(dataset.root, numbers);
   if (packets.empty()) return;
   double pos_lo = INFINITY, pos_hi = -INFINITY, vel_lo = INFINITY, vel_hi = -INFINITY;
   for (const OxtsPacket& p : packets) {
