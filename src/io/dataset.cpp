@@ -167,6 +167,34 @@ void CheckSameFileNames(const std::vector<std::string>& left, const std::string&
     if (!left_set.count(name)) throw InputError(other_dir, 0, name + " has no pair in " + left_dir);
 }
 
+void AddOtherCameras(Dataset* dataset, const std::vector<int64_t>& numbers,
+                     const std::string& left_label, const std::string& right_dir,
+                     const std::string& colour_dir, bool color) {
+  std::error_code ec;
+  std::vector<int64_t> other_numbers;
+  dataset->right_paths.clear();
+  if (fs::is_directory(right_dir, ec)) {
+    dataset->right_paths = ListFrameFiles(right_dir, ".png", &other_numbers);
+    if (dataset->right_paths.size() != dataset->left_paths.size())
+      throw InputError(right_dir, 0,
+                       std::to_string(dataset->right_paths.size()) + " images but " + left_label +
+                           " has " + std::to_string(dataset->left_paths.size()));
+    CheckSameFileNames(dataset->left_paths, left_label, dataset->right_paths, right_dir);
+  }
+  dataset->left_color_paths.clear();
+  if (color) {
+    dataset->left_color_paths = dataset->left_paths;
+  } else if (fs::is_directory(colour_dir, ec)) {
+    // A colour folder that does not hold exactly the left images' frames is not used.
+    try {
+      dataset->left_color_paths = ListFrameFiles(colour_dir, ".png", &other_numbers);
+      if (other_numbers != numbers) dataset->left_color_paths.clear();
+    } catch (const InputError&) {
+      dataset->left_color_paths.clear();
+    }
+  }
+}
+
 cv::Mat LoadGreyImage(const std::string& path) {
   // Decoded as stored, then converted with cvtColor so grey values match
   // cvtColor(LoadLeftColor(i)) (the decoder's own colour-to-grey conversion differs slightly).

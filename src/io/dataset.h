@@ -92,6 +92,15 @@ std::vector<std::string> ListFrameFiles(const std::string& dir, const std::strin
 void CheckSameFileNames(const std::vector<std::string>& left, const std::string& left_dir,
                         const std::vector<std::string>& other, const std::string& other_dir);
 
+// Sets dataset->right_paths and left_color_paths for the left images (left_paths, whose frame
+// numbers are `numbers`, in folder `left_label`): the images of `right_dir`, none when it does
+// not exist (else one of each left image's name, or InputError naming right_dir); the left
+// images themselves when `color`, else the images of `colour_dir` when it holds exactly the left
+// images' frames (none otherwise).
+void AddOtherCameras(Dataset* dataset, const std::vector<int64_t>& numbers,
+                     const std::string& left_label, const std::string& right_dir,
+                     const std::string& colour_dir, bool color);
+
 // Opens a KITTI odometry sequence directory or a KITTI raw drive directory, decided by the
 // layout (calib.txt + image_0/image_2 vs image_00/data). raw_truth: a raw drive's ground truth.
 Dataset OpenDataset(const std::string& path, KittiCameras cams = KittiCameras::kGray,

@@ -11,14 +11,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Images of an optional camera folder, or an empty list when the folder does not exist.
-std::vector<std::string> CameraImages(const fs::path& dir, std::vector<int64_t>* numbers) {
-  std::error_code ec;
-  numbers->clear();
-  if (!fs::is_directory(dir, ec)) return {};
-  return ListFrameFiles(dir.string(), ".png", numbers);
-}
-
 // Throws "N <what> but <of>: none for frame K (<image name>)" naming `file` when a frame number
 // has no line in it.
 void RequireLines(size_t lines, const std::vector<int64_t>& numbers,
@@ -50,29 +42,11 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
   const fs::path left_dir = dir / left_dir_name;
   if (!fs::is_directory(left_dir, ec))
     throw InputError(left_dir.string(), 0, "image directory not found");
-  std::vector<int64_t> numbers, other_numbers;
+  std::vector<int64_t> numbers;
   dataset.left_paths = ListFrameFiles(left_dir.string(), ".png", &numbers);
   if (dataset.left_paths.empty()) throw InputError(left_dir.string(), 0, "no PNG images");
-  const fs::path right_dir = dir / right_dir_name;
-  dataset.right_paths = CameraImages(right_dir, &other_numbers);
-  if (!dataset.right_paths.empty()) {
-    if (dataset.right_paths.size() != dataset.left_paths.size())
-      throw InputError(right_dir.string(), 0,
-                       std::to_string(dataset.right_paths.size()) + " images but " + left_dir_name +
-                           " has " + std::to_string(dataset.left_paths.size()));
-    CheckSameFileNames(dataset.left_paths, left_dir_name, dataset.right_paths, right_dir.string());
-  }
-  if (color) {
-    dataset.left_color_paths = dataset.left_paths;
-  } else {
-    // A colour folder that does not hold exactly the left images' names is not used.
-    try {
-      dataset.left_color_paths = CameraImages(dir / "image_2", &other_numbers);
-      if (other_numbers != numbers) dataset.left_color_paths.clear();
-    } catch (const InputError&) {
-      dataset.left_color_paths.clear();
-    }
-  }
+  AddOtherCameras(&dataset, numbers, left_dir_name, (dir / right_dir_name).string(),
+                  (dir / "image_2").string(), color);
 
   const std::string times_path = (dir / "times.txt").string();
   const std::vector<int64_t> times = ReadKittiTimes(times_path);

@@ -90,15 +90,6 @@ std::vector<int64_t> ReadTimestampsFor(const fs::path& path, const std::vector<i
   return t_ns;
 }
 
-// Images of an optional camera folder (CAMERA/data), or an empty list when it does not exist.
-std::vector<std::string> CameraDataImages(const fs::path& camera_dir,
-                                          std::vector<int64_t>* numbers) {
-  std::error_code ec;
-  numbers->clear();
-  if (!fs::is_directory(camera_dir / "data", ec)) return {};
-  return ListFrameFiles((camera_dir / "data").string(), ".png", numbers);
-}
-
 }  // namespace
 
 OxtsPacket ParseOxtsPacket(std::istream& in, const std::string& name) {
@@ -277,30 +268,12 @@ Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth t
   const fs::path left_dir = dir / left_name;
   if (!fs::is_directory(left_dir / "data", ec))
     throw InputError((left_dir / "data").string(), 0, "image directory not found");
-  std::vector<int64_t> numbers, other_numbers;
+  std::vector<int64_t> numbers;
   dataset.left_paths = ListFrameFiles((left_dir / "data").string(), ".png", &numbers);
   if (dataset.left_paths.empty())
     throw InputError((left_dir / "data").string(), 0, "no PNG images");
-  dataset.right_paths = CameraDataImages(dir / right_name, &other_numbers);
-  if (!dataset.right_paths.empty()) {
-    const std::string right_data = (dir / right_name / "data").string();
-    if (dataset.right_paths.size() != dataset.left_paths.size())
-      throw InputError(right_data, 0,
-                       std::to_string(dataset.right_paths.size()) + " images but " + left_name +
-                           " has " + std::to_string(dataset.left_paths.size()));
-    CheckSameFileNames(dataset.left_paths, left_name + "/data", dataset.right_paths, right_data);
-  }
-  if (color) {
-    dataset.left_color_paths = dataset.left_paths;
-  } else {
-    // A colour folder that does not hold exactly the left images' names is not used.
-    try {
-      dataset.left_color_paths = CameraDataImages(dir / "image_02", &other_numbers);
-      if (other_numbers != numbers) dataset.left_color_paths.clear();
-    } catch (const InputError&) {
-      dataset.left_color_paths.clear();
-    }
-  }
+  AddOtherCameras(&dataset, numbers, left_name + "/data", (dir / right_name / "data").string(),
+                  (dir / "image_02" / "data").string(), color);
 
   dataset.t_ns = ReadTimestampsFor(left_dir / "timestamps.txt", numbers, dataset.left_paths);
 
