@@ -29,6 +29,7 @@
 #include "slam/dynamic/motion_score.h"
 #include "support/data_paths.h"
 #include "support/device_wait.h"
+#include "support/texture_images.h"
 
 namespace pcr::gpu::lk_test {
 namespace {
@@ -442,13 +443,8 @@ TEST(LkFlow, AnEngineOverASequenceMatchesFreshEngines) {
 TEST(LkFlow, PyramidsShorterThanMaxLevelTrackAsOnOpenCv) {
   LkOptions options;
   options.max_level = 6;
-  cv::Mat prev(80, 120, CV_8U);
-  cv::RNG rng(4);
-  rng.fill(prev, cv::RNG::UNIFORM, 0, 256);
-  cv::GaussianBlur(prev, prev, cv::Size(0, 0), 1.5);
-  cv::Mat cur;
-  cv::warpAffine(prev, cur, cv::Matx23d(1, 0, 2, 0, 1, 1), prev.size(), cv::INTER_LINEAR,
-                 cv::BORDER_REFLECT);
+  const cv::Mat prev = test::RandomTexture({120, 80}, 4, 1.5, /*stretch=*/false);
+  const cv::Mat cur = test::Shifted(prev, 2, 1);
   const std::vector<cv::Mat> prev_pyr = BuildLkPyramid(prev, options);
   const std::vector<cv::Mat> cur_pyr = BuildLkPyramid(cur, options);
   ASSERT_LT(prev_pyr.size() / 2, static_cast<size_t>(options.max_level + 1));

@@ -13,6 +13,7 @@
 #include "slam/dynamic/dynamic_filter.h"
 #include "slam/dynamic/motion_score.h"
 #include "slam/geometry/se3.h"
+#include "support/texture_images.h"
 
 namespace pcr {
 namespace {
@@ -282,9 +283,7 @@ TEST(FilterMotion, LucasKanadeTracksAShiftedTextureAndRejectsChangedPatches) {
   cv::normalize(prev, prev, 0, 255, cv::NORM_MINMAX);
   // The current image is the previous one shifted by (7.3, -2.6) px: cur(x) = prev(x - shift).
   const cv::Point2f shift(7.3f, -2.6f);
-  cv::Mat cur;
-  const cv::Matx23d warp(1, 0, shift.x, 0, 1, shift.y);
-  cv::warpAffine(prev, cur, warp, prev.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+  cv::Mat cur = test::Shifted(prev, shift.x, shift.y, cv::INTER_CUBIC);
   // A patch of the current image replaced by new texture (something moved in).
   const cv::Rect changed(800, 100, 120, 120);
   cv::Mat fresh(changed.size(), CV_8U);
@@ -334,14 +333,8 @@ TEST(FilterMotion, LucasKanadeGuessDoesNotBiasInformativeMatchesAndEdgesAreNotTr
   const LkOptions options;
   // Textured image moved by (6, 2) px: from a guess 6 px off, LK still finds the true match, and
   // the guess search does not pull it anywhere else.
-  cv::Mat prev(200, 400, CV_8U);
-  cv::RNG rng(5);
-  rng.fill(prev, cv::RNG::UNIFORM, 0, 256);
-  cv::GaussianBlur(prev, prev, cv::Size(0, 0), 1.5);
-  cv::normalize(prev, prev, 0, 255, cv::NORM_MINMAX);
-  cv::Mat cur;
-  cv::warpAffine(prev, cur, cv::Matx23d(1, 0, 6, 0, 1, 2), prev.size(), cv::INTER_LINEAR,
-                 cv::BORDER_REFLECT);
+  const cv::Mat prev = test::RandomTexture({400, 200}, 5, 1.5, /*stretch=*/true);
+  const cv::Mat cur = test::Shifted(prev, 6, 2);
   std::vector<cv::Point2f> pts, guess, bad_guess;
   for (int v = 50; v <= 150; v += 25) {
     for (int u = 80; u <= 320; u += 40) {
@@ -401,13 +394,8 @@ class RecordingFlowEngine final : public FlowEngine {
 TEST(FilterMotion, TheLucasKanadePassesRunOnTheGivenEngine) {
   LkOptions options;
   options.guess_accept_error_factor = 0.0;  // the zero-flow search runs for every point
-  cv::Mat prev(200, 400, CV_8U);
-  cv::RNG rng(9);
-  rng.fill(prev, cv::RNG::UNIFORM, 0, 256);
-  cv::GaussianBlur(prev, prev, cv::Size(0, 0), 1.5);
-  cv::Mat cur;
-  cv::warpAffine(prev, cur, cv::Matx23d(1, 0, 4, 0, 1, 1), prev.size(), cv::INTER_LINEAR,
-                 cv::BORDER_REFLECT);
+  const cv::Mat prev = test::RandomTexture({400, 200}, 9, 1.5, /*stretch=*/false);
+  const cv::Mat cur = test::Shifted(prev, 4, 1);
   std::vector<cv::Point2f> pts, guess;
   for (int v = 40; v <= 160; v += 30) {
     for (int u = 60; u <= 340; u += 35) {
