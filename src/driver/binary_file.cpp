@@ -5,32 +5,16 @@
 #include <iterator>
 #include <system_error>
 
+#include "io/text_parse.h"
 #include "slam/common/error.h"
 
 namespace pcr::driver {
 
-void WriteFileAtomically(const std::string& path, const std::vector<uint8_t>& bytes,
-                         const std::string& what) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(path, 0, "cannot open " + tmp + " to write the " + what);
+void WriteFileAtomically(const std::string& path, const std::vector<uint8_t>& bytes) {
+  io::WriteFileAtomically(path, [&bytes](std::ostream& out) {
     out.write(reinterpret_cast<const char*>(bytes.data()),
               static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) {
-      std::error_code ignored;
-      std::filesystem::remove(tmp, ignored);
-      throw InputError(path, 0, "cannot write the " + what + " to " + tmp);
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
-    throw InputError(path, 0, "cannot rename " + tmp + " to it: " + ec.message());
-  }
+  });
 }
 
 std::vector<uint8_t> ReadFileBytes(const std::string& path, const std::string& what) {

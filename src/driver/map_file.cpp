@@ -9,7 +9,7 @@ namespace pcr::driver {
 
 size_t SaveMap(const std::string& path, const MapArchive& archive) {
   const std::vector<uint8_t> bytes = SerializeMapArchive(archive);
-  WriteFileAtomically(path, bytes, "map");
+  WriteFileAtomically(path, bytes);
   return bytes.size();
 }
 

@@ -6,12 +6,13 @@
 #include <algorithm>
 #include <charconv>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "eval/plot.h"
 #include "eval/report.h"
+#include "io/dataset.h"
+#include "io/text_parse.h"
 #include "io/trajectory_io.h"
 #include "slam/common/error.h"
 
@@ -159,12 +160,8 @@ void CheckOutputFile(const std::string& path, const std::string& what,
   if (fs::is_directory(p, ec) || p.filename().empty())
     throw InputError(path, 0, what + ": is a directory, not a file");
   const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
-  const auto normal = [](const fs::path& d) {
-    std::error_code e;
-    const fs::path a = fs::absolute(d, e).lexically_normal();
-    return (a.filename().empty() ? a.parent_path() : a).string();
-  };
-  if (!made_before.empty() && normal(dir) == normal(made_before)) return;
+  if (!made_before.empty() && NormalDirectoryPath(dir.string()) == NormalDirectoryPath(made_before))
+    return;
   if (!fs::exists(dir, ec))
     throw InputError(path, 0, what + ": the directory " + dir.string() + " does not exist");
   if (!fs::is_directory(dir, ec))
@@ -201,9 +198,8 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   if (!s.ground_truth.empty())
     errors.Try([&] { WriteKittiTrajectory(out_dir + "/ground_truth.txt", s.ground_truth); });
   errors.Try([&] {
-    std::ofstream cfg(out_dir + "/config.yaml");
-    cfg << config_yaml;
-    if (!cfg) throw InputError(out_dir + "/config.yaml", 0, "cannot write");
+    io::WriteFileAtomically(out_dir + "/config.yaml",
+                            [&](std::ostream& out) { out << config_yaml; });
   });
   nlohmann::json j;
   j["dataset"] = s.dataset_name;
@@ -237,26 +233,25 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   if (extra.is_object())
     for (const auto& [key, value] : extra.items()) j[key] = value;
   errors.Try([&] {
-    std::ofstream stats(out_dir + "/stats.json");
-    stats << j.dump(2) << "\n";
-    if (!stats) throw InputError(out_dir + "/stats.json", 0, "cannot write");
+    io::WriteFileAtomically(out_dir + "/stats.json",
+                            [&](std::ostream& out) { out << j.dump(2) << "\n"; });
   });
   if (!s.filter_dump.empty()) {
     errors.Try([&] {
-      std::ofstream dump(out_dir + "/filter_decisions.txt");
-      dump << "# frame keypoint x_px y_px excluded reason score truth(moving|parked|static|-) "
-              "s_mask has_motion m_motion observability residual_px instance mask_depth_outlier "
-              "frame_static_prob chi2 depth_m ground\n";
-      for (const std::string& line : s.filter_dump) dump << line << "\n";
-      if (!dump) throw InputError(out_dir + "/filter_decisions.txt", 0, "cannot write");
+      io::WriteFileAtomically(out_dir + "/filter_decisions.txt", [&](std::ostream& out) {
+        out << "# frame keypoint x_px y_px excluded reason score truth(moving|parked|static|-) "
+               "s_mask has_motion m_motion observability residual_px instance mask_depth_outlier "
+               "frame_static_prob chi2 depth_m ground\n";
+        for (const std::string& line : s.filter_dump) out << line << "\n";
+      });
     });
   }
   if (s.evaluation) {
     const eval::EvalResult& e = *s.evaluation;
     errors.Try([&] {
-      std::ofstream ev(out_dir + "/evaluation.json");
-      ev << eval::ToJson(e, s.eval_options).dump(2) << "\n";
-      if (!ev) throw InputError(out_dir + "/evaluation.json", 0, "cannot write");
+      io::WriteFileAtomically(out_dir + "/evaluation.json", [&](std::ostream& out) {
+        out << eval::ToJson(e, s.eval_options).dump(2) << "\n";
+      });
     });
     errors.Try([&] {
       eval::PlotOptions plot;

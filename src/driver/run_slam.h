@@ -106,7 +106,6 @@ class OutputErrors {
  public:
   void Try(const std::function<void()>& write);
   void Rethrow() const;
-  bool empty() const { return !first_; }
 
  private:
   std::exception_ptr first_;

@@ -9,7 +9,7 @@
 namespace pcr::driver {
 
 void SaveVocabulary(const std::string& path, const Vocabulary& vocabulary) {
-  WriteFileAtomically(path, SerializeVocabulary(vocabulary), "vocabulary");
+  WriteFileAtomically(path, SerializeVocabulary(vocabulary));
 }
 
 Vocabulary LoadVocabulary(const std::string& path) {
