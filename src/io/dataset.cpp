@@ -150,6 +150,17 @@ std::vector<std::string> ListFrameFiles(const std::string& dir, const std::strin
   return paths;
 }
 
+void RequireLines(size_t lines, const std::vector<int64_t>& numbers,
+                  const std::vector<std::string>& images, const std::string& file,
+                  const std::string& what, const std::string& of) {
+  for (size_t i = 0; i < numbers.size(); ++i)
+    if (static_cast<uint64_t>(numbers[i]) >= lines)
+      throw InputError(file, 0,
+                       std::to_string(lines) + " " + what + " but " + of + ": none for frame " +
+                           std::to_string(numbers[i]) + " (" +
+                           fs::path(images[i]).filename().string() + ")");
+}
+
 void CheckSameFileNames(const std::vector<std::string>& left, const std::string& left_dir,
                         const std::vector<std::string>& other, const std::string& other_dir) {
   const auto names = [](const std::vector<std::string>& paths) {

@@ -87,6 +87,12 @@ std::string NormalDirectoryPath(const std::string& dir);
 std::vector<std::string> ListFrameFiles(const std::string& dir, const std::string& extension,
                                         std::vector<int64_t>* numbers);
 
+// Throws InputError(file, 0, "N <what> but <of>: none for frame K (<image name>)") when a frame
+// number has no line among the file's `lines` (`images` are the frames' files, `numbers` theirs).
+void RequireLines(size_t lines, const std::vector<int64_t>& numbers,
+                  const std::vector<std::string>& images, const std::string& file,
+                  const std::string& what, const std::string& of);
+
 // Throws InputError naming `other_dir` unless `other` holds exactly the file names of `left`
 // (paired frames of two cameras), naming the first file that is not in both.
 void CheckSameFileNames(const std::vector<std::string>& left, const std::string& left_dir,

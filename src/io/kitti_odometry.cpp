@@ -11,19 +11,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Throws "N <what> but <of>: none for frame K (<image name>)" naming `file` when a frame number
-// has no line in it.
-void RequireLines(size_t lines, const std::vector<int64_t>& numbers,
-                  const std::vector<std::string>& images, const std::string& file,
-                  const std::string& what, const std::string& of) {
-  for (size_t i = 0; i < numbers.size(); ++i)
-    if (static_cast<uint64_t>(numbers[i]) >= lines)
-      throw InputError(file, 0,
-                       std::to_string(lines) + " " + what + " but " + of + ": none for frame " +
-                           std::to_string(numbers[i]) + " (" +
-                           fs::path(images[i]).filename().string() + ")");
-}
-
 }  // namespace
 
 Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {

@@ -77,16 +77,10 @@ SE3 MakePose(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation
 std::vector<int64_t> ReadTimestampsFor(const fs::path& path, const std::vector<int64_t>& numbers,
                                        const std::vector<std::string>& images) {
   const std::vector<int64_t> times = ReadRawTimestamps(path.string());
+  RequireLines(times.size(), numbers, images, path.string(), "timestamps",
+               std::to_string(numbers.size()) + " images");
   std::vector<int64_t> t_ns;
-  for (size_t i = 0; i < numbers.size(); ++i) {
-    if (static_cast<uint64_t>(numbers[i]) >= times.size())
-      throw InputError(path.string(), 0,
-                       std::to_string(times.size()) + " timestamps but " +
-                           std::to_string(numbers.size()) + " images: none for frame " +
-                           std::to_string(numbers[i]) + " (" +
-                           fs::path(images[i]).filename().string() + ")");
-    t_ns.push_back(times[numbers[i]]);
-  }
+  for (const int64_t number : numbers) t_ns.push_back(times[number]);
   return t_ns;
 }
 
@@ -244,12 +238,6 @@ std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir,
     packets.push_back(ReadOxtsPacket(paths[static_cast<size_t>(at - numbers.begin())]));
   }
   return packets;
-}
-
-std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir, size_t frames) {
-  std::vector<int64_t> frame_numbers(frames);
-  for (size_t i = 0; i < frames; ++i) frame_numbers[i] = static_cast<int64_t>(i);
-  return ReadOxtsPackets(drive_dir, frame_numbers);
 }
 
 Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth truth) {

@@ -57,8 +57,6 @@ Trajectory OxtsToCam0Trajectory(const std::vector<OxtsPacket>& packets, const SE
 // whose name is not a frame number.
 std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir,
                                         const std::vector<int64_t>& frame_numbers);
-// The same for frames 0 .. frames - 1.
-std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir, size_t frames);
 
 // Rig from P_rect_00/P_rect_01 (kGray) or P_rect_02/P_rect_03 (kColor), baseline
 // (P_left[0][3] - P_right[0][3]) / fx. Frames are paired by the number in the image names, not by
