@@ -136,14 +136,17 @@ TEST(MaskPropagation, AnApproachingObjectGrowsAndAnUntrackableOneStays) {
   const Segmentation seg = TwoInstances(car0, cv::Rect(400, 10, 10, 10), prev.size());
   PropagationReport report;
   const Segmentation moved = PropagateSegmentation(seg, prev, cur, {}, &report);
+  ASSERT_EQ(report.moves.size(), 2u);
   EXPECT_EQ(report.moves[0].source, InstanceMoveSource::kOwnTracks);
   EXPECT_NEAR(report.moves[0].scale, 1.1, 0.03);
+  EXPECT_EQ(report.moves[1].source, InstanceMoveSource::kSurroundings);
   cv::Mat truth(prev.size(), CV_8U, cv::Scalar(0));
   truth(car1).setTo(255);
   EXPECT_GT(Iou(moved.instance_map == 1, truth), 0.9);
   // The flat 10x10 patch in a flat corner... its ring has the background's texture: it stays put
-  // (the background did not move).
+  // (the background did not move), on exactly the pixels it had.
   EXPECT_EQ(cv::countNonZero(moved.instance_map == 2), 100);
+  EXPECT_EQ(cv::countNonZero((moved.instance_map == 2) ^ (seg.instance_map == 2)), 0);
 
   // Nothing to track anywhere: every instance stays where it was.
   const cv::Mat flat_image(prev.size(), CV_8U, cv::Scalar(90));
