@@ -99,6 +99,7 @@ TEST(FilterApi, MonocularRigUsesEpipolarTestsAndThePriorHorizon) {
   }
   EXPECT_EQ(depth_tests, 0);
   EXPECT_GT(epipolar, 500);
+  ASSERT_GT(moving, 50);
   EXPECT_GE(moving_excluded, 0.95 * moving);  // crossing the epipolar lines: visible without depth
 }
 

@@ -220,11 +220,35 @@ TEST(YoloDecode, SyntheticSegmentationOutputsGiveKnownInstancesAndMasks) {
   EXPECT_EQ(capped[0].class_name, "car");
   EXPECT_EQ(capped[1].class_name, "person");
 
-  // Class-agnostic NMS and a higher threshold change what survives.
-  params.conf_threshold = 0.7f;
-  EXPECT_EQ(
-      DecodeYoloOutputs(s.detections, s.prototypes, layout, s.letterbox, s.names, params).size(),
-      1u);
+  // A higher threshold changes what survives: only the car (0.9) passes 0.7.
+  YoloDecodeParams high = params;
+  high.conf_threshold = 0.7f;
+  const std::vector<Instance> confident =
+      DecodeYoloOutputs(s.detections, s.prototypes, layout, s.letterbox, s.names, high);
+  ASSERT_EQ(confident.size(), 1u);
+  EXPECT_EQ(confident[0].class_name, "car");
+
+  // So does class-agnostic NMS: the duplicate of the car's box, made a person, survives the
+  // class-aware NMS (other class) and falls to the car under the class-agnostic one.
+  SyntheticOutputs other(true);
+  other.Set(1, {25, 32, 32, 16}, 1, 0.5f, {0, 1});
+  const std::vector<Instance> aware = DecodeYoloOutputs(other.detections, other.prototypes, layout,
+                                                        other.letterbox, other.names, params);
+  ASSERT_EQ(aware.size(), 3u);
+  EXPECT_EQ(aware[0].class_name, "car");
+  EXPECT_EQ(aware[1].class_name, "person");
+  EXPECT_FLOAT_EQ(aware[1].confidence, 0.6f);  // the real person first ...
+  EXPECT_EQ(aware[2].class_name, "person");
+  EXPECT_FLOAT_EQ(aware[2].confidence, 0.5f);  // ... then the duplicate
+  EXPECT_NEAR(aware[2].box_px.x, 18.0f, 1e-4f);
+  YoloDecodeParams agnostic = params;
+  agnostic.class_agnostic_nms = true;
+  const std::vector<Instance> merged = DecodeYoloOutputs(other.detections, other.prototypes, layout,
+                                                         other.letterbox, other.names, agnostic);
+  ASSERT_EQ(merged.size(), 2u);
+  EXPECT_EQ(merged[0].class_name, "car");
+  EXPECT_EQ(merged[1].class_name, "person");
+  EXPECT_FLOAT_EQ(merged[1].confidence, 0.6f);
 }
 
 // The same outputs with the frame cut at the top to fill the input's width: a 128x192 frame into

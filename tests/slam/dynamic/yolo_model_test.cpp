@@ -108,6 +108,7 @@ TEST_F(YoloKittiTest, InstanceMapPointsAtTheInstances) {
   const cv::Mat& map = Colour().instance_map;
   ASSERT_EQ(map.type(), CV_16U);
   ASSERT_EQ(map.size(), Image().size());
+  ASSERT_GE(Cars(Colour()).size(), 7u);
   for (const Instance* car : Cars(Colour())) {
     // Most of a car's mask pixels carry its own index (overlaps may go to others).
     const cv::Mat own = map == static_cast<uint16_t>(car->instance_id + 1);
@@ -286,6 +287,7 @@ TEST(YoloModel, Int8DetectionOnlyModelIsAClearErrorOrABoxMaskFallback) {
   }
   EXPECT_FALSE(segmenter->layout().has_prototypes());
   const Segmentation seg = segmenter->Segment(KittiImage());
+  ASSERT_FALSE(seg.instances.empty());  // the parked cars, with box masks
   for (const Instance& inst : seg.instances) {
     EXPECT_EQ(cv::countNonZero(inst.mask), PixelsInBox(inst.box_px, inst.mask.size()).area());
   }
