@@ -200,7 +200,8 @@ TEST(TwoView, PlanarRoadSidewaysMotionChoosesHomography) {
 TEST(TwoView, PlanarSceneNeverReturnsTheMirrorMotion) {
   // Driving forward over a plane (the road, or a facade beside it) the two homography
   // decompositions both keep every point in front of both cameras: two views cannot tell them
-  // apart, and the initialisation must say so instead of picking one.
+  // apart, and the initialisation must say so instead of picking one (an "ambiguous motion"
+  // failure, two_view.h: the runner-up explains about as many correspondences as the best).
   const SE3 forward = MotionForward({DegToRad(0.3), DegToRad(-2.0), DegToRad(0.2)}, {0.1, 0, 1.2});
   const Scene road = RoadScene(forward, 0.5, 6);
   const Scene wall = MakeScene(KittiCamera(), forward, 300, 0.5, 7, [](std::mt19937& rng) {
@@ -214,11 +215,11 @@ TEST(TwoView, PlanarSceneNeverReturnsTheMirrorMotion) {
                 r.used_homography, r.homography_ratio, r.best_support, r.runner_up_support,
                 r.failure_reason.c_str());
     EXPECT_TRUE(r.used_homography);
-    if (r.success) {
-      ExpectMotion(r, forward, 0.1, 1.0);
-    } else {
-      EXPECT_NE(r.failure_reason.find("ambiguous"), std::string::npos) << r.failure_reason;
-    }
+    EXPECT_FALSE(r.success);
+    EXPECT_NE(r.failure_reason.find("ambiguous"), std::string::npos) << r.failure_reason;
+    // Both decompositions explain (nearly) all 300 correspondences.
+    EXPECT_GT(r.best_support, 280);
+    EXPECT_GE(r.runner_up_support, 0.95 * r.best_support);
   }
 }
 
