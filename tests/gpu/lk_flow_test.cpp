@@ -426,6 +426,9 @@ std::vector<PassResult> FilterPasses(const std::string& device, FlowEngine* engi
   return results;
 }
 
+// On a machine without CUDA only the twin runs, which keeps no state between passes: there this is
+// a determinism check (and that the passes track something); the cached pyramids a reused engine
+// must not confuse are the CUDA engine's.
 TEST(LkFlow, AnEngineOverASequenceMatchesFreshEngines) {
   for (const std::string& device : Devices()) {
     SCOPED_TRACE(device);
@@ -433,8 +436,17 @@ TEST(LkFlow, AnEngineOverASequenceMatchesFreshEngines) {
     // Five frames: more pyramids than a CUDA engine caches, so entries are replaced.
     const std::vector<PassResult> reused = FilterPasses(device, engine.get(), 0, 5);
     const std::vector<PassResult> fresh = FilterPasses(device, nullptr, 0, 5);
+    ASSERT_EQ(reused.size(), 10u);  // two passes for each of frames 1-5
     ASSERT_EQ(reused.size(), fresh.size());
-    for (size_t i = 0; i < reused.size(); ++i) EXPECT_TRUE(SameResults(reused[i], fresh[i])) << i;
+    for (size_t i = 0; i < reused.size(); ++i) {
+      EXPECT_TRUE(SameResults(reused[i], fresh[i])) << i;
+      // Agreeing on nothing found would be no check: most points are found in every pass
+      // (measured on the twin: 1879-2029 of 2041).
+      const size_t found = static_cast<size_t>(std::count_if(
+          reused[i].status.begin(), reused[i].status.end(), [](uint8_t s) { return s != 0; }));
+      EXPECT_GT(found, reused[i].status.size() * 3 / 4)
+          << "pass " << i << ": " << found << " of " << reused[i].status.size() << " found";
+    }
   }
 }
 

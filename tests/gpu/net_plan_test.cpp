@@ -170,9 +170,16 @@ TEST(NetPlan, SigmoidUsedElsewhereIsNotFused) {
   const auto out = RunTwin(model, 4, 4, input, &plan);
   EXPECT_EQ(plan.fused_activations, 0);
   EXPECT_EQ(plan.steps.size(), 3u);
-  for (size_t i = 0; i < out[0].size(); ++i) {
-    const float sig = out[1][i];
-    EXPECT_NEAR(out[0][i], std::log(sig / (1 - sig)) * sig, 1e-4f);  // c * sigmoid(c)
+  // Both outputs against the test's own convolution, so a wrong Conv step is caught too.
+  int ho = 0, wo = 0;
+  const auto conv = ConvRef(input, 3, 4, 4, weights, {}, 3, 1, 1, 0, &ho, &wo);
+  ASSERT_EQ(out.size(), 2u);
+  ASSERT_EQ(out[0].size(), conv.size());
+  ASSERT_EQ(out[1].size(), conv.size());
+  for (size_t i = 0; i < conv.size(); ++i) {
+    const float sig = 1.0f / (1.0f + std::exp(-conv[i]));
+    EXPECT_NEAR(out[1][i], sig, 1e-5f) << "sigmoid, element " << i;
+    EXPECT_NEAR(out[0][i], conv[i] * sig, 1e-5f) << "product, element " << i;
   }
 }
 
