@@ -71,15 +71,19 @@ TEST(ConfigSchema, WrongTypeAndMalformedYamlRejected) {
 TEST(ConfigSchema, DumpRoundTrips) {
   Opts o;
   ConfigSchema s = MakeSchema(o);
+  // Every field off its default, so that each one must come back from the dump.
   o.count = 17;
+  o.scale = 1.7;
+  o.flag = true;
   o.name = "kitti";
   const std::string dumped = s.Dump();
   Opts o2;
   ConfigSchema s2 = MakeSchema(o2);
   s2.LoadString(dumped, "dump");
   EXPECT_EQ(o2.count, 17);
+  EXPECT_DOUBLE_EQ(o2.scale, 1.7);
+  EXPECT_TRUE(o2.flag);
   EXPECT_EQ(o2.name, "kitti");
-  EXPECT_DOUBLE_EQ(o2.scale, 1.2);
 }
 
 TEST(ConfigSchema, CommandLineOverride) {

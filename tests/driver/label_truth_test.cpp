@@ -41,7 +41,9 @@ TEST(LabelTruth, CyclistMovesParkedVanStandsBackgroundIsStatic) {
   EXPECT_EQ(truth.TrackAt(45, keypoints[2].pt), -1);
   // A frame past the labels: everything static.
   const std::vector<LabelTruthKind> beyond = truth.Classify(10000, keypoints);
+  ASSERT_EQ(beyond.size(), keypoints.size());
   for (LabelTruthKind k : beyond) EXPECT_EQ(k, LabelTruthKind::kStatic);
+  EXPECT_EQ(truth.TrackAt(10000, keypoints[0].pt), -1);
 }
 
 TEST(LabelTruth, NeedsGroundTruthPoses) {

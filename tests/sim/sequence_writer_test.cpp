@@ -134,10 +134,14 @@ TEST(SequenceWriterTest, SameSeedWritesIdenticalFiles) {
        {"sequences/00/image_0/000002.png", "sequences/00/image_1/000001.png",
         "sequences/00/instance_0/000002.png", "sequences/00/objects.txt",
         "sequences/00/instances.txt", "poses/00.txt"}) {
-    EXPECT_EQ(FileBytes(fs::path(a) / rel), FileBytes(fs::path(b) / rel)) << rel;
+    // FileBytes reads a missing file as empty: two missing files must not pass as identical.
+    const std::string in_a = FileBytes(fs::path(a) / rel);
+    EXPECT_FALSE(in_a.empty()) << rel;
+    EXPECT_EQ(in_a, FileBytes(fs::path(b) / rel)) << rel;
   }
-  EXPECT_NE(FileBytes(fs::path(a) / "sequences/00/image_0/000002.png"),
-            FileBytes(fs::path(c) / "sequences/00/image_0/000002.png"));
+  const std::string image_c = FileBytes(fs::path(c) / "sequences/00/image_0/000002.png");
+  EXPECT_FALSE(image_c.empty());
+  EXPECT_NE(FileBytes(fs::path(a) / "sequences/00/image_0/000002.png"), image_c);
   for (const auto& dir : {a, b, c}) fs::remove_all(dir);
 }
 
