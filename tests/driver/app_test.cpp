@@ -43,12 +43,11 @@ TEST(HeapPolicy, AnMmapThresholdBeyondMalloptsIntIsRefusedNotWrapped) {
   EXPECT_FALSE(graph::ConfigureHeap(policy));
 }
 
-#ifdef PCR_TEST_CACHE_DIR
 // The command line refuses an --mmap-threshold glibc cannot take, naming the option.
+// PCR_ORB_BINARY: the build's pcr_orb, which test_driver depends on (tests/CMakeLists.txt).
 TEST(CommandLine, MmapThresholdOutOfRangeIsRefused) {
-  const std::filesystem::path pcr_orb =
-      std::filesystem::path(PCR_TEST_CACHE_DIR).parent_path() / "src" / "pcr_orb";
-  if (!std::filesystem::is_regular_file(pcr_orb)) GTEST_SKIP() << "no " << pcr_orb << " built";
+  const std::filesystem::path pcr_orb = PCR_ORB_BINARY;
+  ASSERT_TRUE(std::filesystem::is_regular_file(pcr_orb)) << "no " << pcr_orb << " built";
   for (const char* value : {"4295098368", "33554433", "-1", "1e6"}) {
     const std::string command = pcr_orb.string() + " --log-level off --mmap-threshold " + value +
                                 " info --model /nonexistent/model.onnx 2>&1";
@@ -63,7 +62,6 @@ TEST(CommandLine, MmapThresholdOutOfRangeIsRefused) {
     EXPECT_EQ(out.find("cannot open the model"), std::string::npos) << value << ": " << out;
   }
 }
-#endif
 
 }  // namespace
 }  // namespace pcr::app

@@ -5,37 +5,84 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <sstream>
+#include <stdexcept>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "sim/sequence_writer.h"
 
 namespace pcr::driver::test_street {
 
+// 64-bit FNV-1a of `bytes`, continuing from `hash`.
+inline uint64_t Fnv1a(std::string_view bytes, uint64_t hash = 14695981039346656037ull) {
+  for (const char c : bytes) {
+    hash ^= static_cast<uint8_t>(c);
+    hash *= 1099511628211ull;
+  }
+  return hash;
+}
+
+// The cache folder's name: the route's parameters and a hash of everything the rendering depends
+// on that can change without a change here: every option (defaults included), and the sim
+// library as built (PCR_TEST_SIM_LIBRARY: a change to the renderer's code changes it). A changed
+// world is so rendered afresh instead of read from an older cache.
+inline std::string LoopStreetCacheName(const sim::SynthOptions& o) {
+  std::ostringstream text;
+  text.precision(17);
+  text << o.frames << ' ' << o.seed << ' ' << o.num_movers << ' ' << o.num_parked << ' '
+       << o.speed_mps << ' ' << static_cast<int>(o.route) << ' ' << o.lead_gap_m << ' ' << o.laps
+       << ' ' << o.width_px << ' ' << o.height_px << ' ' << o.fx << ' ' << o.fy << ' ' << o.cx
+       << ' ' << o.cy << ' ' << o.baseline_m << ' ' << o.rate_hz << ' ' << o.camera_height_m << ' '
+       << o.bounce_scale << ' ' << o.noise_sigma << ' ' << o.sequence << ' '
+       << o.write_right_instances;
+  std::ifstream library(PCR_TEST_SIM_LIBRARY, std::ios::binary);
+  if (!library)
+    throw std::runtime_error(std::string("cannot read ") + PCR_TEST_SIM_LIBRARY +
+                             " (the sim library, for the loop street's cache name)");
+  const std::string library_bytes((std::istreambuf_iterator<char>(library)), {});
+  char hex[17];
+  std::snprintf(hex, sizeof(hex), "%016llx",
+                static_cast<unsigned long long>(Fnv1a(library_bytes, Fnv1a(text.str()))));
+  return std::string("loop_street_s7_200f_") + hex;
+}
+
 // 200 half-size frames at 12 m/s around the smallest loop the world builds (~210 m): the ego
 // car is back at its start from about frame 175 on. Rendered once into the build tree's test
 // cache and shared by the driver tests that use it (each runs in its own process, ctest runs two at
 // once): the first process renders under an exclusive lock on the cache's lock file while the
-// others wait for it.
+// others wait for it. The process that renders a new one removes the older ones beside it.
 inline const std::string& LoopStreet() {
   static const std::string dir = [] {
     namespace fs = std::filesystem;
-    const fs::path cache = fs::path(PCR_TEST_CACHE_DIR) / "loop_street_s7_200f_v1";
+    sim::SynthOptions o;
+    o.route = sim::RouteKind::kLoop;
+    o.frames = 200;
+    o.speed_mps = 12.0;
+    o.num_movers = 4;
+    o.num_parked = 6;
+    o.seed = 7;
+    o = o.Scaled(0.5);
+    const std::string name = LoopStreetCacheName(o);
+    const fs::path cache = fs::path(PCR_TEST_CACHE_DIR) / name;
     fs::create_directories(cache);
     const int lock = ::open((cache / "lock").c_str(), O_CREAT | O_RDWR, 0644);
     if (lock >= 0) ::flock(lock, LOCK_EX);
     if (!fs::exists(cache / "complete")) {
-      sim::SynthOptions o;
-      o.route = sim::RouteKind::kLoop;
-      o.frames = 200;
-      o.speed_mps = 12.0;
-      o.num_movers = 4;
-      o.num_parked = 6;
-      o.seed = 7;
-      o = o.Scaled(0.5);
       sim::WriteSequence(o, cache.string());
       std::ofstream(cache / "complete") << "ok\n";
+      std::vector<fs::path> older;
+      for (const fs::directory_entry& e : fs::directory_iterator(PCR_TEST_CACHE_DIR)) {
+        const std::string other = e.path().filename().string();
+        if (other != name && other.starts_with("loop_street_")) older.push_back(e.path());
+      }
+      for (const fs::path& p : older) fs::remove_all(p);
     }
     if (lock >= 0) ::close(lock);  // releases the lock
     return (cache / "sequences" / "00").string();
