@@ -8,7 +8,8 @@
 #     bench_yolo's forward pass on cuda and on OpenCV DNN, and bench_pipeline (sequential,
 #     pipelined, realtime; on cuda also pipelined with the GPU passes blocking their threads, 3
 #     rounds) with the network and the filter's LK flow on cuda, and on the CPU (opencv), on the
-#     carried frames, 2 threads.
+#     carried frames, 2 threads. It exits non-zero when test_gpu fails, or when its CUDA tests
+#     (YoloCuda, LkCuda) are skipped or none passes: on the device they must run.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 dest=${PCR_DEVICE_DIR:-/root/pcr-gpu}
@@ -26,7 +27,21 @@ case "${1:-}" in
     export PCR_SHARED_DIR="$PWD/.device/data"
     seq="$PCR_SHARED_DIR/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"
     model="$PCR_SHARED_DIR/models/yolov8n-seg_coco_224x640.onnx"
-    "$dest/test_gpu" --gtest_filter='YoloCuda*:NetPlan*:YoloTwin.Raw*:LkCuda*:LkFlow*' 2>&1 | tee "$out/test_gpu.log"
+    # The CUDA tests, the executor's and the LK flow's lowering, and the CPU executors against
+    # OpenCV DNN on the real model (YoloTwin/CpuExecutor.RawOutputsMatchOpenCvDnn/twin, /onednn).
+    failed=0
+    "$dest/test_gpu" --gtest_filter='YoloCuda*:LkCuda*:NetPlan*:LkFlow*:YoloTwin/CpuExecutor.RawOutputsMatchOpenCvDnn/*' \
+      2>&1 | tee "$out/test_gpu.log" || { echo "device_run: test_gpu failed"; failed=1; }
+    # Here the CUDA tests must run: skipped (no device seen, a build without CUDA) or absent
+    # (a filter that matches none) is a failed check, not a pass.
+    if grep -E '^\[  SKIPPED \] (YoloCuda|LkCuda)\.' "$out/test_gpu.log"; then
+      echo "device_run: the CUDA tests were skipped on the device run"
+      failed=1
+    fi
+    if ! grep -qE '^\[       OK \] (YoloCuda|LkCuda)\.' "$out/test_gpu.log"; then
+      echo "device_run: no CUDA test passed"
+      failed=1
+    fi
     "$dest/bench_yolo" --inference cuda --benchmark_filter='(Forward|Segment)/224x640' 2>&1 |
       tee "$out/bench_yolo_cuda.log"
     "$dest/bench_yolo" --benchmark_filter='(Forward|Segment)/224x640' 2>&1 |
@@ -39,6 +54,8 @@ case "${1:-}" in
         --inference "$inference" --flow "$inference" --repeat "$rounds" 2>&1 |
         tee "$out/bench_pipeline_$inference.log"
     done
+    # After the benchmarks, so that their logs come back either way.
+    exit "$failed"
     ;;
   *)
     echo "usage: $0 unpack|check"
