@@ -2,12 +2,13 @@
 
 #include <gtest/gtest.h>
 
-#include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <vector>
@@ -233,22 +234,65 @@ TEST(Vocabulary, SkipDropsRowsAndFeatureVectorIndexesNodes) {
   EXPECT_THROW(v.Transform(descriptors, &skip, 1, &with_skip, nullptr), std::invalid_argument);
 }
 
-TEST(Vocabulary, TransformOf2000DescriptorsIsFast) {
+// The shipped vocabulary (k=10, L=4) on a full KITTI frame, with the direct index at the loop
+// closer's level (LoopClosingOptions::direct_index_levels_up = 2): the bag of words and the direct
+// index are what Quantise gives row by row, and they do not depend on the order of the rows (the
+// bag bit for bit, the direct index up to the renumbering of the rows).
+TEST(Vocabulary, ShippedVocabularyTransformAgreesWithQuantiseRowByRow) {
   const Vocabulary v = LoadFile(std::string(PCR_SOURCE_DIR) + "/vocabulary/pcr_orb_voc.bin");
   const cv::Mat& descriptors = KittiDescriptors("07", 50);
   ASSERT_GE(descriptors.rows, 1900);
+  constexpr int kLevelsUp = 2;
   BowVector bow;
   FeatureVector features;
-  v.Transform(descriptors, nullptr, 4, &bow, &features);  // warm-up
-  constexpr int kRuns = 20;
-  const auto t0 = std::chrono::steady_clock::now();
-  for (int i = 0; i < kRuns; ++i) v.Transform(descriptors, nullptr, 4, &bow, &features);
-  const double ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() /
-      kRuns;
-  std::printf("Transform of %d descriptors (k=10 L=4, with direct index): %.3f ms\n",
-              descriptors.rows, ms);
-  EXPECT_LT(ms, 20.0);  // ~1 ms on one core; generous for loaded test machines
+  v.Transform(descriptors, nullptr, kLevelsUp, &bow, &features);
+
+  // Row by row: the weights of each word summed and L1-normalised; each row of positive weight
+  // listed, in increasing order, under its node at depth L - 2.
+  std::map<WordId, double> word_sums;
+  std::map<NodeId, std::vector<int>> rows_of_node;
+  double total = 0;
+  for (int r = 0; r < descriptors.rows; ++r) {
+    NodeId node = kNoNode;
+    const WordId word = v.Quantise(descriptors.ptr<uint8_t>(r), v.depth() - kLevelsUp, &node);
+    ASSERT_NE(word, kNoWord);
+    if (v.word_weight(word) <= 0) continue;
+    word_sums[word] += v.word_weight(word);
+    total += v.word_weight(word);
+    rows_of_node[node].push_back(r);
+  }
+  ASSERT_GT(word_sums.size(), 500u);
+  ASSERT_EQ(bow.size(), word_sums.size());
+  size_t i = 0;
+  for (const auto& [word, sum] : word_sums) {
+    EXPECT_EQ(bow.words[i].first, word) << i;
+    EXPECT_NEAR(bow.words[i].second, sum / total, 1e-12) << "word " << word;
+    ++i;
+  }
+  ASSERT_EQ(features.size(), rows_of_node.size());
+  i = 0;
+  for (const auto& [node, rows] : rows_of_node) {
+    EXPECT_EQ(features.nodes[i].first, node) << i;
+    EXPECT_EQ(features.nodes[i].second, rows) << "node " << node;
+    ++i;
+  }
+
+  // The rows in reverse order: the same bag of words bit for bit; the same direct index with row
+  // r renumbered n - 1 - r.
+  cv::Mat reversed;
+  cv::flip(descriptors, reversed, 0);
+  BowVector bow_reversed;
+  FeatureVector features_reversed;
+  v.Transform(reversed, nullptr, kLevelsUp, &bow_reversed, &features_reversed);
+  EXPECT_EQ(bow_reversed.words, bow.words);
+  ASSERT_EQ(features_reversed.size(), features.size());
+  for (size_t k = 0; k < features.size(); ++k) {
+    EXPECT_EQ(features_reversed.nodes[k].first, features.nodes[k].first);
+    std::vector<int> back;
+    for (int r : features_reversed.nodes[k].second) back.push_back(descriptors.rows - 1 - r);
+    std::sort(back.begin(), back.end());
+    EXPECT_EQ(back, features.nodes[k].second) << "node " << features.nodes[k].first;
+  }
 }
 
 TEST(VocabularyIo, RoundTripGivesTheSameBytes) {
