@@ -86,6 +86,20 @@ std::vector<Sim3> Initial(const DriftGraph& graph) {
   return poses;
 }
 
+// 0.5 * sum |r|^2 of the edges at the given poses, from the Sim3 algebra of pose_graph.h's
+// residual: E = M * S_j * S_i^-1, r = sqrt(weight) * [E.translation; Log(E.rotation);
+// log(E.scale)].
+double GraphCost(const std::vector<Sim3>& cam_from_world, const std::vector<PoseGraphEdge>& edges) {
+  double cost = 0;
+  for (const PoseGraphEdge& edge : edges) {
+    const Sim3 e = edge.i_from_j * cam_from_world[edge.j] * cam_from_world[edge.i].Inverse();
+    cost += 0.5 * edge.weight *
+            (e.translation.squaredNorm() + LogSO3(e.rotation).squaredNorm() +
+             std::pow(std::log(e.scale), 2));
+  }
+  return cost;
+}
+
 bool BitwiseEqual(const Sim3& a, const Sim3& b) {
   return a.scale == b.scale && (a.rotation.array() == b.rotation.array()).all() &&
          (a.translation.array() == b.translation.array()).all();
@@ -123,6 +137,39 @@ TEST(PoseGraph, FixedScaleKeepsScaleOneAndRemovesDrift) {
                 result.iterations);
   EXPECT_LT(error_m, 0.25 * drift_m);
   for (const Sim3& pose : result.cam_from_world) EXPECT_EQ(pose.scale, 1.0);
+  // The returned poses, scales included, are the ones the solver's final cost was taken at.
+  EXPECT_NEAR(GraphCost(result.cam_from_world, graph.edges), result.final_cost,
+              1e-9 * result.initial_cost);
+}
+
+// With scale drift (1.02 per step) the loop edge disagrees in scale by 1.02^31. A fixed-scale
+// solve keeps every vertex at its drifted input scale and so cannot remove that disagreement: it
+// ends well above the free solve, which spreads the scale along the loop. In both, the cost of the
+// returned poses is the reported final cost (the fixed solve did not move the scales and put them
+// back afterwards).
+TEST(PoseGraph, FixedScaleCannotRemoveScaleDrift) {
+  const DriftGraph graph = MakeDriftGraph(/*metric=*/false, 36);
+  const PoseGraphResult free_scale = OptimizePoseGraph(graph.vertices, graph.edges);
+  PoseGraphOptions options;
+  options.fix_scale = true;
+  const PoseGraphResult fixed = OptimizePoseGraph(graph.vertices, graph.edges, options);
+  ASSERT_FALSE(free_scale.aborted);
+  ASSERT_FALSE(fixed.aborted);
+  ASSERT_EQ(fixed.cam_from_world.size(), graph.vertices.size());
+  EXPECT_EQ(fixed.initial_cost, free_scale.initial_cost);
+  for (size_t k = 0; k < graph.vertices.size(); ++k)
+    EXPECT_EQ(fixed.cam_from_world[k].scale, graph.vertices[k].cam_from_world.scale) << k;
+  if (test::Verbose())
+    std::printf("scale drift: cost %.4g -> free %.4g, fixed scale %.4g\n", free_scale.initial_cost,
+                free_scale.final_cost, fixed.final_cost);
+  // The loop edge's scale residual alone: 0.5 * (31 log 1.02)^2 = 0.19.
+  const double loop_scale_cost = 0.5 * std::pow(31 * std::log(1.02), 2);
+  EXPECT_GT(fixed.final_cost, 0.9 * loop_scale_cost);
+  EXPECT_GT(fixed.final_cost, 10 * free_scale.final_cost);
+  EXPECT_NEAR(GraphCost(fixed.cam_from_world, graph.edges), fixed.final_cost,
+              1e-9 * fixed.initial_cost);
+  EXPECT_NEAR(GraphCost(free_scale.cam_from_world, graph.edges), free_scale.final_cost,
+              1e-9 * free_scale.initial_cost);
 }
 
 TEST(PoseGraph, AbortBeforeTheSolveReturnsTheInput) {
@@ -242,9 +289,20 @@ TEST(PoseGraph, BadInputThrows) {
   PoseGraphOptions options;
   options.max_iterations = 0;
   EXPECT_THROW(OptimizePoseGraph(vertices, {}, options), ConfigError);
-  // No edges: the input comes back.
+  // No edges: the input comes back, bit for bit.
+  vertices[0].cam_from_world.rotation = ExpSO3(Eigen::Vector3d(0.1, -0.2, 0.3));
+  vertices[0].cam_from_world.translation = Eigen::Vector3d(1.5, -2.0, 0.25);
+  vertices[0].cam_from_world.scale = 0.7;
+  vertices[1].cam_from_world.rotation = ExpSO3(Eigen::Vector3d(-0.4, 0.05, 0.2));
+  vertices[1].cam_from_world.translation = Eigen::Vector3d(-3.0, 0.5, 7.0);
+  vertices[1].cam_from_world.scale = 1.3;
   const PoseGraphResult empty = OptimizePoseGraph(vertices, {});
-  EXPECT_EQ(empty.cam_from_world.size(), 2u);
+  ASSERT_EQ(empty.cam_from_world.size(), 2u);
+  for (size_t k = 0; k < vertices.size(); ++k)
+    EXPECT_TRUE(BitwiseEqual(empty.cam_from_world[k], vertices[k].cam_from_world)) << k;
+  EXPECT_FALSE(empty.aborted);
+  EXPECT_EQ(empty.iterations, 0);
+  EXPECT_EQ(empty.final_cost, 0.0);
 }
 
 }  // namespace
