@@ -2,6 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <set>
+#include <utility>
+#include <vector>
+
 #include "slam/map/stereo_points.h"
 #include "slam/map/synthetic_scene.h"
 
@@ -120,16 +125,28 @@ TEST(Matcher, DescriptorMatchingRatioTest) {
   EXPECT_GT(pairs.size(), 500u);
   EXPECT_GE(correct, static_cast<int>(pairs.size()) - 2);
   // Two identical descriptors in b make their match ambiguous: the ratio test drops it.
-  const int target = pairs.front().second;
+  const int target = pairs.front().second, copy = pairs.back().second;
+  ASSERT_NE(target, copy);
   cv::Mat desc = p.b->descriptors().clone();
-  desc.row(target).copyTo(desc.row(pairs.back().second));
+  desc.row(target).copyTo(desc.row(copy));
   OrbFeatures f;
   f.keypoints = p.b->keypoints();
   f.descriptors = desc;
   StereoMatches none;
   const FramePtr b2 = Frame::Create(5, 0, p.b->rig(), p.b->scale(), f, none);
   const auto pairs2 = MatchDescriptors(*p.a, a_idx, *b2, b_idx, 50, 0.75, true);
-  for (const auto& [i, j] : pairs2) EXPECT_NE(j, target);
+  // Everything else still matches as before; neither of the two tied keypoints matches.
+  std::vector<std::pair<int, int>> others;
+  for (const auto& [i, j] : pairs)
+    if (j != target && j != copy) others.emplace_back(i, j);
+  std::vector<std::pair<int, int>> sorted2(pairs2.begin(), pairs2.end());
+  std::sort(others.begin(), others.end());
+  std::sort(sorted2.begin(), sorted2.end());
+  EXPECT_EQ(sorted2, others);
+  for (const auto& [i, j] : pairs2) {
+    EXPECT_NE(j, target);
+    EXPECT_NE(j, copy);
+  }
 }
 
 TEST(Matcher, EpipolarSearchForTriangulation) {

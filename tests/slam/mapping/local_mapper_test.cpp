@@ -115,10 +115,37 @@ TEST(LocalMapper, TriangulatesAccuratePointsWithCovisibleKeyframes) {
   std::sort(relative_error.begin(), relative_error.end());
   EXPECT_LT(relative_error[relative_error.size() / 2], 1.5);
   EXPECT_LT(relative_error[relative_error.size() * 9 / 10], 4.0);
-  // Applying them fills free keypoints of both keyframes only.
-  const int before = s.map.keyframe(k1)->NumPoints();
+  // Applying them fills free keypoints of both keyframes only: the associations held before
+  // stay, and each new point sits at its two keypoints.
+  const KeyframeId k0(0);
+  const std::vector<MapPointId> points0 = s.map.keyframe(k0)->points;
+  const std::vector<MapPointId> points1 = s.map.keyframe(k1)->points;
+  const int before0 = s.map.keyframe(k0)->NumPoints(), before1 = s.map.keyframe(k1)->NumPoints();
   const MapApplyResult r = s.map.Apply(d);
-  EXPECT_EQ(s.map.keyframe(k1)->NumPoints(), before + static_cast<int>(r.new_point_ids.size()));
+  ASSERT_EQ(r.new_point_ids.size(), d.new_points.size());
+  const int added = static_cast<int>(r.new_point_ids.size());
+  EXPECT_EQ(s.map.keyframe(k1)->NumPoints(), before1 + added);
+  EXPECT_EQ(s.map.keyframe(k0)->NumPoints(), before0 + added);
+  for (size_t k = 0; k < d.new_points.size(); ++k) {
+    ASSERT_TRUE(r.new_point_ids[k].valid()) << k;
+    const int kp1 = d.new_points[k].observations[0].keypoint;
+    const int kp0 = d.new_points[k].observations[1].keypoint;
+    EXPECT_EQ(d.new_points[k].observations[1].keyframe, k0);
+    EXPECT_FALSE(points1[kp1].valid()) << "keyframe 3 keypoint " << kp1 << " was not free";
+    EXPECT_FALSE(points0[kp0].valid()) << "keyframe 0 keypoint " << kp0 << " was not free";
+    EXPECT_EQ(s.map.keyframe(k1)->points[kp1], r.new_point_ids[k]);
+    EXPECT_EQ(s.map.keyframe(k0)->points[kp0], r.new_point_ids[k]);
+  }
+  for (size_t i = 0; i < points0.size(); ++i) {
+    if (points0[i].valid()) {
+      EXPECT_EQ(s.map.keyframe(k0)->points[i], points0[i]) << i;
+    }
+  }
+  for (size_t i = 0; i < points1.size(); ++i) {
+    if (points1[i].valid()) {
+      EXPECT_EQ(s.map.keyframe(k1)->points[i], points1[i]) << i;
+    }
+  }
 }
 
 TEST(LocalMapper, CullsRecentPointsByFoundRatioAndObservations) {
@@ -210,9 +237,18 @@ TEST(LocalMapper, FusesDuplicatePoints) {
   LocalMapper mapper{LocalMapperOptions{}};
   MapDelta fuse = mapper.FusePoints(k1, s.map, true);
   EXPECT_GT(fuse.merges.size(), 100u);
+  // Every merge joins two distinct live points of the same scene point.
+  for (const PointMerge& m : fuse.merges) {
+    const MapPoint* from = s.map.point(s.map.Resolve(m.from));
+    const MapPoint* into = s.map.point(s.map.Resolve(m.into));
+    ASSERT_NE(from, nullptr);
+    ASSERT_NE(into, nullptr);
+    EXPECT_NE(s.map.Resolve(m.from), s.map.Resolve(m.into));
+    EXPECT_EQ(s.ScenePointOf(*from), s.ScenePointOf(*into));
+  }
   const MapApplyResult r = s.map.Apply(fuse);
   EXPECT_EQ(s.map.num_points(), points_before - r.num_merged);
-  // Every merge joined two points of the same scene point.
+  // Applied, each merge's points are one.
   for (const PointMerge& m : fuse.merges) {
     const MapPoint* into = s.map.point(s.map.Resolve(m.into));
     ASSERT_NE(into, nullptr);
