@@ -1,7 +1,14 @@
 #!/usr/bin/env python3
 """How far can one loop closure lower the ATE of a drifting trajectory? A 2-D Monte-Carlo model of
-the synthetic loop route (`pcr_orb synth --route loop`: ~600 frames 0.8 m apart, four left turns,
-back at the start from frame ~507), for bench_loop's "ATE on/off" and its oracle.
+the synthetic loop route as bench_loop renders it (`pcr_orb synth --route loop`, 600 frames at
+10 Hz and 8 m/s, laps 1.15), for bench_loop's "ATE on/off" and its oracle.
+
+The route is the ego's path of src/sim/scene_builder.cpp: the streets' centre lines form a
+rectangle of 5.2 lx = 480 m / 1.15 round (lz = 1.6 lx), the ego lane runs 1.75 m outside them with
+left-turn corner arcs of 12 m radius (a 410.8 m lap, 6.6 m shorter than the streets), and the
+ego starts a quarter along the first straight. The revisit frame CLOSE is derived from that
+route: the frame nearest to frame 0 in the first return (between a half and one and a half laps
+on): frame 513, 0.39 m from it (frames 0.8 m apart); the script prints it.
 
 Per draw: the estimate integrates the true steps with noise (translation noise per step and/or a
 heading random walk, or a constant heading bias); the correction at the revisit removes the
@@ -11,27 +18,60 @@ at CLOSE evenly over the same steps (the same for translation noise); frames aft
 with it. ATE: RMSE after a rigid (SE(2)) alignment, as bench_loop's SE(3) ATE.
 
   python3 bench/loop_drift_sim.py [--draws 300] [--seed 1]
-Prints, per noise kind, the mean ATE off/on, the median ratio on/off and the share of draws at or
-below 1/3. Needs numpy (python3-numpy).
+Prints the route and CLOSE, then per noise kind the mean ATE off/on, the median ratio on/off and
+the share of draws at or below 1/3. Needs numpy (python3-numpy).
 """
 import argparse
 
 import numpy as np
 
-CLOSE = 507
+# pcr_orb synth and bench_loop defaults (src/sim/synth_options.h, bench/bench_loop.cpp).
+FRAMES, RATE_HZ, SPEED_MPS, LAPS = 600, 10.0, 8.0, 1.15
+# src/sim/scene.h kLaneWidthM / 2 and src/sim/scene_builder.cpp kCornerRadiusM.
+LANE_M, CORNER_RADIUS_M = 0.5 * 3.5, 12.0
 
 
-def route(n=600, step=0.8, sides=(100, 84, 132, 84, 32)):
-    points, x, heading, side, left = [], np.zeros(2), 0.0, 0, sides[0]
-    for _ in range(n):
-        points.append(x.copy())
-        x = x + step * np.array([np.sin(heading), np.cos(heading)])
-        left -= step
-        if left <= 0 and side < len(sides) - 1:
-            side += 1
-            left = sides[side]
-            heading -= np.pi / 2
-    return np.array(points)
+def route(frames=FRAMES, rate_hz=RATE_HZ, speed=SPEED_MPS, laps=LAPS):
+    """Frame positions (x, z) of the ego on the loop, as BuildScene and SyntheticWorld place it,
+    and the length of one lap of its lane."""
+    perimeter = max(speed * frames / rate_hz / laps, 1.0)
+    lx = max(40.0, perimeter / 5.2)
+    lz = 1.6 * lx
+    x0, x1, z0, z1, r = LANE_M, -lx - LANE_M, -LANE_M, lz + LANE_M, CORNER_RADIUS_M
+    # Pieces (length, curvature) from (x0, z0 + r), heading 0 (+z); negative curvature turns left.
+    pieces = [(z1 - z0 - 2 * r, 0.0), (0.5 * np.pi * r, -1 / r),
+              (x0 - x1 - 2 * r, 0.0), (0.5 * np.pi * r, -1 / r)] * 2
+    starts, xz, heading = [], np.array([x0, z0 + r]), 0.0
+    for length, k in pieces:
+        starts.append((xz, heading))
+        xz, heading = piece_at(xz, heading, k, length), heading + k * length
+    lap = sum(length for length, _ in pieces)
+    ends = np.cumsum([length for length, _ in pieces])
+    s0 = 0.25 * (z1 - z0 - 2 * r)
+    points = []
+    for i in range(frames):
+        s = (s0 + speed * i / rate_hz) % lap
+        j = min(int(np.searchsorted(ends, s, side="right")), len(pieces) - 1)
+        start, h0 = starts[j]
+        points.append(piece_at(start, h0, pieces[j][1], s - (ends[j] - pieces[j][0])))
+    return np.array(points), lap
+
+
+def piece_at(start, h0, k, ds):
+    """Path::Eval: a line (k == 0) or an arc of curvature k, ds along it."""
+    if k == 0:
+        return start + ds * np.array([np.sin(h0), np.cos(h0)])
+    h = h0 + k * ds
+    return start + np.array([np.cos(h0) - np.cos(h), np.sin(h) - np.sin(h0)]) / k
+
+
+def revisit_frame(truth, lap, step):
+    """The frame nearest to frame 0 between a half and one and a half laps on."""
+    travelled = np.arange(len(truth)) * step
+    window = np.flatnonzero((travelled > 0.5 * lap) & (travelled < 1.5 * lap))
+    if len(window) == 0:
+        raise SystemExit("the route does not come back to its start")
+    return int(window[np.argmin(np.linalg.norm(truth[window] - truth[0], axis=1))])
 
 
 def ate(truth, estimate):
@@ -51,7 +91,11 @@ def main():
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
-    truth = route()
+    truth, lap = route()
+    step = SPEED_MPS / RATE_HZ
+    close = revisit_frame(truth, lap, step)
+    print("route: %d frames, lap %.1f m, CLOSE = frame %d (%.2f m from frame 0)" %
+          (len(truth), lap, close, np.linalg.norm(truth[close] - truth[0])))
     steps = np.diff(truth, axis=0)
     n = len(steps)
 
@@ -73,10 +117,10 @@ def main():
             dt = rng.normal(0, sigma_t, (n, 2)) if sigma_t > 0 else np.zeros((n, 2))
             estimate = integrate(dh, dt)
             fixed_dh = dh.copy()
-            fixed_dh[:CLOSE] -= np.cumsum(dh)[CLOSE - 1] / CLOSE
+            fixed_dh[:close] -= np.cumsum(dh)[close - 1] / close
             corrected = integrate(fixed_dh, dt)
-            weight = np.minimum(np.arange(len(corrected)), CLOSE) / CLOSE
-            corrected -= weight[:, None] * (corrected[CLOSE] - truth[CLOSE])[None, :]
+            weight = np.minimum(np.arange(len(corrected)), close) / close
+            corrected -= weight[:, None] * (corrected[close] - truth[close])[None, :]
             off.append(ate(truth, estimate))
             on.append(ate(truth, corrected))
         ratio = np.array(on) / np.array(off)
