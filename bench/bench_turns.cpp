@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 #include <string>
@@ -156,11 +157,14 @@ int main(int argc, char** argv) {
           const std::string name = fmt::format("loop s{} {}m/s {}mv", o.seed, speed, o.num_movers);
           const std::string dir =
               fmt::format("{}/loop_s{}_v{}_m{}_f{}", work, o.seed, speed, o.num_movers, frames);
-          std::string seq = dir + "/sequences/00";
-          if (!std::filesystem::exists(seq + "/times.txt")) {
+          // Every option set above is in the name; `complete` is written only after a whole
+          // render (a failed one still leaves times.txt for the frames it wrote).
+          std::string seq = dir + "/sequences/" + o.sequence;
+          if (!std::filesystem::exists(dir + "/complete")) {
             std::printf("writing %s ...\n", name.c_str());
             std::fflush(stdout);
             seq = pcr::sim::WriteSequence(o, dir).sequence_dir;
+            std::ofstream(dir + "/complete") << "ok\n";
           }
           cases.push_back({name, seq});
         }
