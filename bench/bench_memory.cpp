@@ -1,6 +1,8 @@
 // Memory-flatness benchmark: a long synthetic replay through the pipelined flow graph, sampling
 // the resident set size (VmRSS) every --sample-every frames next to the map size, and the verdict
-// "max RSS after warm-up within X% of the RSS at warm-up end" (target 10%).
+// "max RSS after warm-up within X% of the RSS at warm-up end" (target 10%). A run that failed a
+// frame or completed fewer frames than --frames prints its figures with INVALID verdicts and
+// exits 3 (the verdicts themselves do not change the exit status).
 //
 //   bench_memory [--frames 2000] [--warmup 200] [--sample-every 100] [--world-frames 400]
 //                [--scale 1] [--segmenter truth|none] [--filter on|off] [--threads 2]
@@ -413,14 +415,24 @@ int main(int argc, char** argv) {
         pcr::graph::RunPipeline(source, slam_options, options, segmenters, scorer.get());
     if (!result.error.empty()) std::fprintf(stderr, "pipeline error: %s\n", result.error.c_str());
     const int64_t rss_end = ResidentBytes();
+    // A run that failed a frame or stopped early measured a shorter (or different) run than the
+    // one asked for: its figures are printed, but the verdicts say INVALID and it exits 3.
+    const bool complete =
+        result.error.empty() && result.stats.frames_completed == static_cast<size_t>(args.frames);
+    const std::string invalid =
+        complete ? std::string()
+                 : fmt::format(" (INVALID: {} of {} frames completed{}{})",
+                               result.stats.frames_completed, args.frames,
+                               result.error.empty() ? "" : ", error: ", result.error);
 
     // Verdict: samples after the warm-up against the one at its end.
     const Sample* at_warmup = nullptr;
     for (const Sample& s : samples)
       if (s.frame == static_cast<size_t>(args.warmup)) at_warmup = &s;
     if (!at_warmup) {
-      std::printf("no sample at the end of the warm-up (frame %d)\n", args.warmup);
-      return 1;
+      std::printf("no sample at the end of the warm-up (frame %d)%s\n", args.warmup,
+                  invalid.c_str());
+      return complete ? 1 : 3;
     }
     int64_t max_rss = at_warmup->rss;
     size_t max_frame = at_warmup->frame;
@@ -496,9 +508,12 @@ int main(int argc, char** argv) {
     const bool pass = growth_pct <= 10.0;
     std::printf(
         "verdict: max RSS after warm-up %.1f MiB (frame %zu) is within %.1f%% of the RSS at "
-        "warm-up end %.1f MiB (frame %zu): %s (target 10%%)\n",
+        "warm-up end %.1f MiB (frame %zu): %s (target 10%%)%s\n",
         MiB(max_rss), max_frame, growth_pct, MiB(at_warmup->rss), at_warmup->frame,
-        pass ? "PASS" : "FAIL");
+        !complete ? "INVALID"
+        : pass    ? "PASS"
+                  : "FAIL",
+        invalid.c_str());
     // The same with per-frame statistics of each sampling window (a single sample can fall on a
     // moment with fewer frames in flight): the largest window value after the warm-up against
     // the warm-up's last window.
@@ -517,12 +532,15 @@ int main(int argc, char** argv) {
       std::printf(
           "%s: largest after warm-up %.1f MiB (window ending at frame %zu) is within %.1f%% of the "
           "last warm-up window's %.1f MiB: %s\n",
-          label, MiB(after), frame, pct, MiB(base), pct <= 10.0 ? "PASS" : "FAIL");
+          label, MiB(after), frame, pct, MiB(base),
+          !complete     ? "INVALID"
+          : pct <= 10.0 ? "PASS"
+                        : "FAIL");
     };
     window_verdict("window peaks (RSS at any frame)", &Sample::rss_peak);
     window_verdict("window means (mean RSS over the frames)", &Sample::rss_mean);
     window_verdict("window means of anonymous RSS (without library pages)", &Sample::anon_mean);
-    return 0;
+    return complete ? 0 : 3;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_memory: %s\n", e.what());
     return 1;
