@@ -57,9 +57,13 @@
 // sequential policy, not timed) are replayed, each taking MS ms on a sleeping thread
 // (`--flow cuda` runs them on a GPU).
 //
-// --repeat N runs all rows N times, round after round, and reports each row's median-fps run and
-// every round's ratio: the speed of this project's VMs drifts within minutes, and a ratio of two
-// rows is only as good as the time between them.
+// --repeat N runs all rows N times, round after round: the speed of this project's VMs drifts
+// within minutes, and a ratio of two rows is only as good as the time between them. So every ratio
+// printed (throughput, the CPU bound's, ATE / sequential, the live check's) is taken within a
+// round and then the median over the rounds (the mean of the two middle ones for an even N); the
+// table shows each row's median-fps run (the faster of the two middle runs for an even N), whose
+// rows may come from different rounds, so its fps are not the inputs of the ratios. ATE/seq and
+// the live check compare a row's run with the sequential run of the same round.
 //
 // Every row also reports how many cores the rest of the machine kept busy while it ran (column
 // `other`, from /proc/stat) and warns when that left the row fewer than `threads` cores: a
@@ -425,6 +429,7 @@ struct Row {
   double ate_m = -1;
   double cpu_s = 0;
   double other_cores = -1;  // cores busy with other work while the row ran; -1 unknown
+  size_t round = 0;         // the round it ran in
   std::optional<pcr::eval::ConfusionMatrix> confusion;  // the filter against the labels
   std::map<std::string, pcr::eval::ConfusionMatrix> confusion_by_mask;  // by the frames' mask
 };
@@ -445,9 +450,96 @@ std::vector<double> SortedRatios(const std::vector<std::vector<Row>>& rounds, si
   return ratios;
 }
 
+// The median of `values`: the middle one, the mean of the two middle ones for an even count; 0
+// for none.
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const size_t n = values.size();
+  return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
 double MedianRatio(const std::vector<std::vector<Row>>& rounds, size_t num, size_t den) {
-  const std::vector<double> ratios = SortedRatios(rounds, num, den);
-  return ratios.empty() ? 0.0 : ratios[ratios.size() / 2];
+  return Median(SortedRatios(rounds, num, den));
+}
+
+// The rows' places in a round (the order main() adds them in).
+constexpr size_t kSeqRow = 0, kPipeRow = 1, kOneThreadRow = 4, kBlockingRow = 5;
+
+// The stages of the per-stage table and of the CPU bound.
+constexpr const char* kBoundStages[] = {pcr::graph::kStagePreprocess, pcr::graph::kStageOrbLeft,
+                                        pcr::graph::kStageOrbRight,   pcr::graph::kStageSegment,
+                                        pcr::graph::kStageStereo,     pcr::graph::kStageFilter,
+                                        pcr::graph::kStageTracking,   pcr::graph::kStageMapping,
+                                        pcr::graph::kStageDevice,     pcr::graph::kStageDeviceFlow};
+
+// The CPU bound of one round's pipelined run (see the top of the file), from that round's runs
+// only: the pipelined run's stage work per frame (on a device, the segment and filter stages'
+// host work is the same round's 1-thread call less the device's time), its serial nodes, and the
+// fps they allow, over the round's own sequential fps.
+struct CpuBound {
+  double device_ms = 0;                // a network pass's device time (emulated or the lane's)
+  double flow_device_per_call_ms = 0;  // the LK passes' device time per filter call
+  double work_ms = 0;                  // host CPU work per frame, all stages
+  double serial_chain_ms = 0, segment_ms = 0, filter_ms = 0, serial_ms = 0;
+  double ideal_fps = 0, serial_fps = 0, bound_fps = 0;
+  double ideal_ratio = 0, bound_ratio = 0;  // over the round's sequential fps
+  double reached = 0;                       // the round's pipelined fps over bound_fps
+};
+
+CpuBound CpuBoundOf(const std::vector<Row>& round, double emulated_device_ms, int threads) {
+  const Row& pipe = round[kPipeRow];
+  const Row& one = round[kOneThreadRow];
+  const double seq_fps = round[kSeqRow].stats.fps;
+  CpuBound b;
+  const double frames_pipe = static_cast<double>(std::max<size_t>(1, pipe.stats.frames_completed));
+  const auto& stages = pipe.stats.stages;
+  const auto device_lane = stages.find(pcr::graph::kStageDevice);
+  b.device_ms = emulated_device_ms > 0        ? emulated_device_ms
+                : device_lane != stages.end() ? device_lane->second.time.mean_ms
+                                              : 0.0;
+  if (const auto lane = stages.find(pcr::graph::kStageDeviceFlow),
+      filter = stages.find(pcr::graph::kStageFilter);
+      lane != stages.end() && filter != stages.end() && filter->second.time.count > 0)
+    b.flow_device_per_call_ms =
+        lane->second.time.total_ms / static_cast<double>(filter->second.time.count);
+  for (const char* stage : kBoundStages) {
+    const auto p = stages.find(stage);
+    if (p == stages.end()) continue;
+    const double per_frame = p->second.time.total_ms / frames_pipe;
+    const std::string name = stage;
+    double cpu_ms = per_frame;
+    // On a device the stage's wall time holds the device's time and, in the pipelined run, the
+    // wait to be resumed behind another stage: its CPU work per call is the 1-thread run's call
+    // less the device's time.
+    const double device_per_call = name == pcr::graph::kStageSegment  ? b.device_ms
+                                   : name == pcr::graph::kStageFilter ? b.flow_device_per_call_ms
+                                                                      : 0.0;
+    if (device_per_call > 0) {
+      const auto o = one.stats.stages.find(stage);
+      const double host_ms = o == one.stats.stages.end()
+                                 ? 0.0
+                                 : std::max(0.0, o->second.time.mean_ms - device_per_call);
+      cpu_ms = host_ms * static_cast<double>(p->second.time.count) / frames_pipe;
+    }
+    // The devices' lanes: no host CPU.
+    if (name == pcr::graph::kStageDevice || name == pcr::graph::kStageDeviceFlow) cpu_ms = 0;
+    b.work_ms += cpu_ms;
+    // Serial nodes: tracking and mapping share the token (one chain); the filter and (outside
+    // realtime) the segmenter are serial nodes of their own.
+    if (name == pcr::graph::kStageTracking || name == pcr::graph::kStageMapping)
+      b.serial_chain_ms += per_frame;
+    if (name == pcr::graph::kStageSegment) b.segment_ms = per_frame;
+    if (name == pcr::graph::kStageFilter) b.filter_ms = per_frame;
+  }
+  b.ideal_fps = b.work_ms > 0 ? 1000.0 * threads / b.work_ms : 0;
+  b.serial_ms = std::max({b.serial_chain_ms, b.segment_ms, b.filter_ms});
+  b.serial_fps = b.serial_ms > 0 ? 1000.0 / b.serial_ms : 0;
+  b.bound_fps = b.serial_fps > 0 ? std::min(b.ideal_fps, b.serial_fps) : b.ideal_fps;
+  b.ideal_ratio = seq_fps > 0 ? b.ideal_fps / seq_fps : 0.0;
+  b.bound_ratio = seq_fps > 0 ? b.bound_fps / seq_fps : 0.0;
+  b.reached = b.bound_fps > 0 ? pipe.stats.fps / b.bound_fps : 0.0;
+  return b;
 }
 
 std::string Fixed(double value, int decimals, bool valid = true) {
@@ -599,7 +691,8 @@ int main(int argc, char** argv) {
               true, args.every, false);
     }
     // Rounds: every row once per round, so that a drift of the machine's speed (this project's
-    // VMs vary by 30% within minutes) reaches all rows alike; each row keeps its median-fps run.
+    // VMs vary by 30% within minutes) reaches all rows alike. Ratios are taken within a round;
+    // the table shows each row's median-fps run.
     std::vector<std::vector<Row>> rounds(static_cast<size_t>(args.repeat), rows);
     for (int round = 0; round < args.repeat; ++round) {
       for (Row& row : rounds[static_cast<size_t>(round)]) {
@@ -617,6 +710,7 @@ int main(int argc, char** argv) {
         options.carry.propagate = row.propagate;
         options.keep_filter_reports = audit.has_value();
         const std::unique_ptr<pcr::nodes::DynamicFilterScorer> scorer = make_scorer();
+        row.round = static_cast<size_t>(round);
         const double cpu_before = ProcessCpuSeconds();
         const double busy_before = MachineBusySeconds();
         const auto wall_before = std::chrono::steady_clock::now();
@@ -653,10 +747,11 @@ int main(int argc, char** argv) {
       if (args.repeat > 1) {
         const std::vector<Row>& r = rounds[static_cast<size_t>(round)];
         std::printf("round %d: pipelined/sequential %.2f (%.2f / %.2f fps)%s\n", round + 1,
-                    FpsRatio(r, 1, 0), r[1].stats.fps, r[0].stats.fps,
-                    on_device
-                        ? fmt::format(", blocking device pass {:.2f}", FpsRatio(r, 5, 0)).c_str()
-                        : "");
+                    FpsRatio(r, kPipeRow, kSeqRow), r[kPipeRow].stats.fps, r[kSeqRow].stats.fps,
+                    on_device ? fmt::format(", blocking device pass {:.2f}",
+                                            FpsRatio(r, kBlockingRow, kSeqRow))
+                                    .c_str()
+                              : "");
       }
     }
     for (size_t i = 0; i < rows.size(); ++i) {
@@ -664,14 +759,15 @@ int main(int argc, char** argv) {
       for (const std::vector<Row>& r : rounds) runs.push_back(&r[i]);
       std::sort(runs.begin(), runs.end(),
                 [](const Row* x, const Row* y) { return x->stats.fps < y->stats.fps; });
-      rows[i] = *runs[runs.size() / 2];
+      rows[i] = *runs[runs.size() / 2];  // for an even count, the faster middle run
     }
-    const std::vector<double> ratios = SortedRatios(rounds, 1, 0);
+    const std::vector<double> ratios = SortedRatios(rounds, kPipeRow, kSeqRow);
     if (args.repeat > 1 && !ratios.empty()) {
       std::printf(
           "pipelined/sequential over %d rounds: median %.2f, range %.2f-%.2f; each row below is "
-          "its median-fps run\n",
-          args.repeat, ratios[ratios.size() / 2], ratios.front(), ratios.back());
+          "its median-fps run (rows may come from different rounds; ATE/seq and the live check "
+          "use the sequential run of the row's own round)\n",
+          args.repeat, Median(ratios), ratios.front(), ratios.back());
     }
 
     const std::string load_after = pcr::bench::LoadAverage();
@@ -694,10 +790,12 @@ int main(int argc, char** argv) {
             "and every ratio that uses them are not those of an idle machine\n",
             row.name.c_str(), row.other_cores, cpus);
     }
-    const Row& seq = rows[0];
-    const Row& pipe = rows[1];
+    const Row& seq = rows[kSeqRow];
+    const Row& pipe = rows[kPipeRow];
     const Row& live = rows[3];  // realtime+adaptive
-    const Row& one = rows[4];
+    const Row& one = rows[kOneThreadRow];
+    // The sequential run of a row's own round: the denominator of its ATE ratio.
+    auto seq_of = [&rounds](const Row& row) -> const Row& { return rounds[row.round][kSeqRow]; };
     std::printf("%-19s %5s %5s %6s %6s %7s %7s %7s %7s %7s %8s %11s %7s %7s %5s %5s\n", "row",
                 "done", "drop", "%proc", "fps", "lat p50", "lat p95", "lat p99", "lat max",
                 "ret p99", "fr/pr/st", "quality H/M/L", "ATE [m]", "ATE/seq", "cpu%", "other");
@@ -710,20 +808,21 @@ int main(int argc, char** argv) {
                                                     s.quality_frames[1], s.quality_frames[0])
                                       : std::string("-");
       const double cpu_util = s.wall_s > 0 ? 100.0 * row.cpu_s / (s.wall_s * row.threads) : 0;
+      const double seq_ate = seq_of(row).ate_m;
       std::printf(
           "%-19s %5zu %5zu %6.1f %6.2f %7.1f %7.1f %7.1f %7.1f %7.1f %8s %11s %7s %7s %5.0f %5s\n",
           row.name.c_str(), s.frames_completed, s.frames_dropped, processed, s.fps,
           s.latency.p50_ms, s.latency.p95_ms, s.latency.p99_ms, s.latency.max_ms, s.retire.p99_ms,
           fmt::format("{}/{}/{}", s.masks_fresh, s.masks_propagated, s.masks_stale).c_str(),
           quality.c_str(), Fixed(row.ate_m, 3, row.ate_m >= 0).c_str(),
-          Fixed(row.ate_m / seq.ate_m, 2, row.ate_m >= 0 && seq.ate_m > 0).c_str(), cpu_util,
+          Fixed(row.ate_m / seq_ate, 2, row.ate_m >= 0 && seq_ate > 0).c_str(), cpu_util,
           Fixed(row.other_cores, 2, row.other_cores >= 0).c_str());
     }
     std::printf(
         "(latency: admission -> pose (tracking done) for sequential/pipelined, camera release -> "
         "pose for realtime; ret p99: the same to retirement, a keyframe's local mapping included; "
         "cpu%%: process CPU time / (wall x threads); other: cores the rest of the machine kept "
-        "busy meanwhile, /proc/stat)\n");
+        "busy meanwhile, /proc/stat; ATE/seq: against the sequential run of the same round)\n");
 
     // Masks and the filter's decisions per row; the live check of the realtime+adaptive row
     // against the sequential one (each frame waits for its own mask there).
@@ -756,19 +855,22 @@ int main(int argc, char** argv) {
       const double processed = 100.0 * s.frames_completed / n;
       const double fresh = 100.0 * s.masks_fresh / n;
       const double carried = 100.0 * (s.masks_fresh + s.masks_propagated) / n;
-      const double ate_ratio = seq.ate_m > 0 && live.ate_m >= 0 ? live.ate_m / seq.ate_m : -1;
+      const Row& live_seq = seq_of(live);  // the sequential run of the same round
+      const double ate_ratio =
+          live_seq.ate_m > 0 && live.ate_m >= 0 ? live.ate_m / live_seq.ate_m : -1;
       auto verdict = [](bool ok) { return ok ? "ok" : "MISSED"; };
       std::printf(
-          "live check (%s vs sequential, rate %.3g, %d threads): processed %.1f%% (>= 95: %s), "
+          "live check (%s vs the sequential run of its round, rate %.3g, %d threads): processed "
+          "%.1f%% (>= 95: %s), "
           "p99 latency %.0f ms (<= 200: %s), fresh masks %.1f%% (>= 80: %s), fresh or "
           "propagated %.1f%% (>= 98: %s), ATE ratio %s (<= 1.1: %s)",
           live.name.c_str(), args.rate, args.threads, processed, verdict(processed >= 95),
           s.latency.p99_ms, verdict(s.latency.p99_ms <= 200), fresh, verdict(fresh >= 80), carried,
           verdict(carried >= 98), Fixed(ate_ratio, 2, ate_ratio >= 0).c_str(),
           verdict(ate_ratio >= 0 && ate_ratio <= 1.1));
-      if (live.confusion && seq.confusion) {
-        const double dp = live.confusion->Precision() - seq.confusion->Precision();
-        const double dr = live.confusion->Recall() - seq.confusion->Recall();
+      if (live.confusion && live_seq.confusion) {
+        const double dp = live.confusion->Precision() - live_seq.confusion->Precision();
+        const double dr = live.confusion->Recall() - live_seq.confusion->Recall();
         std::printf(", precision %+.3f, recall %+.3f (>= -0.03: %s)", dp, dr,
                     verdict(dp >= -0.03 && dr >= -0.03));
       }
@@ -778,75 +880,48 @@ int main(int argc, char** argv) {
     // Per-stage times: wall per call in the sequential run (OpenCV's loops there use every
     // core), in the pipelined run (each stage runs OpenCV on its own thread, so its wall time is
     // its CPU work, taken under the same load as the throughput it explains) and in the 1-thread
-    // run (the synchronous reference: one core for everything).
+    // run (the synchronous reference: one core for everything); each row's median-fps run.
     std::printf("\n%-11s %6s %12s %12s %12s %13s %13s\n", "stage", "calls", "seq ms/call",
                 "pipe ms/call", "1thr ms/call", "pipe ms/frame", "rt+ad ms/call");
     const double frames_pipe =
         static_cast<double>(std::max<size_t>(1, pipe.stats.frames_completed));
-    double cpu_per_frame_ms = 0, serial_chain_ms = 0, segment_ms = 0, filter_ms = 0;
     auto mean_of = [](const Row& row, const char* stage) -> std::string {
       const auto it = row.stats.stages.find(stage);
       return it == row.stats.stages.end() ? std::string("-") : Fixed(it->second.time.mean_ms, 1);
     };
-    // A pass's device time: the emulated one, or the pipelined run's device lane (a GPU).
-    const auto device_lane = pipe.stats.stages.find(pcr::graph::kStageDevice);
-    const double device_ms = args.device_ms > 0 ? args.device_ms
-                             : device_lane != pipe.stats.stages.end()
-                                 ? device_lane->second.time.mean_ms
-                                 : 0.0;
-    // The LK passes' device time per filter call (the pipelined run's flow lane).
-    double flow_device_per_call_ms = 0;
-    if (const auto lane = pipe.stats.stages.find(pcr::graph::kStageDeviceFlow),
-        filter = pipe.stats.stages.find(pcr::graph::kStageFilter);
-        lane != pipe.stats.stages.end() && filter != pipe.stats.stages.end() &&
-        filter->second.time.count > 0)
-      flow_device_per_call_ms =
-          lane->second.time.total_ms / static_cast<double>(filter->second.time.count);
-    for (const char* stage :
-         {pcr::graph::kStagePreprocess, pcr::graph::kStageOrbLeft, pcr::graph::kStageOrbRight,
-          pcr::graph::kStageSegment, pcr::graph::kStageStereo, pcr::graph::kStageFilter,
-          pcr::graph::kStageTracking, pcr::graph::kStageMapping, pcr::graph::kStageDevice,
-          pcr::graph::kStageDeviceFlow}) {
+    for (const char* stage : kBoundStages) {
       const auto p = pipe.stats.stages.find(stage);
       const bool has_p = p != pipe.stats.stages.end();
       const double per_frame = has_p ? p->second.time.total_ms / frames_pipe : 0.0;
-      const std::string name = stage;
-      double cpu_ms = per_frame;
-      if (has_p && device_ms > 0 && name == pcr::graph::kStageSegment) {
-        // On a device the segment stage's wall time is no CPU work: it holds the device's time
-        // and, in the pipelined run, the wait to be resumed behind another stage. Its CPU work
-        // per call is the 1-thread run's call less the device's time.
-        const auto o = one.stats.stages.find(stage);
-        const double host_ms =
-            o == one.stats.stages.end() ? 0.0 : std::max(0.0, o->second.time.mean_ms - device_ms);
-        cpu_ms = host_ms * static_cast<double>(p->second.time.count) / frames_pipe;
-      }
-      if (has_p && name == pcr::graph::kStageFilter && flow_device_per_call_ms > 0) {
-        // The same for the filter's LK passes on a device.
-        const auto o = one.stats.stages.find(stage);
-        const double host_ms =
-            o == one.stats.stages.end()
-                ? 0.0
-                : std::max(0.0, o->second.time.mean_ms - flow_device_per_call_ms);
-        cpu_ms = host_ms * static_cast<double>(p->second.time.count) / frames_pipe;
-      }
-      // The devices' lanes: no host CPU.
-      if (name == pcr::graph::kStageDevice || name == pcr::graph::kStageDeviceFlow) cpu_ms = 0;
-      cpu_per_frame_ms += cpu_ms;
-      // Serial nodes: tracking and mapping share the token (one chain); the filter and (outside
-      // realtime) the segmenter are serial nodes of their own.
-      if (name == pcr::graph::kStageTracking || name == pcr::graph::kStageMapping)
-        serial_chain_ms += per_frame;
-      if (name == pcr::graph::kStageSegment) segment_ms = per_frame;
-      if (name == pcr::graph::kStageFilter) filter_ms = per_frame;
       std::printf("%-11s %6zu %12s %12s %12s %13.1f %13s\n", stage,
                   has_p ? p->second.time.count : 0, mean_of(seq, stage).c_str(),
                   mean_of(pipe, stage).c_str(), mean_of(one, stage).c_str(), per_frame,
                   mean_of(live, stage).c_str());
     }
-    std::printf("%-11s %6s %12s %12s %12s %13.1f%s%s\n", "sum", "", "", "", "", cpu_per_frame_ms,
-                device_ms > 0 ? " (segment: host CPU work of the 1-thread run)" : "",
-                flow_device_per_call_ms > 0 ? " (filter: host CPU work of the 1-thread run)" : "");
+    // The CPU bound, round by round (each from its own pipelined, 1-thread and sequential runs),
+    // and the median of each figure over the rounds.
+    std::vector<CpuBound> bounds;
+    for (const std::vector<Row>& round : rounds)
+      bounds.push_back(CpuBoundOf(round, args.device_ms, args.threads));
+    auto median_of = [&bounds](double CpuBound::*field) {
+      std::vector<double> values;
+      for (const CpuBound& b : bounds) values.push_back(b.*field);
+      return Median(std::move(values));
+    };
+    const bool on_device_segment = median_of(&CpuBound::device_ms) > 0;
+    const bool on_device_filter = median_of(&CpuBound::flow_device_per_call_ms) > 0;
+    const std::string of_rounds =
+        args.repeat > 1 ? fmt::format(" (medians of {} rounds)", args.repeat) : std::string();
+    std::printf("%-11s %6s %12s %12s %12s %13.1f%s%s%s\n", "sum", "", "", "", "",
+                median_of(&CpuBound::work_ms),
+                on_device_segment ? " (segment: host CPU work of the round's 1-thread run)" : "",
+                on_device_filter ? " (filter: host CPU work of the round's 1-thread run)" : "",
+                args.repeat > 1
+                    ? fmt::format(" (host CPU work per frame: the median of {} rounds, each from "
+                                  "its own pipelined and 1-thread runs)",
+                                  args.repeat)
+                          .c_str()
+                    : "");
     if (flow_replay) {
       std::printf(
           "emulated flow device: %zu LK passes replayed (%.1f ms each), %zu run on the host "
@@ -855,15 +930,20 @@ int main(int argc, char** argv) {
           flow_replay->replayed, args.flow_device_ms, flow_replay->computed);
     }
 
-    const double seq_fps = seq.stats.fps;
     // Ratios of two rows: the median over the rounds of the ratio within a round.
     auto ratio = [&rounds](size_t num, size_t den) { return MedianRatio(rounds, num, den); };
-    const std::string of_rounds =
-        args.repeat > 1 ? fmt::format(" (medians of {} rounds)", args.repeat) : std::string();
-    std::printf(
-        "\nthroughput ratio pipelined/sequential: %.2f (%.2f / %.2f fps); against the "
-        "1-thread synchronous reference: %.2f%s\n",
-        ratio(1, 0), pipe.stats.fps, seq_fps, ratio(1, 4), of_rounds.c_str());
+    if (args.repeat > 1)
+      std::printf(
+          "\nthroughput ratio pipelined/sequential: %.2f; against the 1-thread synchronous "
+          "reference: %.2f (medians of %d rounds' own ratios; the table's median-fps runs, "
+          "possibly of different rounds: pipelined %.2f, sequential %.2f, 1-thread %.2f fps)\n",
+          ratio(kPipeRow, kSeqRow), ratio(kPipeRow, kOneThreadRow), args.repeat, pipe.stats.fps,
+          seq.stats.fps, one.stats.fps);
+    else
+      std::printf(
+          "\nthroughput ratio pipelined/sequential: %.2f (%.2f / %.2f fps); against the "
+          "1-thread synchronous reference: %.2f\n",
+          ratio(kPipeRow, kSeqRow), pipe.stats.fps, seq.stats.fps, ratio(kPipeRow, kOneThreadRow));
     if (on_device) {
       std::string device = args.device_ms > 0
                                ? fmt::format("emulated device, {:.1f} ms a pass", args.device_ms)
@@ -875,20 +955,25 @@ int main(int argc, char** argv) {
       std::printf(
           "%s: pipelined/sequential %.2f with the device wait, %.2f with the pass blocking its "
           "thread%s\n",
-          device.c_str(), ratio(1, 0), ratio(5, 0), of_rounds.c_str());
+          device.c_str(), ratio(kPipeRow, kSeqRow), ratio(kBlockingRow, kSeqRow),
+          of_rounds.c_str());
     }
-    const double ideal_fps = cpu_per_frame_ms > 0 ? 1000.0 * args.threads / cpu_per_frame_ms : 0;
-    const double serial_ms = std::max({serial_chain_ms, segment_ms, filter_ms});
-    const double serial_fps = serial_ms > 0 ? 1000.0 / serial_ms : 0;
-    const double bound_fps = serial_fps > 0 ? std::min(ideal_fps, serial_fps) : ideal_fps;
     std::printf(
-        "CPU bound of the pipelined run: %.1f ms of stage work per frame / %d cores = %.2f fps "
+        "CPU bound of the pipelined run%s: %.1f ms of stage work per frame / %d cores = %.2f fps "
         "(ratio %.2f); slowest serial node %.1f ms/frame (tracking+mapping %.1f, filter %.1f, "
         "segment %.1f) = %.2f fps; bound %.2f fps (ratio %.2f), pipelined reaches %.0f%% of it\n",
-        cpu_per_frame_ms, args.threads, ideal_fps, seq_fps > 0 ? ideal_fps / seq_fps : 0.0,
-        serial_ms, serial_chain_ms, filter_ms, segment_ms, serial_fps, bound_fps,
-        seq_fps > 0 ? bound_fps / seq_fps : 0.0,
-        bound_fps > 0 ? 100.0 * pipe.stats.fps / bound_fps : 0.0);
+        args.repeat > 1
+            ? fmt::format(" (each figure the median of its {} rounds' values; ratios against "
+                          "each round's own sequential fps, the share reached of its own bound)",
+                          args.repeat)
+                  .c_str()
+            : "",
+        median_of(&CpuBound::work_ms), args.threads, median_of(&CpuBound::ideal_fps),
+        median_of(&CpuBound::ideal_ratio), median_of(&CpuBound::serial_ms),
+        median_of(&CpuBound::serial_chain_ms), median_of(&CpuBound::filter_ms),
+        median_of(&CpuBound::segment_ms), median_of(&CpuBound::serial_fps),
+        median_of(&CpuBound::bound_fps), median_of(&CpuBound::bound_ratio),
+        100.0 * median_of(&CpuBound::reached));
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_pipeline: %s\n", e.what());
