@@ -8,10 +8,16 @@
 //
 // Printed per run: the map's size on disk, save and load times, whether a loaded map saves to the
 // same bytes, frames localised, map points before/after localisation and whether the map's bytes
-// are unchanged by it, the mapping run's ATE (SE(3)-aligned) against the localised frames' ATE,
-// and the error against the truth without alignment (in the map's frame: the world is the first
-// frame's camera in both runs; it includes the map's own drift) of the mapping run's frames and
-// of the localised frames.
+// are unchanged by it, and the mapping run's ATE over its own frames (SE(3)-aligned; context
+// only). The localised frames are then compared with a mapping run on the same frames: on a real
+// clip the mapping run itself (it mapped every frame); on a loop a second mapping run over the
+// whole route (mapping goes on past the start instead of localising), both scored on the frames
+// that both runs tracked among the localised ones: the SE(3) ATE with each run's own alignment
+// fitted on those frames only, and the error against the truth without alignment (in the map's
+// frame: the world is the first frame's camera in all runs; it includes the map's own drift),
+// each with the ratio localised / mapping. (Scoring the localisation's few frames past the start
+// against the whole lap's ATE would compare a short, well-mapped stretch, whose own alignment
+// absorbs most of its error, with a whole lap.)
 //
 //   build/bench/bench_map --sequence ../shared/data/kitti/sequences/06 --seeds 7,8,9
 #include <fmt/format.h>
@@ -24,12 +30,15 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
 #include <string>
 #include <vector>
 
 #include "bench_args.h"
 #include "driver/binary_file.h"
 #include "driver/map_file.h"
+#include "eval/alignment.h"
 #include "io/dataset.h"
 #include "pcr/api.h"
 #include "sim/sequence_writer.h"
@@ -54,15 +63,48 @@ double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
-// RMSE of the localised positions against the truth without alignment.
-double UnalignedRmse(const std::vector<pcr::api::Pose>& poses, const pcr::Trajectory& truth) {
-  double sum2 = 0;
-  for (const pcr::api::Pose& p : poses) {
-    const Eigen::Vector3d t =
-        truth[static_cast<size_t>(p.frame_index)].world_from_cam.translation();
-    sum2 += (p.world_from_cam.block<3, 1>(0, 3) - t).squaredNorm();
+// The frame indices in [first, end) that both trajectories hold, ascending.
+std::vector<int64_t> CommonFrames(const std::vector<pcr::api::Pose>& a,
+                                  const std::vector<pcr::api::Pose>& b, size_t first, size_t end) {
+  std::set<int64_t> in_a;
+  for (const pcr::api::Pose& p : a)
+    if (p.frame_index >= static_cast<int64_t>(first) && p.frame_index < static_cast<int64_t>(end))
+      in_a.insert(p.frame_index);
+  std::set<int64_t> both;
+  for (const pcr::api::Pose& p : b)
+    if (in_a.contains(p.frame_index)) both.insert(p.frame_index);
+  return {both.begin(), both.end()};
+}
+
+struct Errors {
+  double ate_m = NAN;        // SE(3)-aligned on the scored frames (as the runs' own ATE)
+  double unaligned_m = NAN;  // without alignment
+};
+
+// RMSE of the positions of `poses` on `frames` (all of which it holds) against the truth.
+Errors ErrorsOn(const std::vector<pcr::api::Pose>& poses, const pcr::Trajectory& truth,
+                const std::vector<int64_t>& frames) {
+  std::map<int64_t, Eigen::Vector3d> by_frame;
+  for (const pcr::api::Pose& p : poses)
+    by_frame[p.frame_index] = p.world_from_cam.block<3, 1>(0, 3);
+  std::vector<Eigen::Vector3d> estimate, reference;
+  for (int64_t f : frames) {
+    estimate.push_back(by_frame.at(f));
+    reference.push_back(truth[static_cast<size_t>(f)].world_from_cam.translation());
   }
-  return poses.empty() ? NAN : std::sqrt(sum2 / static_cast<double>(poses.size()));
+  Errors e;
+  if (frames.empty()) return e;
+  const double n = static_cast<double>(frames.size());
+  double sum2 = 0;
+  for (size_t i = 0; i < frames.size(); ++i) sum2 += (estimate[i] - reference[i]).squaredNorm();
+  e.unaligned_m = std::sqrt(sum2 / n);
+  if (const auto s = pcr::eval::UmeyamaAlignment(estimate, reference, /*with_scale=*/false)) {
+    sum2 = 0;
+    for (size_t i = 0; i < frames.size(); ++i)
+      sum2 += (s->Apply(estimate[i]) - reference[i]).squaredNorm();
+    e.ate_m = std::sqrt(sum2 / n);
+  }
+  return e;
 }
 
 // The first frame back within 8 m of the start after having been 30 m away (a loop's revisit).
@@ -77,7 +119,8 @@ size_t RevisitFrame(const pcr::Trajectory& truth) {
   return truth.size();
 }
 
-// Maps [0, lap_end), saves, reloads, localises [loc_first, loc_end); prints one row.
+// Maps [0, lap_end), saves, reloads, localises [loc_first, loc_end) and compares the localised
+// frames with a mapping run over [0, loc_end) (the first one when it covered them); prints one row.
 bool MapAndLocalise(const Args& a, const std::string& name, const std::string& sequence,
                     size_t lap_end, size_t loc_first, size_t loc_end) {
   const pcr::Dataset dataset = pcr::OpenDataset(sequence);
@@ -109,20 +152,43 @@ bool MapAndLocalise(const Args& a, const std::string& name, const std::string& s
   const double loc_s = Seconds(t);
   const bool unchanged =
       pcr::driver::ReadFileBytes(l.save_map, "map") == pcr::driver::ReadFileBytes(map_path, "map");
-  const double unaligned = UnalignedRmse(loc.trajectory, *dataset.ground_truth);
-  const double unaligned_map = UnalignedRmse(mapped.trajectory, *dataset.ground_truth);
-  const double ate_map = mapped.stats.ate_rmse_m.value_or(NAN);
-  const double ate_loc = loc.stats.ate_rmse_m.value_or(NAN);
+
+  // The mapping run to compare with: one that mapped the localised frames too.
+  const bool mapped_covers = loc_end <= lap_end;
+  pcr::api::Result mapping_on;
+  if (!mapped_covers) {
+    pcr::api::Config r = c;
+    r.save_map.clear();
+    mapping_on =
+        pcr::api::Run(r, pcr::api::Source::Dataset(sequence, 0, static_cast<int64_t>(loc_end)));
+  }
+  const pcr::api::Result& reference = mapped_covers ? mapped : mapping_on;
+  const std::vector<int64_t> frames =
+      CommonFrames(reference.trajectory, loc.trajectory, loc_first, loc_end);
+  const Errors e_map = ErrorsOn(reference.trajectory, *dataset.ground_truth, frames);
+  const Errors e_loc = ErrorsOn(loc.trajectory, *dataset.ground_truth, frames);
+  const std::string compared =
+      mapped_covers ? std::string("the mapping run")
+                    : fmt::format("0:{} ({} tracked)", loc_end, reference.stats.frames_tracked);
   std::printf(
       "| %s | %zu:%zu | %zu/%zu | %zu | %.1f | %.0f | %.0f | %s | %zu:%zu | %zu/%zu | %.1f | %zu "
-      "-> %zu | %s | %.4f | %.4f (%.2fx) | %.4f | %.4f (%.2fx) |\n",
+      "-> %zu | %s | %.4f | %s | %zu/%zu | %.4f | %.4f (%.2fx) | %.4f | %.4f (%.2fx) |\n",
       name.c_str(), size_t{0}, lap_end, mapped.stats.frames_tracked, lap_end,
       mapped.stats.keyframes, bytes / 1e6, save_ms, load_ms, same_bytes ? "yes" : "NO", loc_first,
       loc_end, loc.stats.frames_tracked, loc_end - loc_first, loc_s, mapped.stats.map_points,
-      loc.stats.map_points, unchanged ? "yes" : "NO", ate_map, ate_loc, ate_loc / ate_map,
-      unaligned_map, unaligned, unaligned / unaligned_map);
+      loc.stats.map_points, unchanged ? "yes" : "NO", mapped.stats.ate_rmse_m.value_or(NAN),
+      compared.c_str(), frames.size(), loc_end - loc_first, e_map.ate_m, e_loc.ate_m,
+      e_loc.ate_m / e_map.ate_m, e_map.unaligned_m, e_loc.unaligned_m,
+      e_loc.unaligned_m / e_map.unaligned_m);
   std::fflush(stdout);
-  return same_bytes && unchanged && loc.stats.frames_tracked == loc_end - loc_first;
+  bool failed = false;
+  for (const pcr::api::Result* r : {&mapped, &loc, &reference})
+    if (!r->error.empty()) {
+      std::fprintf(stderr, "bench_map: %s: %s\n", name.c_str(), r->error.c_str());
+      failed = true;
+    }
+  return !failed && same_bytes && unchanged && loc.stats.frames_tracked == loc_end - loc_first &&
+         frames.size() == loc_end - loc_first;
 }
 
 }  // namespace
@@ -149,9 +215,10 @@ int main(int argc, char** argv) {
     fs::create_directories(a.work);
     std::printf(
         "| run | mapped | tracked | keyframes | MB | save ms | load ms | same bytes | localised "
-        "frames | localised | s | map points | map unchanged | ATE mapping | ATE localised "
-        "(aligned) | error mapping (unaligned) | error localised (unaligned) |\n|");
-    for (int i = 0; i < 17; ++i) std::printf("---|");
+        "frames | localised | s | map points | map unchanged | ATE mapping, its frames | mapping "
+        "run compared | frames compared | ATE mapping | ATE localised | error mapping "
+        "(unaligned) | error localised (unaligned) |\n|");
+    for (int i = 0; i < 20; ++i) std::printf("---|");
     std::printf("\n");
     bool ok = true;
     for (const std::string& seq : a.sequences) {
@@ -166,8 +233,8 @@ int main(int argc, char** argv) {
       o.num_movers = a.movers;
       o.seed = static_cast<uint64_t>(seed);
       o = o.Scaled(a.scale);
-      const fs::path dir =
-          fmt::format("{}/loop_s{}_f{}_v{}_x{}", a.work, o.seed, o.frames, o.speed_mps, a.scale);
+      const fs::path dir = fmt::format("{}/loop_s{}_f{}_v{}_m{}_x{}", a.work, o.seed, o.frames,
+                                       o.speed_mps, o.num_movers, a.scale);
       std::string sequence = (dir / "sequences" / o.sequence).string();
       if (!fs::exists(dir / "complete")) {
         sequence = pcr::sim::WriteSequence(o, dir.string()).sequence_dir;
