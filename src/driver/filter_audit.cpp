@@ -5,8 +5,8 @@
 
 #include <cstdio>
 #include <filesystem>
-#include <opencv2/imgcodecs.hpp>
 
+#include "driver/truth_segmenter.h"
 #include "slam/common/error.h"
 #include "slam/common/image.h"
 
@@ -58,16 +58,11 @@ void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report, Ru
   if (instances_) {
     char name[32];
     std::snprintf(name, sizeof(name), "/instance_0/%06zu.png", i);
-    const std::string path = dataset_.root + name;
-    ids = LoadImageChecked(path, cv::IMREAD_UNCHANGED);
-    // As TruthSegmenter::Segment: ids are read as uint16 at keypoint positions.
-    if (ids.type() != CV_16UC1)
-      throw InputError(path, 0, "instance image must be 16-bit single channel");
+    // Read as uint16 ids at keypoint positions, as TruthSegmenter::Segment does.
     const PinholeCamera& camera = dataset_.rig.left;
-    if (camera.width_px > 0 && (ids.cols != camera.width_px || ids.rows != camera.height_px))
-      throw InputError(path, 0,
-                       fmt::format("instance image is {}x{}, the frames are {}x{}", ids.cols,
-                                   ids.rows, camera.width_px, camera.height_px));
+    ids = LoadInstanceIds(dataset_.root + name, camera.width_px > 0
+                                                    ? cv::Size(camera.width_px, camera.height_px)
+                                                    : cv::Size());
   }
   std::vector<LabelTruthKind> label_kinds;
   if (labels_) label_kinds = labels_->Classify(i, keypoints);

@@ -40,17 +40,23 @@ TruthSegmenter::TruthSegmenter(const std::string& sequence_dir,
   table_ = sim::InstanceTable::Read(sequence_dir + "/instances.txt");
 }
 
+cv::Mat LoadInstanceIds(const std::string& path, cv::Size frame_size) {
+  cv::Mat ids = LoadImageChecked(path, cv::IMREAD_UNCHANGED);
+  if (ids.type() != CV_16UC1)
+    throw InputError(path, 0, "instance image must be 16-bit single channel");
+  if (!frame_size.empty() && ids.size() != frame_size)
+    throw InputError(path, 0,
+                     "instance image is " + std::to_string(ids.cols) + "x" +
+                         std::to_string(ids.rows) + ", the frames are " +
+                         std::to_string(frame_size.width) + "x" +
+                         std::to_string(frame_size.height));
+  return ids;
+}
+
 Segmentation TruthSegmenter::Segment(const cv::Mat& image) {
   char name[32];
   std::snprintf(name, sizeof(name), "/%06zu.png", frame_);
-  const cv::Mat ids = LoadImageChecked(instance_dir_ + name, cv::IMREAD_UNCHANGED);
-  if (ids.type() != CV_16UC1)
-    throw InputError(instance_dir_ + name, 0, "instance image must be 16-bit single channel");
-  if (!image.empty() && image.size() != ids.size())
-    throw InputError(instance_dir_ + name, 0,
-                     "instance image is " + std::to_string(ids.cols) + "x" +
-                         std::to_string(ids.rows) + ", the frame is " + std::to_string(image.cols) +
-                         "x" + std::to_string(image.rows));
+  const cv::Mat ids = LoadInstanceIds(instance_dir_ + name, image.size());
 
   // Pixel masks of every dynamic-class instance present in the frame.
   std::map<uint16_t, cv::Mat> masks;

@@ -5,6 +5,7 @@
 // eroded or dilated masks, false positives), seeded, so the rest of the dynamic filter is measured
 // against known truth. Thread-compatible.
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <random>
 #include <string>
 
@@ -12,6 +13,11 @@
 #include "slam/dynamic/segmenter.h"
 
 namespace pcr::driver {
+
+// Reads a synthetic instance image (sim's instance_0/NNNNNN.png: one 16-bit id per pixel).
+// Throws InputError naming path when it is unreadable, not 16-bit single channel, or, when
+// frame_size is not empty, of another size than the frames.
+cv::Mat LoadInstanceIds(const std::string& path, cv::Size frame_size);
 
 struct TruthSegmenterOptions {
   double miss_rate = 0.0;  // probability that an instance is not reported in a frame
