@@ -5,6 +5,7 @@
 #include <fstream>
 #include <string>
 
+#include "io/io_test_util.h"
 #include "slam/common/error.h"
 #include "support/data_paths.h"
 
@@ -40,27 +41,16 @@ TEST(ConfigSchema, OverridesOnlyGivenKeys) {
 TEST(ConfigSchema, UnknownKeyNamesFileAndLine) {
   Opts o;
   ConfigSchema s = MakeSchema(o);
-  try {
-    s.LoadString("orb:\n  count: 9\n  cuont: 3\n", "cfg.yaml");
-    FAIL() << "no error";
-  } catch (const InputError& e) {
-    EXPECT_EQ(e.line(), 3);
-    EXPECT_NE(std::string(e.what()).find("cfg.yaml:3: unknown key 'orb.cuont'"), std::string::npos)
-        << e.what();
-  }
+  test::ExpectInputError([&] { s.LoadString("orb:\n  count: 9\n  cuont: 3\n", "cfg.yaml"); },
+                         "cfg.yaml", 3, "cfg.yaml:3: unknown key 'orb.cuont'");
   EXPECT_THROW(s.LoadString("nosuch:\n  a: 1\n", "cfg.yaml"), InputError);
 }
 
 TEST(ConfigSchema, WrongTypeAndMalformedYamlRejected) {
   Opts o;
   ConfigSchema s = MakeSchema(o);
-  try {
-    s.LoadString("orb:\n  count: many\n", "cfg.yaml");
-    FAIL() << "no error";
-  } catch (const InputError& e) {
-    EXPECT_EQ(e.line(), 2);
-    EXPECT_NE(std::string(e.what()).find("not a valid integer"), std::string::npos);
-  }
+  test::ExpectInputError([&] { s.LoadString("orb:\n  count: many\n", "cfg.yaml"); }, "cfg.yaml", 2,
+                         "not a valid integer");
   EXPECT_THROW(s.LoadString("orb: [1, 2\n", "bad.yaml"), InputError);
   EXPECT_THROW(s.LoadString("orb:\n  scale: .nan\n", "nan.yaml"), InputError);
   EXPECT_EQ(o.count, 5);  // nothing applied by the failed loads above
@@ -98,12 +88,8 @@ TEST(ConfigSchema, CommandLineOverride) {
 TEST(ConfigSchema, MissingFileNamed) {
   Opts o;
   ConfigSchema s = MakeSchema(o);
-  try {
-    s.LoadFile("/nonexistent/cfg.yaml");
-    FAIL();
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("/nonexistent/cfg.yaml"), std::string::npos);
-  }
+  test::ExpectInputError([&] { s.LoadFile("/nonexistent/cfg.yaml"); }, "/nonexistent/cfg.yaml", 0,
+                         "/nonexistent/cfg.yaml");
 }
 
 TEST(ConfigSchema, ADirectoryOrADeviceIsNotAConfigurationFile) {
@@ -125,35 +111,21 @@ TEST(ConfigSchema, ADirectoryOrADeviceIsNotAConfigurationFile) {
 TEST(ConfigSchema, MalformedOverridesAndNonScalarKeysNameTheirSource) {
   Opts o;
   ConfigSchema s = MakeSchema(o);
-  try {
-    s.Set("orb.count=[", "--set");
-    FAIL() << "no error";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("--set"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("orb.count"), std::string::npos) << e.what();
-  }
-  for (const char* text : {"orb:\n  [a, b]: 3\n", "[a, b]:\n  count: 3\n"}) {
-    try {
-      s.LoadString(text, "cfg.yaml");
-      FAIL() << "no error for " << text;
-    } catch (const InputError& e) {
-      EXPECT_EQ(e.file(), "cfg.yaml") << e.what();
-      EXPECT_GT(e.line(), 0) << e.what();
-    }
-  }
+  test::ExpectInputError([&] { s.Set("orb.count=[", "--set"); }, "--set", 0,
+                         "--set: orb.count: malformed value '['");
+  test::ExpectInputError([&] { s.LoadString("orb:\n  [a, b]: 3\n", "cfg.yaml"); }, "cfg.yaml", 2,
+                         "key names must be plain words");
+  test::ExpectInputError([&] { s.LoadString("[a, b]:\n  count: 3\n", "cfg.yaml"); }, "cfg.yaml", 1,
+                         "section names must be plain words");
   EXPECT_EQ(o.count, 5);
 }
 
 TEST(ConfigSchema, AKeyWithNoValueIsReportedAtItsOwnLine) {
   Opts o;
   ConfigSchema s = MakeSchema(o);
-  try {
-    s.LoadString("orb:\n  scale: 1.5\n  count:\nmisc:\n  flag: true\n", "cfg.yaml");
-    FAIL() << "no error";
-  } catch (const InputError& e) {
-    EXPECT_EQ(e.line(), 3) << e.what();
-    EXPECT_NE(std::string(e.what()).find("orb.count"), std::string::npos) << e.what();
-  }
+  test::ExpectInputError(
+      [&] { s.LoadString("orb:\n  scale: 1.5\n  count:\nmisc:\n  flag: true\n", "cfg.yaml"); },
+      "cfg.yaml", 3, "orb.count");
 }
 
 }  // namespace
