@@ -75,6 +75,16 @@ bool SameMatrix(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   return a.rows() == b.rows() && a.cols() == b.cols() && (a.array() == b.array()).all();
 }
 
+// Every keyframe's bag of words and direct index, as stored.
+void ExpectSamePlaceVectors(const PlaceArchive& expected, const PlaceArchive& actual) {
+  ASSERT_EQ(actual.bows.size(), expected.bows.size());
+  for (const auto& [id, bow] : expected.bows)
+    EXPECT_EQ(actual.bows.at(id).words, bow.words) << id.value;
+  ASSERT_EQ(actual.features.size(), expected.features.size());
+  for (const auto& [id, features] : expected.features)
+    EXPECT_EQ(actual.features.at(id).nodes, features.nodes) << id.value;
+}
+
 // Field by field (not through the bytes, which a field dropped by both the writer and the reader
 // would not change): the keyframes' poses, keypoints, descriptors, depths, associations,
 // covisibility and spanning tree, and the points' positions, descriptors, viewing data,
@@ -159,12 +169,7 @@ TEST_F(MapArchiveTest, ReadingAndWritingAgainGivesTheSameBytes) {
   ExpectSameMap(original.map, archive.map);
   ASSERT_TRUE(original.place.has_value());
   EXPECT_EQ(archive.place->vocabulary_fingerprint, original.place->vocabulary_fingerprint);
-  EXPECT_EQ(archive.place->bows.size(), original.place->bows.size());
-  for (const auto& [id, bow] : original.place->bows)
-    EXPECT_EQ(archive.place->bows.at(id).words, bow.words) << id.value;
-  EXPECT_EQ(archive.place->features.size(), original.place->features.size());
-  for (const auto& [id, features] : original.place->features)
-    EXPECT_EQ(archive.place->features.at(id).nodes, features.nodes) << id.value;
+  ExpectSamePlaceVectors(*original.place, *archive.place);
   // Through a SlamSystem (RestoreMap, then ArchiveMap) as well.
   const Dataset data = OpenDataset(Kitti06());
   SlamSystem slam(data.rig, SmallOptions(), SlamMode::kStereo, test::ShippedVocabulary());
@@ -206,12 +211,7 @@ TEST_F(MapArchiveTest, AnotherVocabularyRecomputesTheDatabase) {
     const MapArchive again = slam.ArchiveMap();
     ASSERT_TRUE(again.place.has_value());
     EXPECT_NE(SerializeMapArchive(again), bytes);
-    ASSERT_EQ(again.place->bows.size(), archive.place->bows.size());
-    for (const auto& [id, bow] : archive.place->bows)
-      EXPECT_EQ(again.place->bows.at(id).words, bow.words) << id.value;
-    ASSERT_EQ(again.place->features.size(), archive.place->features.size());
-    for (const auto& [id, features] : archive.place->features)
-      EXPECT_EQ(again.place->features.at(id).nodes, features.nodes) << id.value;
+    ExpectSamePlaceVectors(*archive.place, *again.place);
   }
   archive.place->vocabulary_fingerprint ^= 1;  // as if made with another vocabulary
   SlamSystem slam(data.rig, SmallOptions(), SlamMode::kStereo, test::ShippedVocabulary());
