@@ -13,21 +13,12 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
-#include <string_view>
 #include <vector>
 
 #include "sim/sequence_writer.h"
+#include "slam/common/byte_codec.h"
 
 namespace pcr::driver::test_street {
-
-// 64-bit FNV-1a of `bytes`, continuing from `hash`.
-inline uint64_t Fnv1a(std::string_view bytes, uint64_t hash = 14695981039346656037ull) {
-  for (const char c : bytes) {
-    hash ^= static_cast<uint8_t>(c);
-    hash *= 1099511628211ull;
-  }
-  return hash;
-}
 
 // The cache folder's name: the route's parameters and a hash of everything the rendering depends
 // on that can change without a change here: every option (defaults included), and the sim
@@ -46,10 +37,13 @@ inline std::string LoopStreetCacheName(const sim::SynthOptions& o) {
   if (!library)
     throw std::runtime_error(std::string("cannot read ") + PCR_TEST_SIM_LIBRARY +
                              " (the sim library, for the loop street's cache name)");
-  const std::string library_bytes((std::istreambuf_iterator<char>(library)), {});
+  // The options' text, then the library's bytes, hashed as one.
+  std::string bytes = text.str();
+  bytes.append(std::istreambuf_iterator<char>(library), {});
   char hex[17];
   std::snprintf(hex, sizeof(hex), "%016llx",
-                static_cast<unsigned long long>(Fnv1a(library_bytes, Fnv1a(text.str()))));
+                static_cast<unsigned long long>(
+                    Fnv1a64(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size())));
   return std::string("loop_street_s7_200f_") + hex;
 }
 
