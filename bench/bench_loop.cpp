@@ -77,12 +77,11 @@
 // Work directory: seed S is looked up as WORK/loopS/ (the layout of `pcr_orb synth --out
 // WORK/loopS`: WORK/loopS/sequences/00, WORK/loopS/poses/00.txt) and as
 // WORK/loop_sS_vSPEED_mMOVERS_fFRAMES/ (_lLAPS appended for --laps other than synth's default); a
-// directory is reused when its synth_options.txt has the same frames, seed, movers, speed, laps
-// (renders without a laps line drove 1.15), route, parked cars, lead gap, image size, bounce and
-// noise (synth's defaults where a line is missing) and its times.txt all the frames; otherwise
-// the sequence is rendered into the second name (600 full-size frames: ~80 s on 2 cores, 7.7
-// frames/s, 2026-12-04).
-// `--work /tmp/lc` reuses /tmp/lc/loop1..3.
+// directory is reused when it holds a finished render of exactly the bench's options
+// (sim::HoldsSequence: its sequences/00/render_complete.txt, which renders before 2026-12-07 lack);
+// otherwise the sequence is rendered into the second name (600 full-size frames: ~80 s on 2
+// cores, 7.7 frames/s, 2026-12-04).
+// `--work /tmp/lc` reuses the renders there that hold the marker.
 //
 // Runtime (2 cores, 600 frames; 2026-12-04, seeds 1-4, 6-8): stereo sequential 60-95 s ON / 54-78 s
 // OFF, so the default 3 seeds take ~7 minutes (plus rendering of missing loops; with other work
@@ -103,7 +102,6 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
-#include <fstream>
 #include <iterator>
 #include <limits>
 #include <map>
@@ -204,54 +202,6 @@ std::string VocabularyPath(const std::string& path) {
 
 // --- Synthetic loops -------------------------------------------------------------------------
 
-// The laps of a render whose synth_options.txt has no laps line: it was written before the option
-// existed, when every loop drove 1.15 laps.
-constexpr double kLapsOfOldRenders = 1.15;
-
-// "key: value" lines of a synth_options.txt.
-std::map<std::string, std::string> ReadKeyValues(const fs::path& path) {
-  std::map<std::string, std::string> out;
-  std::ifstream in(path);
-  std::string line;
-  while (std::getline(in, line)) {
-    const size_t colon = line.find(':');
-    if (colon == std::string::npos) continue;
-    const size_t value = line.find_first_not_of(' ', colon + 1);
-    out[line.substr(0, colon)] = value == std::string::npos ? "" : line.substr(value);
-  }
-  return out;
-}
-
-size_t CountLines(const fs::path& path) {
-  std::ifstream in(path);
-  size_t n = 0;
-  for (std::string line; std::getline(in, line);) n += !line.empty();
-  return n;
-}
-
-// Whether out_dir holds the complete sequence 00 that WriteSequence(o, out_dir) would write.
-bool HoldsSequence(const fs::path& out_dir, const pcr::sim::SynthOptions& o) {
-  const fs::path seq = out_dir / "sequences" / o.sequence;
-  if (!fs::exists(seq / "times.txt") || !fs::exists(out_dir / "poses" / (o.sequence + ".txt")))
-    return false;
-  auto kv = ReadKeyValues(seq / "synth_options.txt");
-  auto number = [&](const std::string& key) {
-    return kv.count(key) ? std::strtod(kv[key].c_str(), nullptr) : kNaN;
-  };
-  // The settings the bench leaves at synth's defaults, which `pcr_orb synth` can change; a render
-  // without the line predates the setting (it had the default).
-  auto same = [&](const std::string& key, double value) {
-    return !kv.count(key) || number(key) == value;
-  };
-  return number("frames") == o.frames && number("seed") == static_cast<double>(o.seed) &&
-         number("num_movers") == o.num_movers && number("speed_mps") == o.speed_mps &&
-         (kv.count("laps") ? number("laps") : kLapsOfOldRenders) == o.laps &&
-         same("num_parked", o.num_parked) && same("lead_gap_m", o.lead_gap_m) &&
-         same("width_px", o.width_px) && same("height_px", o.height_px) &&
-         same("bounce_scale", o.bounce_scale) && same("noise_sigma", o.noise_sigma) &&
-         kv["route"] == "loop" && CountLines(seq / "times.txt") == static_cast<size_t>(o.frames);
-}
-
 // The sequence directory of a loop route: reused (see the file comment) or written.
 std::string LoopSequence(const Args& args, uint64_t seed) {
   pcr::sim::SynthOptions o;
@@ -265,11 +215,11 @@ std::string LoopSequence(const Args& args, uint64_t seed) {
       "{}/loop_s{}_v{}_m{}_f{}{}", args.work, seed, args.speed_mps, args.movers, args.frames,
       args.laps == pcr::sim::SynthOptions{}.laps ? "" : fmt::format("_l{}", args.laps));
   for (const fs::path& dir : {fs::path(fmt::format("{}/loop{}", args.work, seed)), written})
-    if (HoldsSequence(dir, o)) return (dir / "sequences" / o.sequence).string();
+    if (pcr::sim::HoldsSequence(o, dir.string())) return (dir / "sequences" / o.sequence).string();
   std::printf("writing %s (%d frames, ~0.15 s a frame on 2 cores) ...\n", written.c_str(),
               o.frames);
   std::fflush(stdout);
-  return pcr::sim::WriteSequence(o, written.string()).sequence_dir;
+  return pcr::sim::RenderOnce(o, written.string());
 }
 
 // A run of every frame of d in --mode. localise_in: run in that map in localisation mode

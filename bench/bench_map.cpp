@@ -29,7 +29,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <set>
 #include <string>
@@ -235,11 +234,7 @@ int main(int argc, char** argv) {
       o = o.Scaled(a.scale);
       const fs::path dir = fmt::format("{}/loop_s{}_f{}_v{}_m{}_x{}", a.work, o.seed, o.frames,
                                        o.speed_mps, o.num_movers, a.scale);
-      std::string sequence = (dir / "sequences" / o.sequence).string();
-      if (!fs::exists(dir / "complete")) {
-        sequence = pcr::sim::WriteSequence(o, dir.string()).sequence_dir;
-        std::ofstream(dir / "complete") << "ok\n";
-      }
+      const std::string sequence = pcr::sim::RenderOnce(o, dir.string());
       const pcr::Dataset d = pcr::OpenDataset(sequence);
       const size_t revisit = RevisitFrame(*d.ground_truth);
       if (revisit >= d.size()) {

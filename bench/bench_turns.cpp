@@ -16,7 +16,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 #include <string>
@@ -157,16 +156,11 @@ int main(int argc, char** argv) {
           const std::string name = fmt::format("loop s{} {}m/s {}mv", o.seed, speed, o.num_movers);
           const std::string dir =
               fmt::format("{}/loop_s{}_v{}_m{}_f{}", work, o.seed, speed, o.num_movers, frames);
-          // Every option set above is in the name; `complete` is written only after a whole
-          // render (a failed one still leaves times.txt for the frames it wrote).
-          std::string seq = dir + "/sequences/" + o.sequence;
-          if (!std::filesystem::exists(dir + "/complete")) {
+          if (!pcr::sim::HoldsSequence(o, dir)) {
             std::printf("writing %s ...\n", name.c_str());
             std::fflush(stdout);
-            seq = pcr::sim::WriteSequence(o, dir).sequence_dir;
-            std::ofstream(dir + "/complete") << "ok\n";
           }
-          cases.push_back({name, seq});
+          cases.push_back({name, pcr::sim::RenderOnce(o, dir)});
         }
   }
   std::printf("\n%-22s %6s | %7s %8s %9s | %7s %8s %9s | %9s\n", "sequence", "frames", "tracked",

@@ -52,9 +52,10 @@ void AppendPose(std::string* out, const SE3& pose) {
   *out += line;
 }
 
-std::string OptionsText(const SynthOptions& o) {
+// precision: significant digits of the real-valued options.
+std::string OptionsText(const SynthOptions& o, int precision = 10) {
   std::ostringstream s;
-  s.precision(10);
+  s.precision(precision);
   s << "frames: " << o.frames << "\nseed: " << o.seed << "\nnum_movers: " << o.num_movers
     << "\nnum_parked: " << o.num_parked << "\nlead_gap_m: " << o.lead_gap_m
     << "\nspeed_mps: " << o.speed_mps << "\nroute: " << RouteName(o.route) << "\nlaps: " << o.laps
@@ -62,9 +63,12 @@ std::string OptionsText(const SynthOptions& o) {
     << "\nfy: " << o.fy << "\ncx: " << o.cx << "\ncy: " << o.cy << "\nbaseline_m: " << o.baseline_m
     << "\nrate_hz: " << o.rate_hz << "\ncamera_height_m: " << o.camera_height_m
     << "\nbounce_scale: " << o.bounce_scale << "\nnoise_sigma: " << o.noise_sigma
-    << "\nsequence: " << o.sequence << "\n";
+    << "\nsequence: " << o.sequence << "\nwrite_right_instances: " << o.write_right_instances
+    << "\n";
   return s.str();
 }
+
+constexpr const char* kCompleteName = "render_complete.txt";
 
 }  // namespace
 
@@ -87,6 +91,11 @@ WriteSummary WriteSequence(const SynthOptions& options, const std::string& out_d
   const SyntheticWorld world(options);
   const fs::path seq = fs::path(out_dir) / "sequences" / options.sequence;
   const fs::path poses_dir = fs::path(out_dir) / "poses";
+  // A marker of an earlier render here no longer vouches for these files.
+  std::error_code ec;
+  // (A path through a file is reported by MakeDir below.)
+  if (!fs::remove(seq / kCompleteName, ec) && ec && ec != std::errc::not_a_directory)
+    throw InputError((seq / kCompleteName).string(), 0, "cannot remove: " + ec.message());
   const char* image_dirs[] = {"image_0", "image_1", "instance_0", "instance_1"};
   const int num_dirs = options.write_right_instances ? 4 : 3;
   for (int i = 0; i < num_dirs; ++i) MakeDir(seq / image_dirs[i]);
@@ -175,6 +184,7 @@ WriteSummary WriteSequence(const SynthOptions& options, const std::string& out_d
     throw;
   }
   write_text(n);
+  WriteText((seq / kCompleteName).string(), OptionsText(options, 17));  // last of all
   if (progress) progress(n, n);
 
   WriteSummary summary;
@@ -185,6 +195,29 @@ WriteSummary WriteSequence(const SynthOptions& options, const std::string& out_d
   for (const InstanceInfo& info : table.all()) summary.moving_instances += info.moving ? 1 : 0;
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
+}
+
+bool HoldsSequence(const SynthOptions& options, const std::string& out_dir) {
+  const fs::path seq = fs::path(out_dir) / "sequences" / options.sequence;
+  std::ifstream in(seq / kCompleteName, std::ios::binary);
+  if (!in) return false;
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str() == OptionsText(options, 17);
+}
+
+std::string RenderOnce(const SynthOptions& options, const std::string& out_dir,
+                       const ProgressCallback& progress) {
+  const fs::path seq = fs::path(out_dir) / "sequences" / options.sequence;
+  if (HoldsSequence(options, out_dir)) return seq.string();
+  // A render of other options (or an unfinished one) may hold more frames than this one writes.
+  std::error_code ec;
+  fs::remove_all(seq, ec);
+  if (ec) throw InputError(seq.string(), 0, "cannot remove the older render: " + ec.message());
+  const fs::path poses = fs::path(out_dir) / "poses" / (options.sequence + ".txt");
+  fs::remove(poses, ec);
+  if (ec) throw InputError(poses.string(), 0, "cannot remove the older render: " + ec.message());
+  return WriteSequence(options, out_dir, progress).sequence_dir;
 }
 
 }  // namespace pcr::sim

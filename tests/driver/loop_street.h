@@ -10,7 +10,6 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -20,26 +19,15 @@
 
 namespace pcr::driver::test_street {
 
-// The cache folder's name: the route's parameters and a hash of everything the rendering depends
-// on that can change without a change here: every option (defaults included), and the sim
-// library as built (PCR_TEST_SIM_LIBRARY: a change to the renderer's code changes it). A changed
-// world is so rendered afresh instead of read from an older cache.
-inline std::string LoopStreetCacheName(const sim::SynthOptions& o) {
-  std::ostringstream text;
-  text.precision(17);
-  text << o.frames << ' ' << o.seed << ' ' << o.num_movers << ' ' << o.num_parked << ' '
-       << o.speed_mps << ' ' << static_cast<int>(o.route) << ' ' << o.lead_gap_m << ' ' << o.laps
-       << ' ' << o.width_px << ' ' << o.height_px << ' ' << o.fx << ' ' << o.fy << ' ' << o.cx
-       << ' ' << o.cy << ' ' << o.baseline_m << ' ' << o.rate_hz << ' ' << o.camera_height_m << ' '
-       << o.bounce_scale << ' ' << o.noise_sigma << ' ' << o.sequence << ' '
-       << o.write_right_instances;
+// The cache folder's name: a hash of the sim library as built (PCR_TEST_SIM_LIBRARY), so that a
+// change to the renderer's code renders afresh instead of reading an older cache. The options are
+// checked by sim::HoldsSequence (render_complete.txt names every one of them).
+inline std::string LoopStreetCacheName() {
   std::ifstream library(PCR_TEST_SIM_LIBRARY, std::ios::binary);
   if (!library)
     throw std::runtime_error(std::string("cannot read ") + PCR_TEST_SIM_LIBRARY +
                              " (the sim library, for the loop street's cache name)");
-  // The options' text, then the library's bytes, hashed as one.
-  std::string bytes = text.str();
-  bytes.append(std::istreambuf_iterator<char>(library), {});
+  const std::string bytes{std::istreambuf_iterator<char>(library), {}};
   char hex[17];
   std::snprintf(hex, sizeof(hex), "%016llx",
                 static_cast<unsigned long long>(
@@ -63,14 +51,13 @@ inline const std::string& LoopStreet() {
     o.num_parked = 6;
     o.seed = 7;
     o = o.Scaled(0.5);
-    const std::string name = LoopStreetCacheName(o);
+    const std::string name = LoopStreetCacheName();
     const fs::path cache = fs::path(PCR_TEST_CACHE_DIR) / name;
     fs::create_directories(cache);
     const int lock = ::open((cache / "lock").c_str(), O_CREAT | O_RDWR, 0644);
     if (lock >= 0) ::flock(lock, LOCK_EX);
-    if (!fs::exists(cache / "complete")) {
-      sim::WriteSequence(o, cache.string());
-      std::ofstream(cache / "complete") << "ok\n";
+    if (!sim::HoldsSequence(o, cache.string())) {
+      sim::RenderOnce(o, cache.string());
       std::vector<fs::path> older;
       for (const fs::directory_entry& e : fs::directory_iterator(PCR_TEST_CACHE_DIR)) {
         const std::string other = e.path().filename().string();

@@ -145,6 +145,54 @@ TEST(SequenceWriterTest, SameSeedWritesIdenticalFiles) {
   for (const auto& dir : {a, b, c}) fs::remove_all(dir);
 }
 
+TEST(SequenceWriterTest, RenderOnceReusesOnlyAFinishedRenderOfTheSameOptions) {
+  SynthOptions options = SynthOptions{}.Scaled(0.25);
+  options.frames = 3;
+  const std::string out = test::MakeTempDir("sim_render_once");
+  const fs::path seq = fs::path(out) / "sequences" / "00";
+  EXPECT_FALSE(HoldsSequence(options, out));
+  EXPECT_EQ(RenderOnce(options, out), seq.string());
+  EXPECT_TRUE(HoldsSequence(options, out));
+  EXPECT_EQ(CountFiles(seq / "image_0"), 3u);
+
+  // Reused: a file put beside the render survives a second call.
+  const fs::path sentinel = seq / "sentinel";
+  std::ofstream(sentinel) << "x";
+  EXPECT_EQ(RenderOnce(options, out), seq.string());
+  EXPECT_TRUE(fs::exists(sentinel));
+
+  // Any option counts, to the last digit, and so does whether instance_1/ is written.
+  SynthOptions other = options;
+  other.noise_sigma += 1e-12;
+  EXPECT_FALSE(HoldsSequence(other, out));
+  other = options;
+  other.write_right_instances = false;
+  EXPECT_FALSE(HoldsSequence(other, out));
+  other = options;
+  other.frames = 2;
+  EXPECT_FALSE(HoldsSequence(other, out));
+
+  // Other options render afresh: the older frames and files go, the new render is held.
+  EXPECT_EQ(RenderOnce(other, out), seq.string());
+  EXPECT_FALSE(fs::exists(sentinel));
+  EXPECT_EQ(CountFiles(seq / "image_0"), 2u);
+  EXPECT_EQ(Lines(fs::path(out) / "poses" / "00.txt").size(), 2u);
+  EXPECT_TRUE(HoldsSequence(other, out));
+  EXPECT_FALSE(HoldsSequence(options, out));
+
+  // A render that did not finish has no marker; WriteSequence removes an older one first.
+  fs::remove(seq / "render_complete.txt");
+  EXPECT_FALSE(HoldsSequence(other, out));
+  EXPECT_EQ(RenderOnce(other, out), seq.string());
+  EXPECT_TRUE(HoldsSequence(other, out));
+  const fs::path blocked = seq / "image_1";  // a file where a folder goes: the render fails
+  fs::remove_all(blocked);
+  std::ofstream(blocked) << "x";
+  EXPECT_THROW(WriteSequence(other, out), InputError);
+  EXPECT_FALSE(HoldsSequence(other, out));
+  fs::remove_all(out);
+}
+
 TEST(SequenceWriterTest, UnwritableOutputThrowsInputError) {
   const std::string dir = test::MakeTempDir("sim_writer_bad");
   const std::string file = dir + "/not_a_dir";
