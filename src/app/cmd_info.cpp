@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <map>
 #include <string>
 
@@ -24,10 +23,7 @@ namespace {
 void PrintOxtsAccuracy(const Dataset& dataset, RawTruth truth) {
   if (dataset.left_paths.empty()) return;
   // The records of the images' own frame numbers (a clip may start after 0 or have gaps).
-  std::vector<int64_t> numbers;
-  (void)ListFrameFiles(std::filesystem::path(dataset.left_paths.front()).parent_path().string(),
-                       ".png", &numbers);
-  const std::vector<OxtsPacket> packets = ReadOxtsPackets(dataset.root, numbers);
+  const std::vector<OxtsPacket> packets = ReadOxtsPackets(dataset.root, dataset.frame_numbers);
   if (packets.empty()) return;
   double pos_lo = INFINITY, pos_hi = -INFINITY, vel_lo = INFINITY, vel_hi = -INFINITY;
   for (const OxtsPacket& p : packets) {

@@ -33,6 +33,9 @@ struct Dataset {
   std::string root;  // the directory that was opened, absolute and lexically normal
   StereoRig rig;     // rectified left camera; baseline_m = 0 when there is no right image stream
   std::vector<int64_t> t_ns;  // per frame, strictly increasing
+  // per frame, the number in its image's name (000042.png: 42), strictly increasing; the line of
+  // times.txt, the poses and the OXTS record it was paired with
+  std::vector<int64_t> frame_numbers;
   // world_from_cam0 (rectified camera 0) per frame, t_ns and frame_index set; frame 0 is the
   // identity for raw drives (OXTS), as in the KITTI odometry pose files.
   std::optional<Trajectory> ground_truth;

@@ -40,6 +40,7 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
   RequireLines(times.size(), numbers, dataset.left_paths, times_path, "timestamps",
                std::to_string(dataset.size()) + " images in " + left_dir_name);
   for (const int64_t number : numbers) dataset.t_ns.push_back(times[number]);
+  dataset.frame_numbers = numbers;
 
   const CalibFile calib = CalibFile::Read((dir / "calib.txt").string());
   SetRigFromProjections(calib.Matrix3x4(color ? "P2" : "P0"), calib.Matrix3x4(color ? "P3" : "P1"),

@@ -264,6 +264,7 @@ Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth t
                   (dir / "image_02" / "data").string(), color);
 
   dataset.t_ns = ReadTimestampsFor(left_dir / "timestamps.txt", numbers, dataset.left_paths);
+  dataset.frame_numbers = numbers;
 
   const CalibFile cam_to_cam = CalibFile::Read((calib_dir / "calib_cam_to_cam.txt").string());
   SetRigFromProjections(cam_to_cam.Matrix3x4(color ? "P_rect_02" : "P_rect_00"),

@@ -192,6 +192,7 @@ TEST_F(SyntheticOdometry, FramesArePairedByTheNumberInTheImageName) {
   Dataset d = OpenKittiOdometry(seq_);
   ASSERT_EQ(d.size(), 2u);
   EXPECT_EQ(d.t_ns, (std::vector<int64_t>{0, 200'000'000}));
+  EXPECT_EQ(d.frame_numbers, (std::vector<int64_t>{0, 2}));
   ASSERT_TRUE(d.ground_truth.has_value());
   ASSERT_EQ(d.ground_truth->size(), 2u);
   EXPECT_DOUBLE_EQ((*d.ground_truth)[1].world_from_cam.translation().z(), 2.0);
@@ -205,6 +206,7 @@ TEST_F(SyntheticOdometry, FramesArePairedByTheNumberInTheImageName) {
   fs::remove(seq_ + "/image_1/000000.png");
   d = OpenKittiOdometry(seq_);
   EXPECT_EQ(d.t_ns, (std::vector<int64_t>{100'000'000, 200'000'000}));
+  EXPECT_EQ(d.frame_numbers, (std::vector<int64_t>{1, 2}));
   EXPECT_DOUBLE_EQ((*d.ground_truth)[0].world_from_cam.translation().z(), 1.0);
   EXPECT_DOUBLE_EQ((*d.ground_truth)[1].world_from_cam.translation().z(), 2.0);
   EXPECT_EQ((*d.ground_truth)[0].frame_index, 0);

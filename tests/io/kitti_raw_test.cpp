@@ -274,6 +274,7 @@ TEST_F(SyntheticRaw, FramesArePairedByTheNumberInTheImageName) {
   ASSERT_EQ(d.size(), 2u);
   const int64_t t0 = (k20110926T130432 * 1000 + 0) * 1'000'000;  // 13:04:32.0
   EXPECT_EQ(d.t_ns, (std::vector<int64_t>{t0 + 100'000'000, t0 + 200'000'000}));
+  EXPECT_EQ(d.frame_numbers, (std::vector<int64_t>{1, 2}));
   EXPECT_EQ(d.LoadLeft(0).at<uint8_t>(0, 0), 1);
   ASSERT_TRUE(d.ground_truth.has_value());
   ASSERT_EQ(d.ground_truth->size(), 2u);
