@@ -64,7 +64,8 @@ Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
   } else if (o.segmenter == "truth") {
     TruthSegmenterOptions truth;
     truth.miss_rate = o.truth_miss_rate;
-    s.owned.push_back(std::make_unique<TruthSegmenter>(dataset.root, truth));
+    s.owned.push_back(std::make_unique<TruthSegmenter>(dataset.root, truth, DynamicClassPolicy{},
+                                                       dataset.frame_numbers));
     s.set.fast = s.owned.back().get();
   } else if (o.segmenter != "none") {
     throw ConfigError("--segmenter must be yolo, truth or none, not '" + o.segmenter + "'");

@@ -26,7 +26,14 @@ LabelTruth::LabelTruth(const Dataset& dataset, const std::string& labels_path,
                       "): the world motion of the labelled objects comes from them");
   }
   const TrackingLabels labels = ReadTrackingLabels(labels_path);
-  motion_ = ComputeTrackMotion(labels, *dataset.ground_truth);
+  // The labels' frames are the images' numbers, which a clip that starts after 0 or has gaps
+  // does not share with its frame indices.
+  const auto number_of = [&](size_t i) {
+    return dataset.frame_numbers.empty() ? static_cast<int64_t>(i) : dataset.frame_numbers.at(i);
+  };
+  Trajectory poses_by_number = *dataset.ground_truth;
+  for (size_t i = 0; i < poses_by_number.size(); ++i) poses_by_number[i].frame_index = number_of(i);
+  motion_ = ComputeTrackMotion(labels, poses_by_number);
   const PinholeCamera& cam = dataset.rig.left;
   Eigen::Matrix<double, 3, 4> p = Eigen::Matrix<double, 3, 4>::Zero();
   p(0, 0) = cam.fx;
@@ -34,9 +41,11 @@ LabelTruth::LabelTruth(const Dataset& dataset, const std::string& labels_path,
   p(0, 2) = cam.cx;
   p(1, 2) = cam.cy;
   p(2, 2) = 1.0;
-  boxes_.resize(labels.frames.size());
-  for (size_t f = 0; f < labels.frames.size(); ++f) {
-    for (const TrackedObject& object : labels.frames[f]) {
+  boxes_.resize(dataset.ground_truth->size());
+  for (size_t i = 0; i < boxes_.size(); ++i) {
+    const int64_t f = number_of(i);
+    if (f >= static_cast<int64_t>(labels.frames.size())) continue;
+    for (const TrackedObject& object : labels.frames[static_cast<size_t>(f)]) {
       if (object.IsDontCare()) continue;
       const ProjectedBox box = ProjectBox(object, p, cam.width_px, cam.height_px);
       if (box.empty()) continue;
@@ -47,7 +56,7 @@ LabelTruth::LabelTruth(const Dataset& dataset, const std::string& labels_path,
           it != motion_.end() && IsMovingAt(it->second, static_cast<int>(f), moving_threshold_mps_);
       for (const Eigen::Vector2d& v : box.polygon)
         fb.polygon.emplace_back(static_cast<float>(v.x()), static_cast<float>(v.y()));
-      boxes_[f].push_back(std::move(fb));
+      boxes_[i].push_back(std::move(fb));
     }
   }
 }

@@ -19,7 +19,8 @@ enum class LabelTruthKind : uint8_t { kStatic, kMoving, kParked };
 
 class LabelTruth {
  public:
-  // labels_path: a KITTI tracking label_02 file whose frame k is dataset frame k. Throws
+  // labels_path: a KITTI tracking label_02 file whose frame k is the image numbered k
+  // (Dataset::frame_numbers; frame indices below are the dataset's). Throws
   // InputError for a bad file, ConfigError when the dataset has no ground-truth poses (the
   // world motion of the tracks needs them).
   LabelTruth(const Dataset& dataset, const std::string& labels_path,
@@ -39,7 +40,7 @@ class LabelTruth {
     bool moving = false;
     std::vector<cv::Point2f> polygon;
   };
-  std::vector<std::vector<FrameBox>> boxes_;  // per frame
+  std::vector<std::vector<FrameBox>> boxes_;  // per frame index
   std::map<int, TrackMotion> motion_;
   double moving_threshold_mps_;
 };

@@ -26,10 +26,12 @@ bool TruthSegmenterOptions::IsValid(std::string* why) const {
 }
 
 TruthSegmenter::TruthSegmenter(const std::string& sequence_dir,
-                               const TruthSegmenterOptions& options, DynamicClassPolicy classes)
+                               const TruthSegmenterOptions& options, DynamicClassPolicy classes,
+                               std::vector<int64_t> frame_numbers)
     : instance_dir_(sequence_dir + "/instance_0"),
       options_(options),
       classes_(std::move(classes)),
+      frame_numbers_(std::move(frame_numbers)),
       rng_(options.seed) {
   std::string why;
   if (!options_.IsValid(&why)) throw ConfigError(why);
@@ -54,8 +56,10 @@ cv::Mat LoadInstanceIds(const std::string& path, cv::Size frame_size) {
 }
 
 Segmentation TruthSegmenter::Segment(const cv::Mat& image) {
+  const int64_t number =
+      frame_numbers_.empty() ? static_cast<int64_t>(frame_) : frame_numbers_.at(frame_);
   char name[32];
-  std::snprintf(name, sizeof(name), "/%06zu.png", frame_);
+  std::snprintf(name, sizeof(name), "/%06lld.png", static_cast<long long>(number));
   const cv::Mat ids = LoadInstanceIds(instance_dir_ + name, image.size());
 
   // Pixel masks of every dynamic-class instance present in the frame.

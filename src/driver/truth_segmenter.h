@@ -8,6 +8,7 @@
 #include <opencv2/core.hpp>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "sim/instances.h"
 #include "slam/dynamic/segmenter.h"
@@ -34,10 +35,12 @@ class TruthSegmenter : public Segmenter {
  public:
   // sequence_dir: a synthetic sequence (with instance_0/ and instances.txt). Throws InputError
   // when they are missing or unreadable, ConfigError for invalid options.
+  // frame_numbers: per frame index, the number of its image (Dataset::frame_numbers; a clip may
+  // start after 0 or have gaps); empty: the index is the number.
   TruthSegmenter(const std::string& sequence_dir, const TruthSegmenterOptions& options,
-                 DynamicClassPolicy classes = {});
+                 DynamicClassPolicy classes = {}, std::vector<int64_t> frame_numbers = {});
 
-  // The frame whose ground truth the next Segment() call returns.
+  // The frame (index) whose ground truth the next Segment() call returns.
   void SetFrame(size_t frame_index) { frame_ = frame_index; }
   // `image` only gives the expected size (its content is not used).
   Segmentation Segment(const cv::Mat& image) override;
@@ -55,6 +58,7 @@ class TruthSegmenter : public Segmenter {
   TruthSegmenterOptions options_;
   DynamicClassPolicy classes_;
   sim::InstanceTable table_;
+  std::vector<int64_t> frame_numbers_;
   size_t frame_ = 0;
   std::mt19937_64 rng_;
 };

@@ -118,6 +118,33 @@ TEST(FilterAudit, InstanceImagesOfTheWrongTypeOrSizeAreErrorsNamingTheFile) {
   }
 }
 
+// A clip without its first image: frame index k is scored against the instance image of the
+// image's own number, not against instance_0/ image k (here a wrong one, which would be an error).
+TEST(FilterAudit, AClipThatStartsAfterFrameZeroReadsItsOwnInstanceImages) {
+  sim::SynthOptions o = sim::SynthOptions{}.Scaled(0.5);
+  o.frames = 3;
+  o.num_movers = 2;
+  o.num_parked = 2;
+  o.seed = 7;
+  const std::string seq = sim::WriteSequence(o, test::MakeTempDir("pcr_audit_clip")).sequence_dir;
+  std::filesystem::remove(seq + "/image_0/000000.png");
+  std::filesystem::remove(seq + "/image_1/000000.png");
+  const std::string unused = seq + "/instance_0/000000.png";
+  ASSERT_TRUE(cv::imwrite(unused, cv::Mat(4, 4, CV_8UC1, cv::Scalar(0))));
+  const Dataset dataset = OpenDataset(seq);
+  ASSERT_EQ(dataset.frame_numbers, (std::vector<int64_t>{1, 2}));
+  RunConfig config;
+  config.dynamic.filter = true;
+  for (const char* segmenter : {"none", "truth"}) {
+    config.dynamic.segmenter = segmenter;
+    const RunSummary s = RunDataset(dataset, config, FrameRange{0, 2}, Sequential()).summary;
+    EXPECT_EQ(s.error, "") << segmenter;
+    EXPECT_EQ(s.frames_tracked, 2u) << segmenter;
+    ASSERT_TRUE(s.filter_confusion.has_value()) << segmenter;
+    EXPECT_GT(s.filter_confusion->Total(), 0) << segmenter;
+  }
+}
+
 // Options that would do nothing are refused rather than ignored.
 TEST(FilterAudit, OptionsThatWouldDoNothingAreRefused) {
   const Dataset dataset = OpenDataset(test_street::TrafficStreet());

@@ -46,6 +46,32 @@ TEST(LabelTruth, CyclistMovesParkedVanStandsBackgroundIsStatic) {
   EXPECT_EQ(truth.TrackAt(10000, keypoints[0].pt), -1);
 }
 
+// Drive 0005 from image 40 on (as if images 0-39 were not there): frame index 5 is image 45, whose
+// labels are those of label frame 45.
+TEST(LabelTruth, AClipThatStartsLaterUsesTheLabelsOfItsImagesNumbers) {
+  const Dataset whole = OpenDataset(Drive0005());
+  ASSERT_GT(whole.size(), 50u);
+  Dataset clip = whole;
+  const auto drop = [](auto* v) { v->erase(v->begin(), v->begin() + 40); };
+  drop(&clip.left_paths);
+  drop(&clip.right_paths);
+  drop(&clip.t_ns);
+  drop(&clip.frame_numbers);
+  ASSERT_TRUE(clip.ground_truth.has_value());
+  drop(&*clip.ground_truth);
+  for (size_t i = 0; i < clip.ground_truth->size(); ++i) (*clip.ground_truth)[i].frame_index = i;
+  ASSERT_EQ(clip.frame_numbers.front(), 40);
+  const LabelTruth truth(clip, Labels0000());
+  const std::vector<cv::KeyPoint> keypoints = {At(632, 258), At(814, 192), At(100, 30)};
+  const std::vector<LabelTruthKind> kinds = truth.Classify(5, keypoints);
+  ASSERT_EQ(kinds.size(), keypoints.size());
+  EXPECT_EQ(kinds[0], LabelTruthKind::kMoving);
+  EXPECT_EQ(truth.TrackAt(5, keypoints[0].pt), 1);
+  EXPECT_EQ(kinds[1], LabelTruthKind::kParked);
+  EXPECT_EQ(truth.TrackAt(5, keypoints[1].pt), 3);
+  EXPECT_EQ(kinds[2], LabelTruthKind::kStatic);
+}
+
 TEST(LabelTruth, NeedsGroundTruthPoses) {
   Dataset dataset = OpenDataset(Drive0005());
   dataset.ground_truth.reset();

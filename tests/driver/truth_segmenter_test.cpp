@@ -110,6 +110,24 @@ TEST(TruthSegmenter, MissRateMatchesOverManyDraws) {
   EXPECT_NEAR(kept / (rounds * n_all), 0.8, 0.06);
 }
 
+// Frame index 0 of a clip whose first image is number 2 gets image 2's truth.
+TEST(TruthSegmenter, FrameIndicesMapToTheImagesOwnNumbers) {
+  TruthSegmenter by_index(SequenceDir(), {}), by_number(SequenceDir(), {}, {}, {2});
+  const cv::Mat image(
+      cv::imread(SequenceDir() + "/instance_0/000002.png", cv::IMREAD_UNCHANGED).size(), CV_8UC1);
+  const Segmentation expected = by_index.SegmentFrame(2, image);
+  const Segmentation got = by_number.SegmentFrame(0, image);
+  ASSERT_FALSE(expected.instances.empty());
+  ASSERT_EQ(got.instances.size(), expected.instances.size());
+  EXPECT_EQ(cv::norm(got.instance_map, expected.instance_map, cv::NORM_INF), 0.0);
+  // Image 0's truth differs, so the check above can tell the two apart.
+  EXPECT_GT(
+      cv::norm(by_index.SegmentFrame(0, image).instance_map, expected.instance_map, cv::NORM_INF),
+      0.0);
+  // An index beyond the numbers is an error, not another frame's truth.
+  EXPECT_THROW(by_number.SegmentFrame(1, image), std::out_of_range);
+}
+
 TEST(TruthSegmenter, BadInputIsNamed) {
   EXPECT_THROW(TruthSegmenter("/nonexistent/seq", {}), InputError);
   TruthSegmenterOptions bad;
