@@ -17,6 +17,17 @@
 namespace pcr::driver {
 namespace {
 
+// A small synthetic street (half size, 3 frames, 2 movers, 2 parked cars) written into a new
+// temporary folder named after `name`; returns its sequence folder.
+std::string SmallStreet(const std::string& name) {
+  sim::SynthOptions o = sim::SynthOptions{}.Scaled(0.5);
+  o.frames = 3;
+  o.num_movers = 2;
+  o.num_parked = 2;
+  o.seed = 7;
+  return sim::WriteSequence(o, test::MakeTempDir(name)).sequence_dir;
+}
+
 DriverOptions Sequential() {
   DriverOptions o;
   o.pipeline.policy = graph::Policy::kSequential;
@@ -91,12 +102,7 @@ TEST(FilterAudit, BadSegmenterSetupsAreClearErrorsBeforeAnyFrameRuns) {
 // The audit reads the instance images as 16-bit ids: an 8-bit one (read out of bounds) or one of
 // another size is an error naming the file, not garbage truth.
 TEST(FilterAudit, InstanceImagesOfTheWrongTypeOrSizeAreErrorsNamingTheFile) {
-  sim::SynthOptions o = sim::SynthOptions{}.Scaled(0.5);
-  o.frames = 3;
-  o.num_movers = 2;
-  o.num_parked = 2;
-  o.seed = 7;
-  const std::string seq = sim::WriteSequence(o, test::MakeTempDir("pcr_audit")).sequence_dir;
+  const std::string seq = SmallStreet("pcr_audit");
   const std::string bad = seq + "/instance_0/000001.png";
   RunConfig config;
   config.dynamic.filter = true;  // segmenter none: only the audit reads the instance images
@@ -121,12 +127,7 @@ TEST(FilterAudit, InstanceImagesOfTheWrongTypeOrSizeAreErrorsNamingTheFile) {
 // A clip without its first image: frame index k is scored against the instance image of the
 // image's own number, not against instance_0/ image k (here a wrong one, which would be an error).
 TEST(FilterAudit, AClipThatStartsAfterFrameZeroReadsItsOwnInstanceImages) {
-  sim::SynthOptions o = sim::SynthOptions{}.Scaled(0.5);
-  o.frames = 3;
-  o.num_movers = 2;
-  o.num_parked = 2;
-  o.seed = 7;
-  const std::string seq = sim::WriteSequence(o, test::MakeTempDir("pcr_audit_clip")).sequence_dir;
+  const std::string seq = SmallStreet("pcr_audit_clip");
   std::filesystem::remove(seq + "/image_0/000000.png");
   std::filesystem::remove(seq + "/image_1/000000.png");
   const std::string unused = seq + "/instance_0/000000.png";
