@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -122,8 +123,14 @@ void ConfigSchema::LoadString(const std::string& text, const std::string& source
 void ConfigSchema::Apply(const YAML::Node& root, const std::string& source) {
   std::set<std::string> sections;
   for (const Field& f : fields_) sections.insert(f.section);
+  // yaml-cpp keeps every pair of a map, a repeated key too: the second one would silently win.
+  std::map<std::string, int> section_lines;
   for (const auto& sec : root) {
     const std::string section = NameOf(sec.first, source, "section");
+    if (const auto [it, first] = section_lines.emplace(section, LineOf(sec.first)); !first)
+      throw InputError(source, LineOf(sec.first),
+                       "section '" + section + "' given twice (first at line " +
+                           std::to_string(it->second) + ")");
     if (!sections.count(section)) {
       std::string known;
       for (const auto& s : sections) known += (known.empty() ? "" : ", ") + s;
@@ -133,8 +140,13 @@ void ConfigSchema::Apply(const YAML::Node& root, const std::string& source) {
     if (sec.second.IsNull()) continue;
     if (!sec.second.IsMap())
       throw InputError(source, LineOf(sec.second), "section '" + section + "' must be a map");
+    std::map<std::string, int> key_lines;
     for (const auto& kv : sec.second) {
       const std::string key = NameOf(kv.first, source, "key");
+      if (const auto [it, first] = key_lines.emplace(key, LineOf(kv.first)); !first)
+        throw InputError(source, LineOf(kv.first),
+                         "key '" + section + "." + key + "' given twice (first at line " +
+                             std::to_string(it->second) + ")");
       const Field* f = Find(section, key);
       if (!f)
         throw InputError(source, LineOf(kv.first), "unknown key '" + section + "." + key + "'");

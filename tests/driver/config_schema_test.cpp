@@ -128,5 +128,32 @@ TEST(ConfigSchema, AKeyWithNoValueIsReportedAtItsOwnLine) {
       "cfg.yaml", 3, "orb.count");
 }
 
+// yaml-cpp keeps both pairs of a repeated key, so the second silently won: a repeated key or
+// section is an error at the second one's line, naming it and the first one's line.
+TEST(ConfigSchema, ARepeatedKeyOrSectionIsAnErrorAtItsSecondLine) {
+  Opts o;
+  ConfigSchema s = MakeSchema(o);
+  test::ExpectInputError([&] { s.LoadString("orb:\n  count: 9\n  count: 3\n", "cfg.yaml"); },
+                         "cfg.yaml", 3,
+                         "cfg.yaml:3: key 'orb.count' given twice (first at line 2)");
+  test::ExpectInputError([&] { s.LoadString("orb: {count: 9, scale: 1.5, count: 3}\n", "f.yaml"); },
+                         "f.yaml", 1, "key 'orb.count' given twice");
+  test::ExpectInputError(
+      [&] {
+        s.LoadString("orb:\n  count: 9\nmisc:\n  flag: true\norb:\n  scale: 1.5\n", "cfg.yaml");
+      },
+      "cfg.yaml", 5, "cfg.yaml:5: section 'orb' given twice (first at line 1)");
+  EXPECT_EQ(o.count, 5);  // nothing applied
+  EXPECT_DOUBLE_EQ(o.scale, 1.2);
+  // The same key in two sections is two keys.
+  ConfigSchema t;
+  int a = 0, b = 0;
+  t.Add("one", "n", &a);
+  t.Add("two", "n", &b);
+  t.LoadString("one:\n  n: 1\ntwo:\n  n: 2\n", "ok.yaml");
+  EXPECT_EQ(a, 1);
+  EXPECT_EQ(b, 2);
+}
+
 }  // namespace
 }  // namespace pcr::driver
