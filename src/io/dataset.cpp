@@ -122,6 +122,15 @@ std::string NormalDirectoryPath(const std::string& dir) {
   return path.string();
 }
 
+std::string FirstDirectoryWhere(const std::string& normal_dir,
+                                const std::function<bool(const std::string&)>& holds) {
+  if (holds(normal_dir)) return normal_dir;
+  std::error_code ec;
+  const fs::path target = fs::canonical(normal_dir, ec);
+  if (!ec && target.string() != normal_dir && holds(target.string())) return target.string();
+  return normal_dir;
+}
+
 std::vector<std::string> ListFrameFiles(const std::string& dir, const std::string& extension,
                                         std::vector<int64_t>* numbers) {
   std::vector<std::pair<int64_t, std::string>> frames;

@@ -4,6 +4,7 @@
 // truncated or unreadable file throws pcr::InputError naming it.
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <opencv2/core/mat.hpp>
 #include <optional>
 #include <string>
@@ -83,6 +84,13 @@ std::vector<std::string> ListFiles(const std::string& dir, const std::string& ex
 // `dir` made absolute and lexically normal, without a trailing separator or "." ("07", "./07/.",
 // "seq/07/" -> "<cwd>/.../07"), so that its file name and parents are those of the directory.
 std::string NormalDirectoryPath(const std::string& dir);
+
+// Where the files beside a dataset directory (the poses two levels up, a raw drive's calibration
+// one level up) are looked for: `normal_dir` as given, then, when it is or passes through a
+// symbolic link, the directory it resolves to. Returns the first of these for which `holds`
+// (called with the candidate directory) is true, else `normal_dir`.
+std::string FirstDirectoryWhere(const std::string& normal_dir,
+                                const std::function<bool(const std::string&)>& holds);
 
 // The files of `dir` ending with `extension` whose names are frame numbers ("000042.png": 42),
 // sorted by number; *numbers gets the numbers. Throws InputError naming a file whose name before

@@ -46,7 +46,14 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
   SetRigFromProjections(calib.Matrix3x4(color ? "P2" : "P0"), calib.Matrix3x4(color ? "P3" : "P1"),
                         calib.name(), &dataset);
 
-  const fs::path poses_path = dir.parent_path().parent_path() / "poses" / (dataset.name + ".txt");
+  // poses/NN.txt beside sequences/ (of the link's target where the sequence is a link)
+  const auto poses_of = [&](const fs::path& d) {
+    return d.parent_path().parent_path() / "poses" / (d.filename().string() + ".txt");
+  };
+  const fs::path poses_path = poses_of(FirstDirectoryWhere(dir.string(), [&](const std::string& d) {
+    std::error_code e;
+    return fs::is_regular_file(poses_of(d), e);
+  }));
   if (fs::is_regular_file(poses_path, ec)) {
     const Trajectory poses = ReadKittiTrajectory(poses_path.string());
     RequireLines(poses.size(), numbers, dataset.left_paths, poses_path.string(), "poses",

@@ -244,7 +244,12 @@ Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth t
   std::error_code ec;
   if (!fs::is_directory(drive_dir, ec)) throw InputError(drive_dir, 0, "drive directory not found");
   const fs::path dir = NormalDirectoryPath(drive_dir);
-  const fs::path calib_dir = dir.parent_path();
+  // The date folder's calibration (of the link's target where the drive is a link).
+  const fs::path calib_dir =
+      fs::path(FirstDirectoryWhere(dir.string(), [](const std::string& d) {
+        std::error_code e;
+        return fs::is_regular_file(fs::path(d).parent_path() / "calib_cam_to_cam.txt", e);
+      })).parent_path();
 
   Dataset dataset;
   dataset.root = dir.string();

@@ -222,6 +222,27 @@ TEST_F(SyntheticOdometry, FramesArePairedByTheNumberInTheImageName) {
                    "4 poses but 3 frames: none for frame 7 (000007.png)");
 }
 
+// A sequence reached through a symbolic link (named like it or not) finds the poses beside its
+// target; a link tree with poses of its own uses those.
+TEST_F(SyntheticOdometry, ASymlinkedSequenceKeepsItsGroundTruth) {
+  const std::string links = test::MakeTempDir("pcr_odom_links");
+  fs::create_symlink(seq_, links + "/03");
+  fs::create_symlink(seq_, links + "/mine");
+  for (const std::string& link : {links + "/03", links + "/mine"}) {
+    const Dataset d = OpenKittiOdometry(link);
+    ASSERT_TRUE(d.ground_truth.has_value()) << link;
+    EXPECT_EQ(d.ground_truth_source, root_ + "/poses/03.txt") << link;
+    EXPECT_DOUBLE_EQ((*d.ground_truth)[2].world_from_cam.translation().z(), 2.0);
+  }
+  fs::create_directories(links + "/tree/sequences");
+  fs::create_symlink(seq_, links + "/tree/sequences/03");
+  fs::create_directories(links + "/tree/poses");
+  fs::copy_file(root_ + "/poses/03.txt", links + "/tree/poses/03.txt");
+  EXPECT_EQ(OpenKittiOdometry(links + "/tree/sequences/03").ground_truth_source,
+            links + "/tree/poses/03.txt");
+  fs::remove_all(links);
+}
+
 TEST_F(SyntheticOdometry, RightImagesMustCarryTheLeftNames) {
   // As many right images as left ones, but one of another frame: not paired silently.
   fs::rename(seq_ + "/image_1/000001.png", seq_ + "/image_1/000004.png");

@@ -294,6 +294,18 @@ TEST_F(SyntheticRaw, FramesArePairedByTheNumberInTheImageName) {
                    "4 timestamps but 2 images: none for frame 9 (0000000009.png)");
 }
 
+// A drive reached through a symbolic link finds its date folder's calibration beside the target.
+TEST_F(SyntheticRaw, ASymlinkedDriveFindsItsCalibration) {
+  const std::string links = test::MakeTempDir("pcr_raw_links");
+  fs::create_symlink(drive_, links + "/drive");
+  const Dataset via_link = OpenKittiRaw(links + "/drive");
+  const Dataset direct = OpenKittiRaw(drive_);
+  EXPECT_EQ(via_link.rig.left.fx, direct.rig.left.fx);
+  EXPECT_EQ(via_link.rig.baseline_m, direct.rig.baseline_m);
+  EXPECT_EQ(via_link.ground_truth.has_value(), direct.ground_truth.has_value());
+  fs::remove_all(links);
+}
+
 TEST_F(SyntheticRaw, RightImagesMustCarryTheLeftNames) {
   fs::rename(drive_ + "/image_01/data/0000000001.png", drive_ + "/image_01/data/0000000003.png");
   ExpectInputError([&] { OpenKittiRaw(drive_); }, "image_01/data", 0, "no 0000000001.png");
