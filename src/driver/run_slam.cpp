@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <charconv>
 #include <filesystem>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -48,13 +49,19 @@ FrameRange FrameRange::ParseText(const std::string& text) {
   if (colon == std::string::npos) throw ConfigError("--frames '" + text + "' is not A:B");
   // A whole frame number or nothing: no sign, no space, no fraction, no exponent, no suffix
   // (std::stoul took "1e3" as 1, "2.9" as 2 and "-1" as a huge number).
+  // Frame numbers go up to INT64_MAX (api::Source holds them as int64_t).
+  constexpr size_t kMaxFrame = static_cast<size_t>(std::numeric_limits<int64_t>::max());
   auto number = [&text](const std::string& part, size_t* value) {
     if (part.empty()) return;
     const char* end = part.data() + part.size();
     const auto [ptr, ec] = std::from_chars(part.data(), end, *value);
-    if (ec != std::errc() || ptr != end)
+    if ((ec != std::errc() && ec != std::errc::result_out_of_range) || ptr != end)
       throw ConfigError("--frames '" + text + "': '" + part +
                         "' is not a frame number (A and B must be whole numbers >= 0)");
+    if (ec == std::errc::result_out_of_range || *value > kMaxFrame)
+      throw ConfigError("--frames '" + text + "': '" + part +
+                        "' is out of range (frame numbers go up to " + std::to_string(kMaxFrame) +
+                        ")");
   };
   const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
   number(a, &r.first);
