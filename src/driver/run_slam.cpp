@@ -159,6 +159,26 @@ void CheckOutputDirectory(const std::string& out_dir, const std::string& what) {
     throw InputError(out_dir, 0, cannot + p.string() + " is not writable");
 }
 
+const std::vector<std::string>& RunOutputNames() {
+  static const std::vector<std::string> names = {
+      "trajectory.txt",       "trajectory_tum.txt", "ground_truth.txt", "config.yaml", "stats.json",
+      "filter_decisions.txt", "evaluation.json",    "trajectory.png",   "trace.json",  "map.ply",
+      "map_removed.ply",      "keyframes.txt",      "map.png",          "timing.png"};
+  return names;
+}
+
+namespace {
+
+// Whether directories a and b are the same: the same path once absolute and normal, or, where
+// both exist, the same directory (through a symbolic link).
+bool SameDirectory(const std::string& a, const std::string& b) {
+  if (NormalDirectoryPath(a) == NormalDirectoryPath(b)) return true;
+  std::error_code ec;
+  return std::filesystem::equivalent(a, b, ec) && !ec;
+}
+
+}  // namespace
+
 void CheckOutputFile(const std::string& path, const std::string& what,
                      const std::string& made_before) {
   namespace fs = std::filesystem;
@@ -167,8 +187,14 @@ void CheckOutputFile(const std::string& path, const std::string& what,
   if (fs::is_directory(p, ec) || p.filename().empty())
     throw InputError(path, 0, what + ": is a directory, not a file");
   const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
-  if (!made_before.empty() && NormalDirectoryPath(dir.string()) == NormalDirectoryPath(made_before))
+  if (!made_before.empty() && SameDirectory(dir.string(), made_before)) {
+    const std::vector<std::string>& names = RunOutputNames();
+    if (std::find(names.begin(), names.end(), p.filename().string()) != names.end())
+      throw InputError(path, 0,
+                       what + ": is the run's own " + p.filename().string() + " in " + made_before +
+                           " (out_dir, --out); choose another name");
     return;
+  }
   if (!fs::exists(dir, ec))
     throw InputError(path, 0, what + ": the directory " + dir.string() + " does not exist");
   if (!fs::is_directory(dir, ec))

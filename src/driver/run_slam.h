@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "driver/slam_config.h"
 #include "eval/confusion.h"
@@ -92,10 +93,15 @@ void CreateOutputDirectory(const std::string& out_dir);
 // directory. `what` names the option in the message ("out_dir (--out)").
 void CheckOutputDirectory(const std::string& out_dir, const std::string& what);
 
+// Every name a run writes into its out_dir (WriteRunOutputs' files, trace.json, the map files of
+// map_outputs.h and timing.png), in the order they are written.
+const std::vector<std::string>& RunOutputNames();
+
 // Before any frame runs: throws InputError naming path when a file could not be written there
 // (its directory missing, not a directory or not writable; path itself a directory). A missing
 // directory is accepted when it is `made_before` (the run's out_dir, checked with
-// CheckOutputDirectory and made before the file is written).
+// CheckOutputDirectory and made before the file is written); a path in made_before that is one of
+// RunOutputNames is refused (the file would replace that output, or the output the file).
 void CheckOutputFile(const std::string& path, const std::string& what,
                      const std::string& made_before = "");
 
