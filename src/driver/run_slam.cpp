@@ -186,6 +186,17 @@ void CheckOutputFile(const std::string& path, const std::string& what,
   const fs::path p(path);
   if (fs::is_directory(p, ec) || p.filename().empty())
     throw InputError(path, 0, what + ": is a directory, not a file");
+  // made_before or a directory above it: a directory once the run has made made_before.
+  if (!made_before.empty()) {
+    const fs::path file(NormalDirectoryPath(path));
+    for (fs::path d(NormalDirectoryPath(made_before)); !d.empty(); d = d.parent_path()) {
+      if (d == file)
+        throw InputError(path, 0,
+                         what + ": is a directory, not a file (the output directory " +
+                             made_before + " is made there)");
+      if (d == d.parent_path()) break;
+    }
+  }
   const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
   if (!made_before.empty() && SameDirectory(dir.string(), made_before)) {
     const std::vector<std::string>& names = RunOutputNames();

@@ -101,7 +101,8 @@ const std::vector<std::string>& RunOutputNames();
 // (its directory missing, not a directory or not writable; path itself a directory). A missing
 // directory is accepted when it is `made_before` (the run's out_dir, checked with
 // CheckOutputDirectory and made before the file is written); a path in made_before that is one of
-// RunOutputNames is refused (the file would replace that output, or the output the file).
+// RunOutputNames is refused (the file would replace that output, or the output the file), and so
+// is made_before itself or a directory above it (a directory, not a file, once it is made).
 void CheckOutputFile(const std::string& path, const std::string& what,
                      const std::string& made_before = "");
 
