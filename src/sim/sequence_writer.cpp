@@ -1,5 +1,6 @@
 #include "sim/sequence_writer.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -70,6 +71,26 @@ std::string OptionsText(const SynthOptions& o, int precision = 10) {
 
 constexpr const char* kCompleteName = "render_complete.txt";
 
+// Removes the frame images (NNNNNN.png) numbered `first` or higher from dir: an older render into
+// the same folder may have held more frames, which a loader would pair with this one's lines.
+void RemoveFramesFrom(const fs::path& dir, int first) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return;
+  std::vector<fs::path> stale;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (name.size() != 10 || name.compare(6, 4, ".png") != 0) continue;
+    if (!std::all_of(name.begin(), name.begin() + 6, [](char c) { return c >= '0' && c <= '9'; }))
+      continue;
+    if (std::stoi(name.substr(0, 6)) >= first) stale.push_back(e.path());
+  }
+  for (const fs::path& p : stale) {
+    fs::remove(p, ec);
+    if (ec)
+      throw InputError(p.string(), 0, "cannot remove an older render's frame: " + ec.message());
+  }
+}
+
 }  // namespace
 
 std::string KittiCalibText(const SynthOptions& o) {
@@ -99,6 +120,8 @@ WriteSummary WriteSequence(const SynthOptions& options, const std::string& out_d
   const char* image_dirs[] = {"image_0", "image_1", "instance_0", "instance_1"};
   const int num_dirs = options.write_right_instances ? 4 : 3;
   for (int i = 0; i < num_dirs; ++i) MakeDir(seq / image_dirs[i]);
+  for (int i = 0; i < 4; ++i)
+    RemoveFramesFrom(seq / image_dirs[i], i < num_dirs ? options.frames : 0);
   MakeDir(poses_dir);
 
   WriteText((seq / "calib.txt").string(), KittiCalibText(options));

@@ -193,6 +193,29 @@ TEST(SequenceWriterTest, RenderOnceReusesOnlyAFinishedRenderOfTheSameOptions) {
   fs::remove_all(out);
 }
 
+// Written over an older, longer render (pcr_orb synth --out DIR twice): the older frames beyond
+// this render's go, and the folder loads as this render (before, 5 timestamps and 30 images).
+TEST(SequenceWriterTest, AShorterRenderOverALongerOneLeavesNoOlderFrames) {
+  SynthOptions options = SynthOptions{}.Scaled(0.25);
+  options.frames = 4;
+  const std::string out = test::MakeTempDir("sim_writer_over");
+  const fs::path seq = fs::path(out) / "sequences" / "00";
+  WriteSequence(options, out);
+  std::ofstream(seq / "image_0" / "notes.png") << "x";  // not a frame: kept
+  options.frames = 2;
+  options.write_right_instances = false;
+  WriteSequence(options, out);
+  for (const char* dir : {"image_0", "image_1", "instance_0"})
+    EXPECT_TRUE(fs::exists(seq / dir / "000001.png") && !fs::exists(seq / dir / "000002.png") &&
+                !fs::exists(seq / dir / "000003.png"))
+        << dir;
+  EXPECT_EQ(CountFiles(seq / "instance_1"), 0u);  // not written this time: none left
+  EXPECT_TRUE(fs::exists(seq / "image_0" / "notes.png"));
+  fs::remove(seq / "image_0" / "notes.png");
+  EXPECT_EQ(OpenKittiOdometry(seq.string()).size(), 2u);
+  fs::remove_all(out);
+}
+
 TEST(SequenceWriterTest, UnwritableOutputThrowsInputError) {
   const std::string dir = test::MakeTempDir("sim_writer_bad");
   const std::string file = dir + "/not_a_dir";
