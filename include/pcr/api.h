@@ -83,6 +83,7 @@ struct Config {
 
   // Non-empty: write the run's outputs there (trajectory.txt, trajectory_tum.txt, stats.json,
   // config.yaml, trace.json, timing.png, evaluation.json and trajectory.png with ground truth).
+  // An earlier run's outputs there are removed first (Result::outputs_removed).
   std::string out_dir;
 };
 
@@ -147,6 +148,10 @@ struct Result {
   std::vector<FrameResult> frames;  // completed frames, in order
   Statistics stats;
   std::string report;  // the human-readable summary `pcr_orb run` prints
+  // out_dir's files (names in out_dir): those this run wrote, in the order written, and those an
+  // earlier run had written there that this one did not, which were removed so that out_dir
+  // describes this run only (only names a run writes are removed; nothing else is touched).
+  std::vector<std::string> outputs, outputs_removed;
   // Non-empty when a frame failed (the results cover the frames before it) or when an output
   // (out_dir's files, save_map) could not be written ("outputs: FILE: ..."; the others were).
   std::string error;

@@ -3,6 +3,7 @@
 // chooses the policy. Both write trajectory.txt, trajectory_tum.txt, stats.json, config.yaml,
 // trace.json, timing.png (and evaluation.json, trajectory.png with ground truth).
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -147,12 +148,15 @@ void RunFrames(const std::string& name, FrameArgs& a) {
       progress->Stop();  // the frames done, not 100%
   }
   std::printf("%s", result.report.c_str());
-  std::printf(
-      "outputs: %s/{trajectory.txt,trajectory_tum.txt,stats.json,config.yaml,trace.json,map.ply,"
-      "map_removed.ply,keyframes.txt,map.png,"
-      "timing.png%s}\n",
-      c.out_dir.c_str(),
-      result.stats.ate_rmse_m ? ",ground_truth.txt,evaluation.json,trajectory.png" : "");
+  if (!c.out_dir.empty()) {
+    // The files written, and an earlier run's files in --out that this run did not write (which
+    // it removed).
+    std::string line = fmt::format("outputs: {}/{{{}}}", c.out_dir, fmt::join(result.outputs, ","));
+    if (!result.outputs_removed.empty())
+      line +=
+          fmt::format("; removed an earlier run's {{{}}}", fmt::join(result.outputs_removed, ","));
+    std::printf("%s\n", line.c_str());
+  }
   if (!result.error.empty()) throw std::runtime_error(result.error);
 }
 

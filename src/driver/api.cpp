@@ -3,6 +3,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <memory>
 #include <string_view>
@@ -154,6 +155,10 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   // The outputs, then the map; one that fails does not keep the others from being written, and
   // the run's results are returned with the first failure in Result::error.
   driver::OutputErrors output_errors;
+  // An earlier run's outputs in out_dir go first: afterwards it holds this run's only.
+  std::vector<std::string> earlier;
+  if (!config.out_dir.empty())
+    output_errors.Try([&] { earlier = driver::RemoveRunOutputs(config.out_dir); });
   if (!config.out_dir.empty())
     output_errors.Try([&] {
       driver::WriteDriverOutputs(config.out_dir, run, config_yaml,
@@ -203,6 +208,12 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
     st.rpe_rmse_m = s.evaluation->rpe.trans_m.rmse;
   }
   result.report = driver::FormatDriverSummary(run);
+  if (!config.out_dir.empty()) {
+    result.outputs = driver::RunOutputsIn(config.out_dir);
+    for (const std::string& name : earlier)
+      if (std::find(result.outputs.begin(), result.outputs.end(), name) == result.outputs.end())
+        result.outputs_removed.push_back(name);
+  }
   result.error = s.error;
   if (!output_error.empty())
     result.error += (result.error.empty() ? "" : "; ") + std::string("outputs: ") + output_error;

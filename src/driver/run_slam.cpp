@@ -167,6 +167,29 @@ const std::vector<std::string>& RunOutputNames() {
   return names;
 }
 
+std::vector<std::string> RunOutputsIn(const std::string& out_dir) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> present;
+  for (const std::string& name : RunOutputNames()) {
+    std::error_code ec;
+    const fs::file_status st = fs::symlink_status(out_dir + "/" + name, ec);
+    if (fs::is_regular_file(st) || fs::is_symlink(st)) present.push_back(name);
+  }
+  return present;
+}
+
+std::vector<std::string> RemoveRunOutputs(const std::string& out_dir) {
+  const std::vector<std::string> present = RunOutputsIn(out_dir);
+  for (const std::string& name : present) {
+    std::error_code ec;
+    std::filesystem::remove(out_dir + "/" + name, ec);
+    if (ec)
+      throw InputError(out_dir + "/" + name, 0,
+                       "cannot remove the earlier run's file: " + ec.message());
+  }
+  return present;
+}
+
 namespace {
 
 // Whether directories a and b are the same: the same path once absolute and normal, or, where

@@ -97,6 +97,15 @@ void CheckOutputDirectory(const std::string& out_dir, const std::string& what);
 // map_outputs.h and timing.png), in the order they are written.
 const std::vector<std::string>& RunOutputNames();
 
+// The RunOutputNames files in out_dir (regular files or links; nothing else, no other name), in
+// that order.
+std::vector<std::string> RunOutputsIn(const std::string& out_dir);
+
+// Removes the RunOutputNames files in out_dir (nothing else) before a run writes its own, so
+// that out_dir describes that run only. Returns their names; throws InputError naming the first
+// file that could not be removed.
+std::vector<std::string> RemoveRunOutputs(const std::string& out_dir);
+
 // Before any frame runs: throws InputError naming path when a file could not be written there
 // (its directory missing, not a directory or not writable; path itself a directory). A missing
 // directory is accepted when it is `made_before` (the run's out_dir, checked with
