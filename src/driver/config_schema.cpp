@@ -2,12 +2,14 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include "slam/common/error.h"
 
@@ -49,6 +51,12 @@ void Assign(const ConfigSchema::FieldPtr& ptr, const YAML::Node& value, const st
       ptr);
 }
 
+// Writes `value` (of the field's own type) through `field`.
+void Put(const ConfigSchema::FieldPtr& field,
+         const std::variant<int, double, bool, std::string>& value) {
+  std::visit([&](auto* p) { *p = std::get<std::remove_pointer_t<decltype(p)>>(value); }, field);
+}
+
 // A section or key name: a scalar (a sequence or a map as a key is an error naming the line).
 std::string NameOf(const YAML::Node& key, const std::string& source, const char* what) {
   if (!key.IsScalar())
@@ -62,7 +70,9 @@ void ConfigSchema::Add(const std::string& section, const std::string& key, Field
                        const std::string& doc) {
   if (Find(section, key))
     throw std::logic_error("config key registered twice: " + section + "." + key);
-  fields_.push_back({section, key, doc, field});
+  Value initial;
+  std::visit([&](auto* p) { initial = *p; }, field);
+  fields_.push_back({section, key, doc, field, std::move(initial), std::nullopt});
 }
 
 bool ConfigSchema::Has(const std::string& section, const std::string& key) const {
@@ -74,6 +84,10 @@ const ConfigSchema::Field* ConfigSchema::Find(const std::string& section,
   for (const Field& f : fields_)
     if (f.section == section && f.key == key) return &f;
   return nullptr;
+}
+
+ConfigSchema::Field* ConfigSchema::Find(const std::string& section, const std::string& key) {
+  return const_cast<Field*>(std::as_const(*this).Find(section, key));
 }
 
 void ConfigSchema::LoadFile(const std::string& path) {
@@ -103,9 +117,12 @@ void ConfigSchema::LoadString(const std::string& text, const std::string& source
   if (root.IsNull()) return;  // empty file: all defaults
   if (!root.IsMap()) throw InputError(source_name, LineOf(root), "expected a map of sections");
   // All or nothing: a file that fails half-way leaves the configuration as it was.
-  using Value = std::variant<int, double, bool, std::string>;
   std::vector<Value> saved;
-  for (const Field& f : fields_) std::visit([&](auto* p) { saved.emplace_back(*p); }, f.ptr);
+  std::vector<std::optional<Origin>> saved_origins;
+  for (const Field& f : fields_) {
+    std::visit([&](auto* p) { saved.emplace_back(*p); }, f.ptr);
+    saved_origins.push_back(f.origin);
+  }
   try {
     try {
       Apply(root, source_name);
@@ -113,9 +130,10 @@ void ConfigSchema::LoadString(const std::string& text, const std::string& source
       throw InputError(source_name, e.mark.line >= 0 ? e.mark.line + 1 : 0, e.msg);
     }
   } catch (...) {
-    for (size_t i = 0; i < fields_.size(); ++i)
-      std::visit([&](auto* p) { *p = std::get<std::remove_pointer_t<decltype(p)>>(saved[i]); },
-                 fields_[i].ptr);
+    for (size_t i = 0; i < fields_.size(); ++i) {
+      Put(fields_[i].ptr, saved[i]);
+      fields_[i].origin = saved_origins[i];
+    }
     throw;
   }
 }
@@ -147,10 +165,11 @@ void ConfigSchema::Apply(const YAML::Node& root, const std::string& source) {
         throw InputError(source, LineOf(kv.first),
                          "key '" + section + "." + key + "' given twice (first at line " +
                              std::to_string(it->second) + ")");
-      const Field* f = Find(section, key);
+      Field* f = Find(section, key);
       if (!f)
         throw InputError(source, LineOf(kv.first), "unknown key '" + section + "." + key + "'");
       Assign(f->ptr, kv.second, source, LineOf(kv.first), section + "." + key);
+      f->origin = Origin{source, LineOf(kv.first), section + "." + key};
     }
   }
 }
@@ -162,7 +181,7 @@ void ConfigSchema::Set(const std::string& assignment, const std::string& source_
     throw InputError(source_name, 0, "override '" + assignment + "' is not section.key=value");
   const std::string section = assignment.substr(0, dot);
   const std::string key = assignment.substr(dot + 1, eq - dot - 1);
-  const Field* f = Find(section, key);
+  Field* f = Find(section, key);
   if (!f) throw InputError(source_name, 0, "unknown key '" + section + "." + key + "'");
   const std::string what = section + "." + key;
   YAML::Node value;
@@ -174,6 +193,39 @@ void ConfigSchema::Set(const std::string& assignment, const std::string& source_
                      what + ": malformed value '" + assignment.substr(eq + 1) + "': " + e.msg);
   }
   Assign(f->ptr, value, source_name, 0, what);
+  f->origin = Origin{source_name, 0, what};
+}
+
+std::optional<ConfigSchema::Origin> ConfigSchema::Blame(
+    const std::function<std::string()>& problem) {
+  const std::string answer = problem();
+  if (answer.empty()) return std::nullopt;
+  // The fields the answer names (the key as a whole word) first, then the others.
+  auto named = [&answer](const std::string& key) {
+    const auto word = [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+    };
+    for (size_t at = answer.find(key); at != std::string::npos; at = answer.find(key, at + 1)) {
+      const size_t end = at + key.size();
+      if ((at == 0 || !word(answer[at - 1])) && (end == answer.size() || !word(answer[end])))
+        return true;
+    }
+    return false;
+  };
+  std::vector<Field*> order;
+  for (Field& f : fields_)
+    if (f.origin && named(f.key)) order.push_back(&f);
+  for (Field& f : fields_)
+    if (f.origin && !named(f.key)) order.push_back(&f);
+  for (Field* f : order) {
+    Value now;
+    std::visit([&](auto* p) { now = *p; }, f->ptr);
+    Put(f->ptr, f->initial);
+    const bool changed = problem() != answer;
+    Put(f->ptr, now);
+    if (changed) return f->origin;
+  }
+  return std::nullopt;
 }
 
 std::string ConfigSchema::Dump() const {

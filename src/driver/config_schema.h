@@ -4,6 +4,7 @@
 // types and malformed YAML are InputErrors naming the file and line. Dump() writes the effective
 // configuration back as YAML (written next to every run's outputs).
 #include <functional>
+#include <optional>
 #include <string>
 #include <variant>
 #include <vector>
@@ -31,13 +32,31 @@ class ConfigSchema {
   std::string Dump() const;
   bool Has(const std::string& section, const std::string& key) const;
 
+  // Where a field's value was last set by LoadString/LoadFile/Set: the source name, the key's
+  // line (0 for an override) and "section.key".
+  struct Origin {
+    std::string source;
+    int line = 0;
+    std::string name;
+  };
+  // The field to blame for a problem that a check of the whole configuration finds: `problem`
+  // returns the check's current answer ("" when none). Each field that a file or an override set
+  // is put back to its value when it was registered (the default), one at a time, those whose key
+  // the answer names first; the first whose restoration changes the answer is blamed. Every value
+  // is as it was on return. nullopt when no single set field changes it (a missing key, say).
+  std::optional<Origin> Blame(const std::function<std::string()>& problem);
+
  private:
+  using Value = std::variant<int, double, bool, std::string>;
   struct Field {
     std::string section, key, doc;
     FieldPtr ptr;
+    Value initial;  // the value when registered
+    std::optional<Origin> origin;
   };
   void Apply(const YAML::Node& root, const std::string& source_name);
   const Field* Find(const std::string& section, const std::string& key) const;
+  Field* Find(const std::string& section, const std::string& key);
   std::vector<Field> fields_;
 };
 

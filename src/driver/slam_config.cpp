@@ -182,6 +182,36 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("camera", "baseline_m", &c.camera.baseline_m);
 }
 
+namespace {
+
+// The first problem of a configuration ("" when none), as "invalid configuration: ..."; sets
+// the fields derived from others (stereo.subpixel_fit).
+std::string Problem(RunConfig& config) {
+  if (config.subpixel_fit == "parabola") {
+    config.slam.stereo.subpixel_fit = SubpixelFit::kParabola;
+  } else if (config.subpixel_fit == "equiangular") {
+    config.slam.stereo.subpixel_fit = SubpixelFit::kEquiangular;
+  } else {
+    return "stereo.subpixel_fit must be parabola or equiangular, not '" + config.subpixel_fit + "'";
+  }
+  std::string why;
+  if (!config.slam.IsValid(&why)) return "invalid configuration: " + why;
+  if (!config.camera.IsValid(&why)) return "invalid configuration: " + why;
+  if (!config.dynamic.options.IsValid(&why)) return "invalid configuration: filter: " + why;
+  const DynamicRunOptions& d = config.dynamic;
+  // The segmenter's model path is not known here, so only its thresholds are checked (the same
+  // range as YoloOptions::IsValid; a negative light_mask_threshold means mask_threshold).
+  if (!YoloOptions::IsThresholdInRange(d.conf_threshold) ||
+      !YoloOptions::IsThresholdInRange(d.mask_threshold) ||
+      !(d.light_mask_threshold < 0 || YoloOptions::IsThresholdInRange(d.light_mask_threshold))) {
+    return "invalid configuration: segmenter: conf_threshold and mask_threshold must lie in (0, "
+           "1), light_mask_threshold too or be negative (the same)";
+  }
+  return "";
+}
+
+}  // namespace
+
 RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>& overrides,
                         std::string* effective_yaml) {
   RunConfig config;
@@ -189,38 +219,24 @@ RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>&
   BindRunConfig(config, schema);
   if (!path.empty()) schema.LoadFile(path);
   for (const std::string& o : overrides) schema.Set(o, "--set");
-  // Where the values checked below came from: "defaults", the file, "--set" or both.
-  std::string source = "defaults";
-  if (!path.empty() && !overrides.empty()) {
-    source = path + " + --set";
-  } else if (!path.empty()) {
-    source = path;
-  } else if (!overrides.empty()) {
-    source = "--set";
-  }
-  if (config.subpixel_fit == "parabola") {
-    config.slam.stereo.subpixel_fit = SubpixelFit::kParabola;
-  } else if (config.subpixel_fit == "equiangular") {
-    config.slam.stereo.subpixel_fit = SubpixelFit::kEquiangular;
-  } else {
-    throw ConfigError(source + ": stereo.subpixel_fit must be parabola or equiangular, not '" +
-                      config.subpixel_fit + "'");
-  }
-  std::string why;
-  if (!config.slam.IsValid(&why)) throw ConfigError(source + ": invalid configuration: " + why);
-  if (!config.camera.IsValid(&why)) throw ConfigError(source + ": invalid configuration: " + why);
-  if (!config.dynamic.options.IsValid(&why)) {
-    throw ConfigError(source + ": invalid configuration: filter: " + why);
-  }
-  const DynamicRunOptions& d = config.dynamic;
-  // The segmenter's model path is not known here, so only its thresholds are checked (the same
-  // range as YoloOptions::IsValid; a negative light_mask_threshold means mask_threshold).
-  if (!YoloOptions::IsThresholdInRange(d.conf_threshold) ||
-      !YoloOptions::IsThresholdInRange(d.mask_threshold) ||
-      !(d.light_mask_threshold < 0 || YoloOptions::IsThresholdInRange(d.light_mask_threshold))) {
-    throw ConfigError(source +
-                      ": invalid configuration: segmenter: conf_threshold and mask_threshold must "
-                      "lie in (0, 1), light_mask_threshold too or be negative (the same)");
+  const std::string problem = Problem(config);
+  if (!problem.empty()) {
+    // Where the offending value came from: the file and the key's line, or --set and the key;
+    // where no single value is to blame (a missing key), the sources that were read.
+    if (const auto origin = schema.Blame([&config] { return Problem(config); })) {
+      if (origin->line > 0)
+        throw ConfigError(origin->source + ":" + std::to_string(origin->line) + ": " + problem);
+      throw ConfigError(origin->source + " " + origin->name + ": " + problem);
+    }
+    std::string source = "defaults";
+    if (!path.empty() && !overrides.empty()) {
+      source = path + " + --set";
+    } else if (!path.empty()) {
+      source = path;
+    } else if (!overrides.empty()) {
+      source = "--set";
+    }
+    throw ConfigError(source + ": " + problem);
   }
   if (effective_yaml) *effective_yaml = schema.Dump();
   return config;

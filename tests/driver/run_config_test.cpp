@@ -160,6 +160,43 @@ TEST(RunConfig, ANonPositiveCameraValueIsRejectedNotIgnored) {
   EXPECT_FALSE(LoadRunConfig("", {}, nullptr).camera.Active());
 }
 
+// A value out of range names the file and the line of its key (block and flow style), or --set
+// and the key; a file that only sets other keys is not blamed for a --set value.
+TEST(RunConfig, AnOutOfRangeValueNamesTheFileAndLineOfItsKey) {
+  const std::string dir = test::MakeTempDir("pcr_cfg");
+  auto message = [](const std::string& path, const std::vector<std::string>& overrides) {
+    try {
+      LoadRunConfig(path, overrides, nullptr);
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const std::string flow =
+      WriteFile(dir, "flow.yaml", "stereo:\n  max_depth_m: 40\norb: {num_features: 0}\n");
+  EXPECT_EQ(message(flow, {}), flow + ":3: invalid configuration: orb: num_features must be >= 1");
+  const std::string block = WriteFile(
+      dir, "block.yaml", "orb:\n  num_levels: 8\n  num_features: 0\nfilter:\n  lk_max_level: 2\n");
+  EXPECT_EQ(message(block, {}),
+            block + ":3: invalid configuration: orb: num_features must be >= 1");
+  // Keys whose names the message does not hold: the one whose value makes it.
+  const std::string counts = WriteFile(
+      dir, "counts.yaml", "mapping:\n  fuse_neighbours: 8\n  triangulation_neighbours: -1\n");
+  EXPECT_EQ(message(counts, {}),
+            counts + ":3: invalid configuration: mapping: point and neighbour counts must be >= 0");
+  const std::string fit =
+      WriteFile(dir, "fit.yaml", "orb:\n  num_features: 900\nstereo:\n  subpixel_fit: cubic\n");
+  EXPECT_EQ(message(fit, {}).rfind(fit + ":4: stereo.subpixel_fit", 0), 0u) << message(fit, {});
+  EXPECT_EQ(message(block, {"orb.num_features=500", "orb.num_levels=0"})
+                .rfind("--set orb.num_levels: ", 0),
+            0u)
+      << message(block, {"orb.num_features=500", "orb.num_levels=0"});
+  // No single key to blame (camera without cx, cy): the file.
+  const std::string cam = WriteFile(dir, "cam.yaml", "camera:\n  fx: 700\n  fy: 700\n");
+  EXPECT_EQ(message(cam, {}).rfind(cam + ": invalid configuration: camera:", 0), 0u)
+      << message(cam, {});
+}
+
 TEST(FrameRange, MalformedNumbersAreRejectedNamingFrames) {
   for (const char* bad : {"0:1e3", "2.9:4", "1:3x", "0:-1", "-1:3", "+1:3", " 1:3", "1: 3", "0x1:3",
                           "1:99999999999999999999999"}) {
