@@ -157,6 +157,13 @@ void RunFrames(const std::string& name, FrameArgs& a) {
           fmt::format("; removed an earlier run's {{{}}}", fmt::join(result.outputs_removed, ","));
     std::printf("%s\n", line.c_str());
   }
+  // Not an error (the outputs were written, the exit status stays 0), but nothing to use.
+  const api::Statistics& st = result.stats;
+  if (st.frames_in > 0 && st.frames_tracked == 0)
+    std::fprintf(stderr,
+                 "warning: no frame was tracked (%zu frames: %zu not initialised, %zu lost): the "
+                 "trajectory holds the identity pose, and there is no evaluation\n",
+                 st.frames_in, st.frames_not_initialized, st.frames_lost);
   if (!result.error.empty()) throw std::runtime_error(result.error);
 }
 
