@@ -1,0 +1,102 @@
+// Loop closing is on when api::Config::loop_closing (--loop) and the configuration's
+// loop.enabled (file or --set) both are; config.yaml records that effective setting, so that a
+// rerun with --config OUT/config.yaml runs as this run did, and the log says which setting won.
+#include <gtest/gtest.h>
+#include <spdlog/sinks/ostream_sink.h>
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+
+#include "pcr/api.h"
+#include "support/data_paths.h"
+#include "support/shipped_vocabulary.h"
+
+namespace pcr::api {
+namespace {
+
+// "enabled: ..." of config.yaml's loop section.
+std::string LoopEnabledLine(const std::string& config_yaml) {
+  std::ifstream in(config_yaml);
+  bool in_loop = false;
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty() && line[0] != ' ') in_loop = line.rfind("loop:", 0) == 0;
+    if (!in_loop || line.rfind("  enabled:", 0) != 0) continue;
+    line = line.substr(2, line.find('#') - 2);  // without the comment
+    return line.substr(0, line.find_last_not_of(' ') + 1);
+  }
+  return "";
+}
+
+// The run's log at info level and above.
+class LogCapture {
+ public:
+  LogCapture() : sink_(std::make_shared<spdlog::sinks::ostream_sink_mt>(text_)) {
+    spdlog::default_logger()->sinks().push_back(sink_);
+    level_ = spdlog::get_level();
+    spdlog::set_level(spdlog::level::info);
+  }
+  ~LogCapture() {
+    auto& sinks = spdlog::default_logger()->sinks();
+    std::erase(sinks, sink_);
+    spdlog::set_level(level_);
+  }
+  std::string Text() const { return text_.str(); }
+
+ private:
+  std::ostringstream text_;
+  std::shared_ptr<spdlog::sinks::ostream_sink_mt> sink_;
+  spdlog::level::level_enum level_;
+};
+
+TEST(LoopSetting, ConfigYamlRecordsTheEffectiveSettingAndTheLogSaysWhichWon) {
+  const std::string dir = test::MakeTempDir("pcr_loop_setting");
+  const Source source = Source::Dataset(test::SharedPath("data/kitti/sequences/06"), 0, 2);
+  Config c;
+  c.vocabulary = test::ShippedVocabularyPath();
+  // --loop off --set loop.enabled=true: off.
+  c.loop_closing = false;
+  c.overrides = {"loop.enabled=true"};
+  c.out_dir = dir + "/off_over_set";
+  {
+    LogCapture log;
+    const Result r = api::Run(c, source);
+    ASSERT_TRUE(r.error.empty()) << r.error;
+    EXPECT_EQ(r.report.find("loop closing:"), std::string::npos) << r.report;
+    EXPECT_NE(log.Text().find("loop closing off"), std::string::npos) << log.Text();
+  }
+  EXPECT_EQ(LoopEnabledLine(c.out_dir + "/config.yaml"), "enabled: false");
+  // A rerun with that config.yaml and the default --loop on runs as this one did.
+  Config again;
+  again.vocabulary = c.vocabulary;
+  again.config_file = c.out_dir + "/config.yaml";
+  again.out_dir = dir + "/rerun";
+  const Result rerun = api::Run(again, source);
+  ASSERT_TRUE(rerun.error.empty()) << rerun.error;
+  EXPECT_EQ(rerun.report.find("loop closing:"), std::string::npos) << rerun.report;
+  EXPECT_EQ(LoopEnabledLine(again.out_dir + "/config.yaml"), "enabled: false");
+
+  // --loop on --set loop.enabled=false: off, and the log names the configuration's setting.
+  c.loop_closing = true;
+  c.overrides = {"loop.enabled=false"};
+  c.out_dir = dir + "/set_over_on";
+  {
+    LogCapture log;
+    const Result r = api::Run(c, source);
+    ASSERT_TRUE(r.error.empty()) << r.error;
+    EXPECT_NE(log.Text().find("loop closing off"), std::string::npos) << log.Text();
+    EXPECT_NE(log.Text().find("loop.enabled"), std::string::npos) << log.Text();
+  }
+  EXPECT_EQ(LoopEnabledLine(c.out_dir + "/config.yaml"), "enabled: false");
+
+  // Both on.
+  c.overrides.clear();
+  c.out_dir = dir + "/on";
+  ASSERT_TRUE(api::Run(c, source).error.empty());
+  EXPECT_EQ(LoopEnabledLine(c.out_dir + "/config.yaml"), "enabled: true");
+}
+
+}  // namespace
+}  // namespace pcr::api
