@@ -893,6 +893,7 @@ PipelineResult GraphRun::Collect() {
     Guarded(kStageGlobalBa, after_last, [&] { return mapping_.FinishLoopClosing(); });
   out.loop_events = slam_->loop_events();
   out.loop_stats = slam_->loop_closer().stats();
+  out.loop_database_keyframes = slam_->loop_closer().database().size();
   out.relocalisation_stats = slam_->relocalisation_stats();
   out.tracked = slam_->RefinedTrajectory();
   if (error_) {

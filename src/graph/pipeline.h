@@ -137,6 +137,9 @@ struct PipelineResult {
   // Loop closing: every outcome the map's owner dealt with, and the closer's counters.
   std::vector<LoopEvent> loop_events;
   LoopStats loop_stats;
+  // The place-recognition database's keyframes at the end: a loaded map's included, culled ones
+  // not (loop_stats.keyframes_seen counts those added in this run).
+  size_t loop_database_keyframes = 0;
   RelocalisationStats relocalisation_stats;  // the tracker's, at the end
   std::string error;  // empty when every frame ran; else "frame N, stage S: what"
   int64_t error_frame_index = -1;

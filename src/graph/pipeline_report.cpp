@@ -224,6 +224,7 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
     events.push_back(j);
   }
   return {{"keyframes_seen", st.keyframes_seen},
+          {"database_keyframes", result.loop_database_keyframes},
           {"detections", st.detections},
           {"candidates", st.candidates},
           {"consistent", st.consistent},
@@ -250,14 +251,15 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
 
 std::string FormatLoopSummary(const PipelineResult& result) {
   const LoopStats& st = result.loop_stats;
-  if (st.keyframes_seen == 0) return "";
+  if (st.keyframes_seen == 0 && result.loop_database_keyframes == 0) return "";
   const TimingSummary d = SummarizeTimes(st.detect_ms);
   std::string out = fmt::format(
-      "loop closing: {} loops closed, {} global BAs ({} aborted); {} keyframes in the database, "
-      "{} queries, {} candidates, {} jobs rejected ({} candidates failed the geometry); "
-      "detection p50 {:.2f} p99 {:.2f} ms\n",
-      st.corrections, st.global_bas, st.global_bas_aborted, st.keyframes_seen, st.detections,
-      st.candidates, st.rejected, st.candidates_rejected, d.p50_ms, d.p99_ms);
+      "loop closing: {} loops closed, {} global BAs ({} aborted); {} keyframes in the database "
+      "({} added in this run), {} queries, {} candidates, {} jobs rejected ({} candidates failed "
+      "the geometry); detection p50 {:.2f} p99 {:.2f} ms\n",
+      st.corrections, st.global_bas, st.global_bas_aborted, result.loop_database_keyframes,
+      st.keyframes_seen, st.detections, st.candidates, st.rejected, st.candidates_rejected,
+      d.p50_ms, d.p99_ms);
   for (const LoopEvent& e : result.loop_events) {
     const LoopOutcome& o = e.outcome;
     if (o.kind == LoopOutcomeKind::kCorrected && o.match)
