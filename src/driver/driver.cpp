@@ -1,5 +1,6 @@
 #include "driver/driver.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <memory>
@@ -128,6 +129,33 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
                       dynamic.segmenter + "'");
   if (dynamic.truth_miss_rate != 0 && dynamic.segmenter != "truth")
     throw ConfigError("--truth-miss-rate needs --segmenter truth, not '" + dynamic.segmenter + "'");
+  if (!(dynamic.truth_miss_rate >= 0 && dynamic.truth_miss_rate <= 1))
+    throw ConfigError("--truth-miss-rate must be in [0, 1] (truth.miss_rate), not " +
+                      fmt::format("{}", dynamic.truth_miss_rate));
+  // The scheduling options of the realtime policy alone. The command line gives them defaults,
+  // so a value other than the default is what tells that one was given.
+  const graph::PipelineOptions defaults;
+  const graph::PipelineOptions& pipeline_options = options.pipeline;
+  if (pipeline_options.policy != graph::Policy::kRealtime) {
+    const std::string policy = graph::ToString(pipeline_options.policy);
+    if (pipeline_options.rate != defaults.rate)
+      throw ConfigError("--rate needs --policy realtime (it paces the frames' release), not '" +
+                        policy + "'");
+    if (pipeline_options.mask_deadline_ms != defaults.mask_deadline_ms)
+      throw ConfigError(
+          "--mask-deadline-ms needs --policy realtime (only realtime tracking waits for a late "
+          "mask), not '" +
+          policy + "'");
+  }
+  // Warnings, not errors: these still do something, or a documented command passes them.
+  if (pipeline_options.adaptive && dynamic.segmenter == "none")
+    spdlog::warn(
+        "--adaptive on without a segmenter: no network to choose; only the quality levels' "
+        "keypoint counts, BA iterations and keyframe intervals adapt");
+  // scripts/tsan.sh passes --inference with --segmenter none (PCR_TSAN_SEQUENCE), as --flow
+  // without --filter on.
+  if (dynamic.inference != DynamicRunOptions{}.inference && dynamic.segmenter != "yolo")
+    spdlog::warn("--inference {} without --segmenter yolo: no network runs", dynamic.inference);
 
   // One camera for the tracker and the filter.
   const StereoRig rig = EffectiveRig(dataset, config.camera);
@@ -135,6 +163,10 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   const nodes::FrameSource source = SourceFromDataset(dataset, rig, range, options.mode, color);
   Segmenters segmenters =
       MakeSegmenters(dataset, dynamic, options.model_high, options.model_low, source);
+  // After the segmenters, so that a segmenter's own set-up error (the truth segmenter on a
+  // sequence without instance images) comes first.
+  if (!dynamic.model_path.empty() && dynamic.segmenter != "yolo")
+    throw ConfigError("--model needs --segmenter yolo, not '" + dynamic.segmenter + "'");
   std::unique_ptr<nodes::DynamicFilterScorer> scorer;
   std::optional<FilterAudit> audit;
   if (dynamic.filter) {

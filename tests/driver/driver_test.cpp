@@ -5,13 +5,17 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <spdlog/sinks/ostream_sink.h>
+#include <spdlog/spdlog.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "driver/map_outputs.h"
 #include "driver/traffic_street.h"
+#include "slam/common/error.h"
 #include "support/data_paths.h"
 
 namespace pcr::driver {
@@ -200,6 +204,67 @@ TEST(Driver, TheRoadGivesTheMonocularMapItsScale) {
   ASSERT_GT(s["estimated"].get<int>(), 0) << s.dump();
   EXPECT_NEAR(s["metres_per_unit"].get<double>(), 1.0, 0.07) << s.dump();
   EXPECT_FALSE(s.contains("ate_m_road_scale_se3")) << s.dump();  // a stereo run is metric
+}
+
+// The message of the ConfigError that a run with these options throws ("" when it throws none).
+std::string SetupError(const Dataset& dataset, const RunConfig& config, const DriverOptions& o) {
+  try {
+    const DriverResult r = RunDataset(dataset, config, {0, 2}, o);
+    EXPECT_TRUE(r.summary.error.empty()) << r.summary.error;
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Options that would do nothing in the run they are given to are errors naming the option, not
+// silently ignored: --model without --segmenter yolo, --rate and --mask-deadline-ms without the
+// realtime policy; --truth-miss-rate out of range is named as the option.
+TEST(Driver, OptionsThatWouldDoNothingAreErrorsNamingTheOption) {
+  const Dataset kitti = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
+  const DriverOptions sequential = WithPolicy(graph::Policy::kSequential);
+  RunConfig config;
+  config.dynamic.filter = true;
+  config.dynamic.model_path = "/nonexistent.onnx";
+  EXPECT_NE(SetupError(kitti, config, sequential).find("--model needs --segmenter yolo"),
+            std::string::npos)
+      << SetupError(kitti, config, sequential);
+  config.dynamic.model_path.clear();
+  for (graph::Policy policy : {graph::Policy::kSequential, graph::Policy::kPipelined}) {
+    DriverOptions o = WithPolicy(policy);
+    o.pipeline.rate = 0.5;
+    EXPECT_NE(SetupError(kitti, config, o).find("--rate needs --policy realtime"),
+              std::string::npos)
+        << SetupError(kitti, config, o);
+    o.pipeline.rate = 1;
+    o.pipeline.mask_deadline_ms = 10;
+    EXPECT_NE(SetupError(kitti, config, o).find("--mask-deadline-ms needs --policy realtime"),
+              std::string::npos)
+        << SetupError(kitti, config, o);
+  }
+  config.dynamic.segmenter = "truth";
+  config.dynamic.truth_miss_rate = 1.5;
+  EXPECT_NE(SetupError(kitti, config, sequential).find("--truth-miss-rate must be in [0, 1]"),
+            std::string::npos)
+      << SetupError(kitti, config, sequential);
+}
+
+// Options that still do something, or that a documented command passes, are warnings.
+TEST(Driver, AdaptiveWithoutASegmenterAndAnEngineWithoutYoloAreWarnings) {
+  const Dataset kitti = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
+  std::ostringstream log;
+  const auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
+  spdlog::default_logger()->sinks().push_back(sink);
+  RunConfig config;
+  config.dynamic.inference = "opencv";
+  DriverOptions o = WithPolicy(graph::Policy::kPipelined);
+  o.pipeline.adaptive = true;
+  const std::string error = SetupError(kitti, config, o);
+  spdlog::default_logger()->sinks().pop_back();
+  EXPECT_EQ(error, "");
+  EXPECT_NE(log.str().find("--adaptive on without a segmenter"), std::string::npos) << log.str();
+  EXPECT_NE(log.str().find("--inference opencv without --segmenter yolo"), std::string::npos)
+      << log.str();
 }
 
 }  // namespace
