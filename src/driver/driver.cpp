@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -12,6 +13,7 @@
 #include "driver/map_outputs.h"
 #include "driver/truth_segmenter.h"
 #include "graph/pipeline_report.h"
+#include "io/kitti_tracking.h"
 #include "nodes/filter_node.h"
 #include "slam/common/error.h"
 #include "slam/dynamic/yolo_segmenter.h"
@@ -90,6 +92,28 @@ void AddRemovedPoints(const nodes::FilterReport& report, const std::vector<char>
   }
 }
 
+// KITTI tracking labels belong to a raw drive (the odometry sequences have none), and a drive's
+// labels number its images: labels of a frame beyond the dataset's last image number are
+// another drive's. Throws ConfigError saying which.
+void CheckTruthLabels(const Dataset& dataset, const std::string& labels_path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path root(dataset.root);
+  if (!fs::is_directory(root / "image_00" / "data", ec) &&
+      !fs::is_directory(root / "image_02" / "data", ec))
+    throw ConfigError("--truth-labels " + labels_path + ": " + dataset.name +
+                      " is not a KITTI raw drive (image_00/data); tracking labels only describe "
+                      "raw drives");
+  const TrackingLabels labels = ReadTrackingLabels(labels_path);
+  const int64_t last_label = static_cast<int64_t>(labels.frames.size()) - 1;
+  const int64_t last_image = dataset.frame_numbers.empty() ? -1 : dataset.frame_numbers.back();
+  if (last_label > last_image)
+    throw ConfigError("--truth-labels " + labels_path + ": labels up to frame " +
+                      std::to_string(last_label) + ", but the last image of " + dataset.name +
+                      " is number " + std::to_string(last_image) +
+                      " (the labels of another drive?)");
+}
+
 }  // namespace
 
 nodes::FrameSource SourceFromDataset(const Dataset& dataset, const StereoRig& rig, FrameRange range,
@@ -156,6 +180,7 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   // without --filter on.
   if (dynamic.inference != DynamicRunOptions{}.inference && dynamic.segmenter != "yolo")
     spdlog::warn("--inference {} without --segmenter yolo: no network runs", dynamic.inference);
+  if (!dynamic.truth_labels.empty()) CheckTruthLabels(dataset, dynamic.truth_labels);
 
   // One camera for the tracker and the filter.
   const StereoRig rig = EffectiveRig(dataset, config.camera);

@@ -267,5 +267,28 @@ TEST(Driver, AdaptiveWithoutASegmenterAndAnEngineWithoutYoloAreWarnings) {
       << log.str();
 }
 
+// Tracking labels are a raw drive's, numbered by its images: an odometry sequence, or labels
+// beyond the drive's last image (another drive's), are refused before any frame runs.
+TEST(Driver, TruthLabelsOfAnotherDatasetAreRefused) {
+  const std::string labels = test::SharedPath("data/kitti_tracking/training/label_02/0000.txt");
+  RunConfig config;
+  config.dynamic.filter = true;
+  config.dynamic.truth_labels = labels;
+  const DriverOptions sequential = WithPolicy(graph::Policy::kSequential);
+  const Dataset kitti = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
+  EXPECT_NE(SetupError(kitti, config, sequential).find("is not a KITTI raw drive"),
+            std::string::npos)
+      << SetupError(kitti, config, sequential);
+  const Dataset drive =
+      OpenDataset(test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync"));
+  EXPECT_EQ(SetupError(drive, config, sequential), "");  // its own labels
+  const std::string other = test::MakeTempDir("pcr_labels") + "/0001.txt";
+  std::ofstream(other) << "0 0 Car 0 0 0 100 100 200 200 1.5 1.6 4.0 0 1.6 10 0\n"
+                          "500 0 Car 0 0 0 100 100 200 200 1.5 1.6 4.0 0 1.6 10 0\n";
+  config.dynamic.truth_labels = other;
+  EXPECT_NE(SetupError(drive, config, sequential).find("labels up to frame 500"), std::string::npos)
+      << SetupError(drive, config, sequential);
+}
+
 }  // namespace
 }  // namespace pcr::driver
