@@ -75,8 +75,9 @@ void AddVocabCommand(CLI::App& app) {
   cmd->add_option("--images", args->image_dirs,
                   "Directories of PNG images (their direct subdirectories too), sorted by path");
   cmd->add_option("--out", args->out, "Vocabulary file to write");
-  cmd->add_option("--check", args->check,
-                  "Only read this vocabulary file and describe it (nothing is trained)");
+  CLI::Option* check =
+      cmd->add_option("--check", args->check,
+                      "Only read this vocabulary file and describe it (nothing is trained)");
   cmd->add_option("--branching", args->options.branching, "Children per node (k)")
       ->capture_default_str();
   cmd->add_option("--depth", args->options.depth, "Levels below the root (L)")
@@ -96,6 +97,10 @@ void AddVocabCommand(CLI::App& app) {
                   "Also this many left frames of the default synthetic street, rendered in memory")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  // --check trains nothing: a training option beside it is an error, not ignored.
+  for (const char* name : {"--images", "--out", "--branching", "--depth", "--iterations", "--seed",
+                           "--stride", "--max-images", "--synth-frames"})
+    check->excludes(cmd->get_option(name));
   cmd->callback([args] {
     if (!args->check.empty()) {
       const Vocabulary v = driver::LoadVocabulary(args->check);
