@@ -1,7 +1,10 @@
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <charconv>
+#include <cstdio>
 #include <exception>
+#include <memory>
 #include <string>
 #include <system_error>
 
@@ -10,6 +13,36 @@
 #include "pcr/version.h"
 
 namespace pcr::app {
+namespace {
+
+// The log on two streams: lines below warn on stdout (with the progress and the report),
+// warnings and errors on stderr.
+class SplitSink : public spdlog::sinks::sink {
+ public:
+  void log(const spdlog::details::log_msg& msg) override {
+    (msg.level >= spdlog::level::warn ? err_ : out_)->log(msg);
+  }
+  void flush() override {
+    out_->flush();
+    err_->flush();
+  }
+  void set_pattern(const std::string& pattern) override {
+    out_->set_pattern(pattern);
+    err_->set_pattern(pattern);
+  }
+  void set_formatter(std::unique_ptr<spdlog::formatter> formatter) override {
+    err_->set_formatter(formatter->clone());
+    out_->set_formatter(std::move(formatter));
+  }
+
+ private:
+  std::shared_ptr<spdlog::sinks::sink> out_ =
+      std::make_shared<spdlog::sinks::stdout_color_sink_mt>();
+  std::shared_ptr<spdlog::sinks::sink> err_ =
+      std::make_shared<spdlog::sinks::stderr_color_sink_mt>();
+};
+
+}  // namespace
 
 int Main(int argc, char** argv) {
   CLI::App app{
@@ -50,6 +83,7 @@ int Main(int argc, char** argv) {
     }
     spdlog::debug("allocator: {}", graph::AllocatorName());
   });
+  spdlog::set_default_logger(std::make_shared<spdlog::logger>("", std::make_shared<SplitSink>()));
   spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
 
   AddRunCommand(app);
@@ -64,7 +98,12 @@ int Main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
+    // The reason a command failed is said whatever --log-level filters.
+    if (spdlog::should_log(spdlog::level::err)) {
+      spdlog::error("{}", e.what());
+    } else {
+      std::fprintf(stderr, "error: %s\n", e.what());
+    }
     return 1;
   }
   return 0;
