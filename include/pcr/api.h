@@ -19,6 +19,7 @@
 // each uses `threads` cores. One setting is process-wide: OpenCV's thread count, which a run sets
 // to `threads` and puts back when it ends, so overlapping runs can leave it at another run's value.
 #include <Eigen/Core>
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -85,6 +86,11 @@ struct Config {
   // config.yaml, trace.json, timing.png, evaluation.json and trajectory.png with ground truth).
   // An earlier run's outputs there are removed first (Result::outputs_removed).
   std::string out_dir;
+
+  // Non-null: a stop request the caller may set from any thread (or a signal handler) during the
+  // run. Once it is true no further frame starts; the frames started finish, and the run ends
+  // with the results, outputs and map of the frames done (Result::interrupted).
+  const std::atomic<bool>* stop = nullptr;
 };
 
 // Where the frames come from: a KITTI odometry sequence (sequences/NN, ground truth found at
@@ -152,6 +158,9 @@ struct Result {
   // earlier run had written there that this one did not, which were removed so that out_dir
   // describes this run only (only names a run writes are removed; nothing else is touched).
   std::vector<std::string> outputs, outputs_removed;
+  // Config::stop ended the run before its last frame: the results cover the frames done, and
+  // error says from which frame on none ran.
+  bool interrupted = false;
   // Non-empty when a frame failed (the results cover the frames before it) or when an output
   // (out_dir's files, save_map) could not be written ("outputs: FILE: ..."; the others were).
   std::string error;

@@ -1,11 +1,16 @@
 // `pcr_orb run` and `pcr_orb pipeline`: SLAM on a dataset through the public API
 // (include/pcr/api.h), i.e. the flow graph. `run` is the sequential reference policy; `pipeline`
 // chooses the policy. Both write trajectory.txt, trajectory_tum.txt, stats.json, config.yaml,
-// trace.json, timing.png (and evaluation.json, trajectory.png with ground truth).
+// trace.json, timing.png (and evaluation.json, trajectory.png with ground truth). The first
+// SIGINT / SIGTERM ends the run after the frames started, with the outputs of the frames done
+// (exit status 130); a second exits at once.
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
@@ -121,6 +126,42 @@ void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
       ->capture_default_str();
 }
 
+// SIGINT / SIGTERM during a run: the first stops admitting frames (api::Config::stop), so that
+// the frames started finish and the outputs and the map of the frames done are written (exit
+// status 130); a second exits at once.
+std::atomic<bool> g_stop{false};
+static_assert(std::atomic<bool>::is_always_lock_free);
+
+extern "C" void OnStopSignal(int) {
+  if (g_stop.exchange(true)) _exit(130);
+  constexpr char kMessage[] =
+      "\ninterrupted: finishing the frames started, then writing the outputs (again: exit at "
+      "once)\n";
+  [[maybe_unused]] const ssize_t n = write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+}
+
+// Installs OnStopSignal for SIGINT and SIGTERM while it lives; the previous handlers after.
+class StopSignals {
+ public:
+  StopSignals() {
+    struct sigaction action {};
+    action.sa_handler = OnStopSignal;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &old_int_);
+    sigaction(SIGTERM, &action, &old_term_);
+  }
+  ~StopSignals() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
 api::Policy ParsePolicy(const std::string& p) {
   if (p == "pipelined") return api::Policy::kPipelined;
   if (p == "realtime") return api::Policy::kRealtime;
@@ -134,13 +175,18 @@ void RunFrames(const std::string& name, FrameArgs& a) {
   api::Source source = api::Source::Dataset(a.sequence, a.frames);
   source.raw_truth = a.raw_truth;
   std::unique_ptr<Progress> progress;
-  const api::Result result =
-      api::Run(c, source, [&](const api::FrameResult& f, size_t done, size_t total) {
-        if (!progress) progress = std::make_unique<Progress>(name, static_cast<int64_t>(total));
-        progress->Update(static_cast<int64_t>(done),
-                         fmt::format("tracked {} kf {} pts {}", f.tracked_points, f.map_keyframes,
-                                     f.map_points));
-      });
+  g_stop = false;
+  c.stop = &g_stop;
+  api::Result result;
+  {
+    const StopSignals signals;
+    result = api::Run(c, source, [&](const api::FrameResult& f, size_t done, size_t total) {
+      if (!progress) progress = std::make_unique<Progress>(name, static_cast<int64_t>(total));
+      progress->Update(
+          static_cast<int64_t>(done),
+          fmt::format("tracked {} kf {} pts {}", f.tracked_points, f.map_keyframes, f.map_points));
+    });
+  }
   if (progress) {
     if (result.error.empty())
       progress->Finish();
@@ -164,6 +210,11 @@ void RunFrames(const std::string& name, FrameArgs& a) {
                  "warning: no frame was tracked (%zu frames: %zu not initialised, %zu lost): the "
                  "trajectory holds the identity pose, and there is no evaluation\n",
                  st.frames_in, st.frames_not_initialized, st.frames_lost);
+  // Interrupted: the outputs of the frames done were written; the shell's status for SIGINT.
+  if (result.interrupted) {
+    std::fflush(stdout);
+    throw CLI::RuntimeError(130);
+  }
   if (!result.error.empty()) throw std::runtime_error(result.error);
 }
 

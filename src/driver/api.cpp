@@ -78,6 +78,7 @@ driver::DriverOptions ToDriverOptions(const Config& c) {
   p.trim_heap_every = c.trim_every;
   p.trim_heap_after_keyframe = c.trim_after_keyframe;
   p.device_overlap = c.device_overlap;
+  p.stop = c.stop;
   std::string why;
   if (!p.IsValid(&why)) throw ConfigError("pipeline options: " + why);
   o.model_high = c.model_high;
@@ -167,6 +168,7 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
       throw InputError(config.load_map, 0, std::string("load_map (--load-map): ") + e.what());
     throw;
   }
+  run.summary.interrupted = run.pipeline.error_stage == graph::kStopStage;
   // The outputs, then the map; one that fails does not keep the others from being written, and
   // the run's results are returned with the first failure in Result::error.
   driver::OutputErrors output_errors;
@@ -230,6 +232,7 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
         result.outputs_removed.push_back(name);
   }
   result.error = s.error;
+  result.interrupted = s.interrupted;
   if (!output_error.empty())
     result.error += (result.error.empty() ? "" : "; ") + std::string("outputs: ") + output_error;
   return result;

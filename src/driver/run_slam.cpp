@@ -280,6 +280,7 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   j["fps"] = s.wall_s > 0 ? static_cast<double>(s.frames_in) / s.wall_s : 0.0;
   for (const auto& [name, series] : s.stages) j["stages"][name] = TimingJson(series.Summarize());
   if (!s.error.empty()) j["error"] = s.error;
+  if (s.interrupted) j["interrupted"] = true;
   if (s.filtered) {
     j["filter"]["reasons"] = s.filter_reasons;
     if (s.filter_confusion) j["filter"]["confusion"] = eval::ToJson(*s.filter_confusion);
@@ -365,7 +366,8 @@ std::string FormatRunSummary(const RunSummary& s) {
                        s.parked_points, 100.0 * s.parked_points_kept / s.parked_points);
   }
   if (s.evaluation) o << eval::FormatReport(*s.evaluation, s.eval_options);
-  if (!s.error.empty()) o << "run stopped early: " << s.error << "\n";
+  if (!s.error.empty())
+    o << (s.interrupted ? "run interrupted: " : "run stopped early: ") << s.error << "\n";
   return o.str();
 }
 

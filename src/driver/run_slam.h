@@ -69,7 +69,8 @@ struct RunSummary {
   // The query keyframes' timestamps of the loops closed (ringed on trajectory.png in
   // kLoopColour).
   std::vector<int64_t> loops_closed_t_ns;
-  std::string error;  // non-empty when the run stopped early (outputs cover the frames done)
+  std::string error;         // non-empty when the run stopped early (outputs cover the frames done)
+  bool interrupted = false;  // stopped early on request (api::Config::stop); error says where
 };
 
 // The dataset's rig with the configuration's camera override applied (warns when it differs from

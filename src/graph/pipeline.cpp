@@ -742,6 +742,17 @@ void GraphRun::ClockLoop() {
       if (!error_) error_ = FrameError{-1, -1, kGraphStage, "exception in the flow graph"};
       break;
     }
+    // A stop request: the first frame not admitted is where the run ends (after the frames
+    // before it), as at a failed frame; nothing when every frame was admitted or dropped.
+    if (!error_ && options_.stop != nullptr && options_.stop->load()) {
+      const size_t next = static_cast<size_t>(admitted_) + dropped_indices_.size();
+      if (next < source_.size()) {
+        error_ = FrameError{admitted_, source_.frame_indices[next], kStopStage,
+                            "stopped on request before this frame"};
+        spdlog::warn("pipeline: stop requested; frames from {} on are not run",
+                     source_.frame_indices[next]);
+      }
+    }
     if (error_ && completed_ >= error_->seq) {
       // Every frame before the failing one is done: stop the rest.
       graph_->cancel();

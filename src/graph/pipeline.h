@@ -124,6 +124,9 @@ struct MapSnapshot {
   std::vector<std::pair<size_t, size_t>> loops;
 };
 
+// PipelineResult::error_stage of a run stopped by PipelineOptions::stop.
+inline constexpr const char* kStopStage = "stop";
+
 struct PipelineResult {
   std::vector<FrameRecord> frames;  // completed frames, in order
   std::vector<int64_t> dropped_frame_indices;

@@ -11,6 +11,7 @@
 //               for it when it becomes free (frames it skips answer "busy"), and tracking waits
 //               at most mask_deadline_ms for a late segmentation and then uses the newest older
 //               mask, marked stale.
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -101,6 +102,11 @@ struct PipelineOptions {
   // back end), and a hook called at the start of every stage body (may sleep or throw).
   double tracking_delay_ms = 0;
   std::function<void(std::string_view stage, int64_t frame_index)> stage_hook;
+  // A stop request, set from another thread (or a signal handler): once it is true no further
+  // frame is admitted, the frames admitted finish, and the run ends as after a failed frame at the
+  // first frame not admitted (PipelineResult::error_stage kStopStage; the results cover the frames
+  // before it). Null: the run goes to the last frame.
+  const std::atomic<bool>* stop = nullptr;
   // Called after each completed frame (from the serial sink, in frame order): progress, and
   // audits of the frame's filter decisions (record.filter_report).
   std::function<void(size_t completed, size_t total, const FrameRecord& record)> on_frame;
