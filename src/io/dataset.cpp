@@ -250,7 +250,14 @@ Dataset OpenDataset(const std::string& path, KittiCameras cams, RawTruth raw_tru
   if (fs::is_directory(dir / "image_00" / "data", ec) ||
       fs::is_directory(dir / "image_02" / "data", ec))
     return OpenKittiRaw(path, cams, raw_truth);
-  if (fs::exists(dir / "calib.txt", ec)) return OpenKittiOdometry(path, cams);
+  if (fs::exists(dir / "calib.txt", ec)) {
+    // Its ground truth is poses/NN.txt: asking for GPS positions would be ignored.
+    if (raw_truth == RawTruth::kGps)
+      throw InputError(path, 0,
+                       "GPS ground truth (--raw-truth gps) needs a KITTI raw drive's OXTS "
+                       "records; this is an odometry sequence (its truth is poses/NN.txt)");
+    return OpenKittiOdometry(path, cams);
+  }
   throw InputError(path, 0,
                    "not a KITTI odometry sequence (calib.txt, image_0/) nor a raw drive "
                    "(image_00/data/)");

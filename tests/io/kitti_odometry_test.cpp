@@ -78,6 +78,9 @@ TEST_F(SyntheticOdometry, ReadsRigTimesImagesAndGroundTruth) {
   EXPECT_THROW(d.LoadLeft(3), std::out_of_range);
   // OpenDataset detects the odometry layout.
   EXPECT_EQ(OpenDataset(seq_ + "/").size(), 3u);
+  // GPS truth exists only for raw drives: asked for here, it is an error, not ignored.
+  ExpectInputError([&] { OpenDataset(seq_, KittiCameras::kGray, RawTruth::kGps); }, "sequences/03",
+                   0, "--raw-truth gps");
 }
 
 TEST_F(SyntheticOdometry, ColourCamerasUseP2P3AndConvertToGrey) {
