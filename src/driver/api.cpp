@@ -80,7 +80,25 @@ driver::DriverOptions ToDriverOptions(const Config& c) {
   p.device_overlap = c.device_overlap;
   p.stop = c.stop;
   std::string why;
-  if (!p.IsValid(&why)) throw ConfigError("pipeline options: " + why);
+  if (!p.IsValid(&why)) {
+    // Named as the command line's option, the field in brackets.
+    static const std::pair<const char*, const char*> kOptions[] = {
+        {"threads", "--threads"},
+        {"max_in_flight", "--max-in-flight"},
+        {"rate", "--rate"},
+        {"waiting_capacity", "--waiting"},
+        {"inference_every", "--inference-every"},
+        {"mask_deadline_ms", "--mask-deadline-ms"},
+        {"trim_heap_every", "--trim-every"},
+        {"tracking_delay_ms", "--delay-ms"}};
+    for (const auto& [field, option] : kOptions) {
+      const std::string prefix = std::string(field) + " ";
+      if (why.rfind(prefix, 0) == 0)
+        throw ConfigError(std::string(option) + " " + why.substr(prefix.size()) + " (" + field +
+                          ")");
+    }
+    throw ConfigError("pipeline options: " + why);
+  }
   o.model_high = c.model_high;
   o.model_low = c.model_low;
   return o;
@@ -147,11 +165,16 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
       driver::FrameRange{static_cast<size_t>(source.first), static_cast<size_t>(source.end)}.Within(
           dataset.size(),
           "Source frames " + std::to_string(source.first) + ":" + std::to_string(source.end));
-  spdlog::info("{} {} {}: {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m{}",
+  // The camera the run uses: the configuration's camera section overrides the calibration file's.
+  const driver::CameraOverride& camera = run_config.camera;
+  const double fx = camera.Active() ? camera.fx : dataset.rig.left.fx;
+  const double baseline_m =
+      camera.Active() && camera.baseline_m > 0 ? camera.baseline_m : dataset.rig.baseline_m;
+  spdlog::info("{} {} {}: {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m{}{}",
                graph::ToString(options.pipeline.policy), ToString(options.mode),
                config.filter ? "filter on" : "filter off", dataset.name, range.end - range.first,
                range.first, range.end - 1, dataset.rig.left.width_px, dataset.rig.left.height_px,
-               dataset.rig.left.fx, dataset.rig.baseline_m,
+               fx, baseline_m, camera.Active() ? " (the configuration's camera)" : "",
                config.out_dir.empty() ? "" : ", out " + config.out_dir);
   spdlog::debug("effective configuration:\n{}", config_yaml);
   if (on_frame)

@@ -2,16 +2,13 @@
 // loop.enabled (file or --set) both are; config.yaml records that effective setting, so that a
 // rerun with --config OUT/config.yaml runs as this run did, and the log says which setting won.
 #include <gtest/gtest.h>
-#include <spdlog/sinks/ostream_sink.h>
-#include <spdlog/spdlog.h>
 
 #include <fstream>
-#include <memory>
-#include <sstream>
 #include <string>
 
 #include "pcr/api.h"
 #include "support/data_paths.h"
+#include "support/log_capture.h"
 #include "support/shipped_vocabulary.h"
 
 namespace pcr::api {
@@ -30,27 +27,6 @@ std::string LoopEnabledLine(const std::string& config_yaml) {
   return "";
 }
 
-// The run's log at info level and above.
-class LogCapture {
- public:
-  LogCapture() : sink_(std::make_shared<spdlog::sinks::ostream_sink_mt>(text_)) {
-    spdlog::default_logger()->sinks().push_back(sink_);
-    level_ = spdlog::get_level();
-    spdlog::set_level(spdlog::level::info);
-  }
-  ~LogCapture() {
-    auto& sinks = spdlog::default_logger()->sinks();
-    std::erase(sinks, sink_);
-    spdlog::set_level(level_);
-  }
-  std::string Text() const { return text_.str(); }
-
- private:
-  std::ostringstream text_;
-  std::shared_ptr<spdlog::sinks::ostream_sink_mt> sink_;
-  spdlog::level::level_enum level_;
-};
-
 TEST(LoopSetting, ConfigYamlRecordsTheEffectiveSettingAndTheLogSaysWhichWon) {
   const std::string dir = test::MakeTempDir("pcr_loop_setting");
   const Source source = Source::Dataset(test::SharedPath("data/kitti/sequences/06"), 0, 2);
@@ -61,7 +37,7 @@ TEST(LoopSetting, ConfigYamlRecordsTheEffectiveSettingAndTheLogSaysWhichWon) {
   c.overrides = {"loop.enabled=true"};
   c.out_dir = dir + "/off_over_set";
   {
-    LogCapture log;
+    test::LogCapture log;
     const Result r = api::Run(c, source);
     ASSERT_TRUE(r.error.empty()) << r.error;
     EXPECT_EQ(r.report.find("loop closing:"), std::string::npos) << r.report;
@@ -83,7 +59,7 @@ TEST(LoopSetting, ConfigYamlRecordsTheEffectiveSettingAndTheLogSaysWhichWon) {
   c.overrides = {"loop.enabled=false"};
   c.out_dir = dir + "/set_over_on";
   {
-    LogCapture log;
+    test::LogCapture log;
     const Result r = api::Run(c, source);
     ASSERT_TRUE(r.error.empty()) << r.error;
     EXPECT_NE(log.Text().find("loop closing off"), std::string::npos) << log.Text();

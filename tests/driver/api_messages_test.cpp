@@ -1,0 +1,58 @@
+// What a run says about its own settings: a scheduling option out of range is named as the
+// command line's option, and the start line gives the camera the run uses.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "pcr/api.h"
+#include "support/data_paths.h"
+#include "support/log_capture.h"
+
+namespace pcr::api {
+namespace {
+
+Source TwoFramesOf06() {
+  return Source::Dataset(test::SharedPath("data/kitti/sequences/06"), 0, 2);
+}
+
+// The message api::Run throws for c (before any frame runs), "" when it throws none.
+std::string ErrorOf(const Config& c) {
+  try {
+    api::Run(c, TwoFramesOf06());
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ApiMessages, ASchedulingOptionOutOfRangeIsNamedAsTheOption) {
+  Config c;
+  c.policy = Policy::kRealtime;
+  c.loop_closing = false;
+  c.waiting = 0;
+  EXPECT_EQ(ErrorOf(c), "--waiting must be >= 1 (waiting_capacity)");
+  c.waiting = 1;
+  c.inference_every = 0;
+  EXPECT_EQ(ErrorOf(c), "--inference-every must be in [1, 1000] (inference_every)");
+}
+
+TEST(ApiMessages, TheStartLineGivesTheConfigurationsCamera) {
+  const std::string dir = test::MakeTempDir("pcr_api_messages");
+  const std::string yaml = dir + "/camera.yaml";
+  std::ofstream(yaml) << "camera:\n  fx: 718.856\n  fy: 718.856\n  cx: 607.1928\n  cy: 185.2157\n";
+  Config c;
+  c.loop_closing = false;
+  c.config_file = yaml;
+  test::LogCapture log;
+  const Result r = api::Run(c, TwoFramesOf06());
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  // Sequence 06's calib.txt says 707.091; the run uses the configuration's 718.856.
+  EXPECT_NE(log.Text().find("fx 718.856"), std::string::npos) << log.Text();
+  EXPECT_EQ(log.Text().find("fx 707.091"), std::string::npos) << log.Text();
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace pcr::api
