@@ -18,7 +18,9 @@ struct StampedPose {
 
 using Trajectory = std::vector<StampedPose>;
 
-inline int64_t SecondsToNs(double t_s) { return static_cast<int64_t>(t_s * 1e9 + (t_s >= 0 ? 0.5 : -0.5)); }
+inline int64_t SecondsToNs(double t_s) {
+  return static_cast<int64_t>(t_s * 1e9 + (t_s >= 0 ? 0.5 : -0.5));
+}
 inline double NsToSeconds(int64_t t_ns) { return static_cast<double>(t_ns) * 1e-9; }
 
 // Total length of the path traced by the positions, in metres.

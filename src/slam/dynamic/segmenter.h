@@ -35,7 +35,7 @@ struct Segmentation {
   // CV_16U, full image size: 0 = no instance, k = instances[k - 1]. Where masks overlap the
   // more confident instance wins.
   cv::Mat instance_map;
-  bool stale = false;   // true when an asynchronous wrapper re-used an older frame's result
+  bool stale = false;  // true when an asynchronous wrapper re-used an older frame's result
   // CV_8UC1: the grey image the maps describe, when whoever made them kept it (the pipeline does,
   // so that a mask can be carried to later frames by their motion; mask_propagation.h).
   cv::Mat source_grey;
