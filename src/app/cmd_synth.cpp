@@ -2,33 +2,14 @@
 // (poses, per-pixel instance ids, object poses); see src/sim/sequence_writer.h for the layout.
 #include <cstdio>
 #include <string>
-#include <utility>
 
 #include "app/commands.h"
 #include "app/progress.h"
 #include "sim/sequence_writer.h"
 #include "slam/common/error.h"
+#include "slam/common/validation.h"
 
 namespace pcr::app {
-namespace {
-
-// SynthOptions::IsValid names its fields ("speed_mps must be in [0, 40]"): the command line's
-// option instead, the field in brackets ("--speed must be in [0, 40] (speed_mps)").
-std::string OptionNamed(const std::string& why) {
-  static constexpr std::pair<const char*, const char*> kOptions[] = {
-      {"frames", "--frames"},       {"num_movers", "--movers"},
-      {"num_parked", "--parked"},   {"speed_mps", "--speed"},
-      {"lead_gap_m", "--lead-gap"}, {"laps", "--laps"},
-      {"sequence", "--sequence"},   {"seed", "--seed"}};
-  for (const auto& [field, option] : kOptions) {
-    const std::string prefix = std::string(field) + " ";
-    if (why.rfind(prefix, 0) == 0)
-      return option + why.substr(std::string(field).size()) + " (" + field + ")";
-  }
-  return why;
-}
-
-}  // namespace
 
 void AddSynthCommand(CLI::App& app) {
   struct Args {
@@ -70,7 +51,16 @@ void AddSynthCommand(CLI::App& app) {
     sim::SynthOptions options = args->options;
     options.route = sim::ParseRoute(args->route);
     std::string why;
-    if (!options.IsValid(&why)) throw ConfigError("synth: " + OptionNamed(why));
+    // SynthOptions::IsValid names its fields: the command line's options instead.
+    if (!options.IsValid(&why))
+      throw ConfigError("synth: " + NamedAsOption(why, {{"frames", "--frames"},
+                                                        {"num_movers", "--movers"},
+                                                        {"num_parked", "--parked"},
+                                                        {"speed_mps", "--speed"},
+                                                        {"lead_gap_m", "--lead-gap"},
+                                                        {"laps", "--laps"},
+                                                        {"sequence", "--sequence"},
+                                                        {"seed", "--seed"}}));
     Progress progress("synth", options.frames);
     const sim::WriteSummary summary =
         sim::WriteSequence(options, args->out_dir, [&progress](int done, int total) {

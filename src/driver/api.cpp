@@ -14,6 +14,7 @@
 #include "pcr/version.h"
 #include "slam/common/error.h"
 #include "slam/common/timing.h"
+#include "slam/common/validation.h"
 
 namespace pcr::api {
 namespace {
@@ -82,22 +83,15 @@ driver::DriverOptions ToDriverOptions(const Config& c) {
   std::string why;
   if (!p.IsValid(&why)) {
     // Named as the command line's option, the field in brackets.
-    static const std::pair<const char*, const char*> kOptions[] = {
-        {"threads", "--threads"},
-        {"max_in_flight", "--max-in-flight"},
-        {"rate", "--rate"},
-        {"waiting_capacity", "--waiting"},
-        {"inference_every", "--inference-every"},
-        {"mask_deadline_ms", "--mask-deadline-ms"},
-        {"trim_heap_every", "--trim-every"},
-        {"tracking_delay_ms", "--delay-ms"}};
-    for (const auto& [field, option] : kOptions) {
-      const std::string prefix = std::string(field) + " ";
-      if (why.rfind(prefix, 0) == 0)
-        throw ConfigError(std::string(option) + " " + why.substr(prefix.size()) + " (" + field +
-                          ")");
-    }
-    throw ConfigError("pipeline options: " + why);
+    const std::string named = NamedAsOption(why, {{"threads", "--threads"},
+                                                  {"max_in_flight", "--max-in-flight"},
+                                                  {"rate", "--rate"},
+                                                  {"waiting_capacity", "--waiting"},
+                                                  {"inference_every", "--inference-every"},
+                                                  {"mask_deadline_ms", "--mask-deadline-ms"},
+                                                  {"trim_heap_every", "--trim-every"},
+                                                  {"tracking_delay_ms", "--delay-ms"}});
+    throw ConfigError(named != why ? named : "pipeline options: " + why);
   }
   o.model_high = c.model_high;
   o.model_low = c.model_low;
