@@ -51,6 +51,12 @@ void Assign(const ConfigSchema::FieldPtr& ptr, const YAML::Node& value, const st
       ptr);
 }
 
+// The value `field` points at.
+std::variant<int, double, bool, std::string> Get(const ConfigSchema::FieldPtr& field) {
+  return std::visit([](auto* p) { return std::variant<int, double, bool, std::string>(*p); },
+                    field);
+}
+
 // Writes `value` (of the field's own type) through `field`.
 void Put(const ConfigSchema::FieldPtr& field,
          const std::variant<int, double, bool, std::string>& value) {
@@ -70,9 +76,7 @@ void ConfigSchema::Add(const std::string& section, const std::string& key, Field
                        const std::string& doc) {
   if (Find(section, key))
     throw std::logic_error("config key registered twice: " + section + "." + key);
-  Value initial;
-  std::visit([&](auto* p) { initial = *p; }, field);
-  fields_.push_back({section, key, doc, field, std::move(initial), std::nullopt});
+  fields_.push_back({section, key, doc, field, Get(field), std::nullopt});
 }
 
 bool ConfigSchema::Has(const std::string& section, const std::string& key) const {
@@ -120,7 +124,7 @@ void ConfigSchema::LoadString(const std::string& text, const std::string& source
   std::vector<Value> saved;
   std::vector<std::optional<Origin>> saved_origins;
   for (const Field& f : fields_) {
-    std::visit([&](auto* p) { saved.emplace_back(*p); }, f.ptr);
+    saved.push_back(Get(f.ptr));
     saved_origins.push_back(f.origin);
   }
   try {
@@ -218,8 +222,7 @@ std::optional<ConfigSchema::Origin> ConfigSchema::Blame(
   for (Field& f : fields_)
     if (f.origin && !named(f.key)) order.push_back(&f);
   for (Field* f : order) {
-    Value now;
-    std::visit([&](auto* p) { now = *p; }, f->ptr);
+    const Value now = Get(f->ptr);
     Put(f->ptr, f->initial);
     const bool changed = problem() != answer;
     Put(f->ptr, now);
