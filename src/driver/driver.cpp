@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <filesystem>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -96,11 +95,7 @@ void AddRemovedPoints(const nodes::FilterReport& report, const std::vector<char>
 // labels number its images: labels of a frame beyond the dataset's last image number are
 // another drive's. Throws ConfigError saying which.
 void CheckTruthLabels(const Dataset& dataset, const std::string& labels_path) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const fs::path root(dataset.root);
-  if (!fs::is_directory(root / "image_00" / "data", ec) &&
-      !fs::is_directory(root / "image_02" / "data", ec))
+  if (!IsKittiRawDrive(dataset.root))
     throw ConfigError("--truth-labels " + labels_path + ": " + dataset.name +
                       " is not a KITTI raw drive (image_00/data); tracking labels only describe "
                       "raw drives");

@@ -57,8 +57,7 @@ void FilterAudit::Add(int64_t frame_index, const nodes::FilterReport& report, Ru
   cv::Mat ids;
   if (instances_) {
     // The image's own number (a clip may start after 0 or have gaps).
-    const int64_t number =
-        dataset_.frame_numbers.empty() ? static_cast<int64_t>(i) : dataset_.frame_numbers.at(i);
+    const int64_t number = dataset_.FrameNumber(i);
     char name[32];
     std::snprintf(name, sizeof(name), "/instance_0/%06lld.png", static_cast<long long>(number));
     // Read as uint16 ids at keypoint positions, as TruthSegmenter::Segment does.

@@ -28,11 +28,9 @@ LabelTruth::LabelTruth(const Dataset& dataset, const std::string& labels_path,
   const TrackingLabels labels = ReadTrackingLabels(labels_path);
   // The labels' frames are the images' numbers, which a clip that starts after 0 or has gaps
   // does not share with its frame indices.
-  const auto number_of = [&](size_t i) {
-    return dataset.frame_numbers.empty() ? static_cast<int64_t>(i) : dataset.frame_numbers.at(i);
-  };
   Trajectory poses_by_number = *dataset.ground_truth;
-  for (size_t i = 0; i < poses_by_number.size(); ++i) poses_by_number[i].frame_index = number_of(i);
+  for (size_t i = 0; i < poses_by_number.size(); ++i)
+    poses_by_number[i].frame_index = dataset.FrameNumber(i);
   motion_ = ComputeTrackMotion(labels, poses_by_number);
   const PinholeCamera& cam = dataset.rig.left;
   Eigen::Matrix<double, 3, 4> p = Eigen::Matrix<double, 3, 4>::Zero();
@@ -43,7 +41,7 @@ LabelTruth::LabelTruth(const Dataset& dataset, const std::string& labels_path,
   p(2, 2) = 1.0;
   boxes_.resize(dataset.ground_truth->size());
   for (size_t i = 0; i < boxes_.size(); ++i) {
-    const int64_t f = number_of(i);
+    const int64_t f = dataset.FrameNumber(i);
     if (f >= static_cast<int64_t>(labels.frames.size())) continue;
     for (const TrackedObject& object : labels.frames[static_cast<size_t>(f)]) {
       if (object.IsDontCare()) continue;

@@ -122,6 +122,12 @@ std::string NormalDirectoryPath(const std::string& dir) {
   return path.string();
 }
 
+bool IsKittiRawDrive(const std::string& dir) {
+  std::error_code ec;
+  return fs::is_directory(fs::path(dir) / "image_00" / "data", ec) ||
+         fs::is_directory(fs::path(dir) / "image_02" / "data", ec);
+}
+
 std::string FirstDirectoryWhere(const std::string& normal_dir,
                                 const std::function<bool(const std::string&)>& holds) {
   if (holds(normal_dir)) return normal_dir;
@@ -247,9 +253,7 @@ Dataset OpenDataset(const std::string& path, KittiCameras cams, RawTruth raw_tru
   std::error_code ec;
   if (!fs::is_directory(path, ec)) throw InputError(path, 0, "dataset directory not found");
   const fs::path dir(path);
-  if (fs::is_directory(dir / "image_00" / "data", ec) ||
-      fs::is_directory(dir / "image_02" / "data", ec))
-    return OpenKittiRaw(path, cams, raw_truth);
+  if (IsKittiRawDrive(path)) return OpenKittiRaw(path, cams, raw_truth);
   if (fs::exists(dir / "calib.txt", ec)) {
     // Its ground truth is poses/NN.txt: asking for GPS positions would be ignored.
     if (raw_truth == RawTruth::kGps)

@@ -47,6 +47,11 @@ struct Dataset {
   std::vector<std::string> left_color_paths;  // camera 2 colour images when present, else empty
 
   size_t size() const { return left_paths.size(); }
+  // Frame i's image number (frame_numbers[i]; i itself where frame_numbers is empty, as in a
+  // dataset built by hand). Throws std::out_of_range for a bad index.
+  int64_t FrameNumber(size_t i) const {
+    return frame_numbers.empty() ? static_cast<int64_t>(i) : frame_numbers.at(i);
+  }
   bool has_right() const { return !right_paths.empty(); }
   bool has_color() const { return !left_color_paths.empty(); }
   double DurationSeconds() const {
@@ -84,6 +89,10 @@ std::vector<std::string> ListFiles(const std::string& dir, const std::string& ex
 // `dir` made absolute and lexically normal, without a trailing separator or "." ("07", "./07/.",
 // "seq/07/" -> "<cwd>/.../07"), so that its file name and parents are those of the directory.
 std::string NormalDirectoryPath(const std::string& dir);
+
+// Whether dir has a KITTI raw drive's layout (image_00/data or image_02/data), which OpenDataset
+// opens as one.
+bool IsKittiRawDrive(const std::string& dir);
 
 // Where the files beside a dataset directory (the poses two levels up, a raw drive's calibration
 // one level up) are looked for: `normal_dir` as given, then, when it is or passes through a
