@@ -160,15 +160,13 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
           dataset.size(),
           "Source frames " + std::to_string(source.first) + ":" + std::to_string(source.end));
   // The camera the run uses: the configuration's camera section overrides the calibration file's.
-  const driver::CameraOverride& camera = run_config.camera;
-  const double fx = camera.Active() ? camera.fx : dataset.rig.left.fx;
-  const double baseline_m =
-      camera.Active() && camera.baseline_m > 0 ? camera.baseline_m : dataset.rig.baseline_m;
+  const StereoRig rig = driver::EffectiveRig(dataset, run_config.camera);
   spdlog::info("{} {} {}: {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m{}{}",
                graph::ToString(options.pipeline.policy), ToString(options.mode),
                config.filter ? "filter on" : "filter off", dataset.name, range.end - range.first,
                range.first, range.end - 1, dataset.rig.left.width_px, dataset.rig.left.height_px,
-               fx, baseline_m, camera.Active() ? " (the configuration's camera)" : "",
+               rig.left.fx, rig.baseline_m,
+               run_config.camera.Active() ? " (the configuration's camera)" : "",
                config.out_dir.empty() ? "" : ", out " + config.out_dir);
   spdlog::debug("effective configuration:\n{}", config_yaml);
   if (on_frame)

@@ -178,6 +178,7 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   if (!dynamic.truth_labels.empty()) CheckTruthLabels(dataset, dynamic.truth_labels);
 
   // One camera for the tracker and the filter.
+  WarnIfCameraOverrideDiffers(dataset, config.camera);
   const StereoRig rig = EffectiveRig(dataset, config.camera);
   const bool color = dynamic.segmenter == "yolo" && dataset.has_color();
   const nodes::FrameSource source = SourceFromDataset(dataset, rig, range, options.mode, color);

@@ -27,13 +27,18 @@ nlohmann::json TimingJson(const TimingSummary& s) {
 
 }  // namespace
 
-StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera) {
-  StereoRig rig = dataset.rig;
-  if (!camera.Active()) return rig;
+void WarnIfCameraOverrideDiffers(const Dataset& dataset, const CameraOverride& camera) {
+  if (!camera.Active()) return;
+  const StereoRig& rig = dataset.rig;
   auto differs = [](double a, double b) { return std::abs(a - b) > 0.01 * std::abs(b); };
   if (differs(camera.fx, rig.left.fx) || differs(camera.cx, rig.left.cx) ||
       (camera.baseline_m > 0 && differs(camera.baseline_m, rig.baseline_m)))
     spdlog::warn("camera override differs from the dataset calibration by more than 1%");
+}
+
+StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera) {
+  StereoRig rig = dataset.rig;
+  if (!camera.Active()) return rig;
   rig.left.fx = camera.fx;
   rig.left.fy = camera.fy;
   rig.left.cx = camera.cx;

@@ -73,9 +73,11 @@ struct RunSummary {
   bool interrupted = false;  // stopped early on request (api::Config::stop); error says where
 };
 
-// The dataset's rig with the configuration's camera override applied (warns when it differs from
-// the calibration by more than 1%).
+// The dataset's rig with the configuration's camera override applied.
 StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera);
+// Warns when the configuration's camera override differs from the dataset's calibration by more
+// than 1% (fx, cx or the baseline).
+void WarnIfCameraOverrideDiffers(const Dataset& dataset, const CameraOverride& camera);
 
 // Counts one processed frame (status, stage times, map size) into the summary.
 void AddFrameToSummary(const FrameOutput& out, bool stereo, RunSummary* summary);
