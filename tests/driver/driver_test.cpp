@@ -5,18 +5,16 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
-#include <spdlog/sinks/ostream_sink.h>
-#include <spdlog/spdlog.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "driver/map_outputs.h"
 #include "driver/traffic_street.h"
 #include "slam/common/error.h"
 #include "support/data_paths.h"
+#include "support/log_capture.h"
 
 namespace pcr::driver {
 namespace {
@@ -252,19 +250,19 @@ TEST(Driver, OptionsThatWouldDoNothingAreErrorsNamingTheOption) {
 // Options that still do something, or that a documented command passes, are warnings.
 TEST(Driver, AdaptiveWithoutASegmenterAndAnEngineWithoutYoloAreWarnings) {
   const Dataset kitti = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
-  std::ostringstream log;
-  const auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
-  spdlog::default_logger()->sinks().push_back(sink);
   RunConfig config;
   config.dynamic.inference = "opencv";
   DriverOptions o = WithPolicy(graph::Policy::kPipelined);
   o.pipeline.adaptive = true;
-  const std::string error = SetupError(kitti, config, o);
-  spdlog::default_logger()->sinks().pop_back();
+  std::string error, log;
+  {
+    const test::LogCapture capture;
+    error = SetupError(kitti, config, o);
+    log = capture.Text();
+  }
   EXPECT_EQ(error, "");
-  EXPECT_NE(log.str().find("--adaptive on without a segmenter"), std::string::npos) << log.str();
-  EXPECT_NE(log.str().find("--inference opencv without --segmenter yolo"), std::string::npos)
-      << log.str();
+  EXPECT_NE(log.find("--adaptive on without a segmenter"), std::string::npos) << log;
+  EXPECT_NE(log.find("--inference opencv without --segmenter yolo"), std::string::npos) << log;
 }
 
 // Tracking labels are a raw drive's, numbered by its images: an odometry sequence, or labels

@@ -20,30 +20,35 @@ std::string Labels0000() {
 
 cv::KeyPoint At(float u, float v) { return cv::KeyPoint(cv::Point2f(u, v), 7.0f); }
 
+// Image 45 of drive 0005 (label_02 2-D boxes, image_02 pixels, a few pixels from image_00):
+// cyclist (track 1) around (632, 258), parked van (track 3) around (814, 192); the sky and the
+// road near the left border hold no object.
+const std::vector<cv::KeyPoint> kImage45 = {At(632, 258), At(814, 192), At(100, 30), At(60, 360)};
+
+// `frame` of `truth` is image 45: its cyclist moves, its van stands, its background is static.
+void ExpectImage45(const LabelTruth& truth, size_t frame) {
+  const std::vector<LabelTruthKind> kinds = truth.Classify(frame, kImage45);
+  ASSERT_EQ(kinds.size(), kImage45.size());
+  EXPECT_EQ(kinds[0], LabelTruthKind::kMoving);
+  EXPECT_EQ(truth.TrackAt(frame, kImage45[0].pt), 1);
+  EXPECT_EQ(kinds[1], LabelTruthKind::kParked);
+  EXPECT_EQ(truth.TrackAt(frame, kImage45[1].pt), 3);
+  EXPECT_EQ(kinds[2], LabelTruthKind::kStatic);
+  EXPECT_EQ(kinds[3], LabelTruthKind::kStatic);
+  EXPECT_EQ(truth.TrackAt(frame, kImage45[2].pt), -1);
+}
+
 TEST(LabelTruth, CyclistMovesParkedVanStandsBackgroundIsStatic) {
   const Dataset dataset = OpenDataset(Drive0005());
   const LabelTruth truth(dataset, Labels0000());
   EXPECT_EQ(truth.num_tracks(), 4u);
   EXPECT_EQ(truth.num_moving_tracks(), 3u);
-  // Frame 45 (label_02 2-D boxes, image_02 pixels, a few pixels from image_00): cyclist (track 1)
-  // around (632, 258), parked van (track 3) around (814, 192); the sky and the road near the
-  // left border hold no object.
-  const std::vector<cv::KeyPoint> keypoints = {At(632, 258), At(814, 192), At(100, 30),
-                                               At(60, 360)};
-  const std::vector<LabelTruthKind> kinds = truth.Classify(45, keypoints);
-  ASSERT_EQ(kinds.size(), keypoints.size());
-  EXPECT_EQ(kinds[0], LabelTruthKind::kMoving);
-  EXPECT_EQ(truth.TrackAt(45, keypoints[0].pt), 1);
-  EXPECT_EQ(kinds[1], LabelTruthKind::kParked);
-  EXPECT_EQ(truth.TrackAt(45, keypoints[1].pt), 3);
-  EXPECT_EQ(kinds[2], LabelTruthKind::kStatic);
-  EXPECT_EQ(kinds[3], LabelTruthKind::kStatic);
-  EXPECT_EQ(truth.TrackAt(45, keypoints[2].pt), -1);
+  ExpectImage45(truth, 45);
   // A frame past the labels: everything static.
-  const std::vector<LabelTruthKind> beyond = truth.Classify(10000, keypoints);
-  ASSERT_EQ(beyond.size(), keypoints.size());
+  const std::vector<LabelTruthKind> beyond = truth.Classify(10000, kImage45);
+  ASSERT_EQ(beyond.size(), kImage45.size());
   for (LabelTruthKind k : beyond) EXPECT_EQ(k, LabelTruthKind::kStatic);
-  EXPECT_EQ(truth.TrackAt(10000, keypoints[0].pt), -1);
+  EXPECT_EQ(truth.TrackAt(10000, kImage45[0].pt), -1);
 }
 
 // Drive 0005 from image 40 on (as if images 0-39 were not there): frame index 5 is image 45, whose
@@ -61,15 +66,7 @@ TEST(LabelTruth, AClipThatStartsLaterUsesTheLabelsOfItsImagesNumbers) {
   drop(&*clip.ground_truth);
   for (size_t i = 0; i < clip.ground_truth->size(); ++i) (*clip.ground_truth)[i].frame_index = i;
   ASSERT_EQ(clip.frame_numbers.front(), 40);
-  const LabelTruth truth(clip, Labels0000());
-  const std::vector<cv::KeyPoint> keypoints = {At(632, 258), At(814, 192), At(100, 30)};
-  const std::vector<LabelTruthKind> kinds = truth.Classify(5, keypoints);
-  ASSERT_EQ(kinds.size(), keypoints.size());
-  EXPECT_EQ(kinds[0], LabelTruthKind::kMoving);
-  EXPECT_EQ(truth.TrackAt(5, keypoints[0].pt), 1);
-  EXPECT_EQ(kinds[1], LabelTruthKind::kParked);
-  EXPECT_EQ(truth.TrackAt(5, keypoints[1].pt), 3);
-  EXPECT_EQ(kinds[2], LabelTruthKind::kStatic);
+  ExpectImage45(LabelTruth(clip, Labels0000()), 5);
 }
 
 TEST(LabelTruth, NeedsGroundTruthPoses) {
