@@ -2,11 +2,10 @@
 // (`pcr_orb --mmap-threshold`, graph/heap.h).
 #include <gtest/gtest.h>
 
-#include <cstdio>
-#include <filesystem>
 #include <string>
 
 #include "graph/heap.h"
+#include "pcr_orb_command.h"
 
 // pcr_app (src/app) is not linked into this binary: its progress reporting is compiled in here.
 #include "app/progress.cpp"  // NOLINT(bugprone-suspicious-include)
@@ -44,20 +43,12 @@ TEST(HeapPolicy, AnMmapThresholdBeyondMalloptsIntIsRefusedNotWrapped) {
 }
 
 // The command line refuses an --mmap-threshold glibc cannot take, naming the option.
-// PCR_ORB_BINARY: the build's pcr_orb, which test_driver depends on (tests/CMakeLists.txt).
 TEST(CommandLine, MmapThresholdOutOfRangeIsRefused) {
-  const std::filesystem::path pcr_orb = PCR_ORB_BINARY;
-  ASSERT_TRUE(std::filesystem::is_regular_file(pcr_orb)) << "no " << pcr_orb << " built";
   for (const char* value : {"4295098368", "33554433", "-1", "1e6"}) {
-    const std::string command = pcr_orb.string() + " --log-level off --mmap-threshold " + value +
-                                " info --model /nonexistent/model.onnx 2>&1";
-    FILE* pipe = popen(command.c_str(), "r");
-    ASSERT_NE(pipe, nullptr);
-    std::string out;
-    char buffer[256];
-    while (std::fgets(buffer, sizeof(buffer), pipe)) out += buffer;
-    const int status = pclose(pipe);
-    EXPECT_NE(status, 0) << value;
+    const test::CommandOutput r = test::RunPcrOrb(std::string("--log-level off --mmap-threshold ") +
+                                                  value + " info --model /nonexistent/model.onnx");
+    const std::string out = r.out + r.err;
+    EXPECT_NE(r.status, 0) << value;
     EXPECT_NE(out.find("--mmap-threshold"), std::string::npos) << value << ": " << out;
     EXPECT_EQ(out.find("cannot open the model"), std::string::npos) << value << ": " << out;
   }
