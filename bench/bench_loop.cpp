@@ -194,10 +194,8 @@ std::string CommandLine(const std::string& command) {
 
 // The file LoadLoopVocabulary(path) reads.
 std::string VocabularyPath(const std::string& path) {
-  if (!path.empty()) return path;
-  for (const std::string& candidate : pcr::driver::DefaultVocabularyPaths())
-    if (fs::is_regular_file(candidate)) return candidate;
-  return "(none)";
+  const std::string found = pcr::driver::FindVocabulary(path);
+  return found.empty() ? "(none)" : found;
 }
 
 // --- Synthetic loops -------------------------------------------------------------------------

@@ -109,21 +109,12 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   std::string config_yaml;
   driver::RunConfig run_config =
       driver::LoadRunConfig(config.config_file, config.overrides, &config_yaml);
-  // Loop closing runs when loop_closing (--loop) and the configuration's loop.enabled both are on;
-  // config.yaml records the setting the run has (a rerun with it runs the same), the log says
-  // which one turned it off.
-  if (!config.loop_closing && run_config.slam.loop.enabled) {
-    std::vector<std::string> overrides = config.overrides;
-    overrides.push_back("loop.enabled=false");
-    run_config = driver::LoadRunConfig(config.config_file, overrides, &config_yaml);
-    spdlog::info(
-        "loop closing off: loop_closing (--loop off) over the configuration's loop.enabled: true "
-        "(config.yaml records false)");
-  } else if (config.loop_closing && !run_config.slam.loop.enabled) {
-    spdlog::info(
-        "loop closing off: the configuration's loop.enabled: false (--config or --set) over "
-        "loop_closing (--loop on)");
-  }
+  driver::DriverOptions options = ToDriverOptions(config);
+  // Loop closing runs when loop_closing (--loop), the configuration's loop.enabled and a
+  // vocabulary all allow it; config.yaml records the setting the run has.
+  options.pipeline.vocabulary =
+      driver::ChooseLoopClosing(config.loop_closing, config.vocabulary, config.config_file,
+                                config.overrides, &run_config, &config_yaml);
   driver::DynamicRunOptions& d = run_config.dynamic;  // its filter options come from the file
   d.segmenter = config.segmenter;
   d.model_path = config.model;
@@ -133,9 +124,6 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   d.dump = config.dump_filter;
   d.truth_miss_rate = config.truth_miss_rate;
   d.truth_labels = config.truth_labels;
-  driver::DriverOptions options = ToDriverOptions(config);
-  if (run_config.slam.loop.enabled)
-    options.pipeline.vocabulary = driver::LoadLoopVocabulary(config.vocabulary);
   if (config.localize_only && config.load_map.empty())
     throw ConfigError("localize_only (--localize-only) needs a map to localise in (--load-map)");
   run_config.slam.localize_only = config.localize_only;

@@ -14,21 +14,33 @@ std::vector<std::string> DefaultVocabularyPaths() {
   return {PCR_SOURCE_VOCABULARY, PCR_INSTALLED_VOCABULARY};
 }
 
-std::shared_ptr<const Vocabulary> LoadLoopVocabulary(const std::string& path) {
-  std::string chosen = path;
+std::string FindVocabulary(const std::string& path, const std::vector<std::string>& candidates) {
+  if (!path.empty()) return path;
+  for (const std::string& candidate : candidates) {
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(candidate, ec)) return candidate;
+  }
+  return "";
+}
+
+namespace {
+
+std::string Listed(const std::vector<std::string>& paths) {
+  std::string text;
+  for (size_t i = 0; i < paths.size(); ++i)
+    text += (i == 0 ? "" : i + 1 == paths.size() ? " or " : ", ") + paths[i];
+  return text.empty() ? "(no default path)" : text;
+}
+
+}  // namespace
+
+std::shared_ptr<const Vocabulary> LoadLoopVocabulary(const std::string& path,
+                                                     const std::vector<std::string>& candidates) {
+  const std::string chosen = FindVocabulary(path, candidates);
   if (chosen.empty()) {
-    for (const std::string& candidate : DefaultVocabularyPaths()) {
-      std::error_code ec;
-      if (std::filesystem::is_regular_file(candidate, ec)) {
-        chosen = candidate;
-        break;
-      }
-    }
-    if (chosen.empty()) {
-      spdlog::warn("loop closing off: no vocabulary at {} or {} (train one with pcr_orb vocab)",
-                   DefaultVocabularyPaths()[0], DefaultVocabularyPaths()[1]);
-      return nullptr;
-    }
+    spdlog::warn("loop closing off: no vocabulary at {} (train one with pcr_orb vocab)",
+                 Listed(candidates));
+    return nullptr;
   }
   const auto start = std::chrono::steady_clock::now();
   auto vocabulary = std::make_shared<const Vocabulary>(LoadVocabulary(chosen));
@@ -36,6 +48,34 @@ std::shared_ptr<const Vocabulary> LoadLoopVocabulary(const std::string& path) {
                vocabulary->num_words(), vocabulary->branching(), vocabulary->depth(),
                MsSince(start));
   return vocabulary;
+}
+
+std::shared_ptr<const Vocabulary> ChooseLoopClosing(bool loop_flag,
+                                                    const std::string& vocabulary_path,
+                                                    const std::string& config_file,
+                                                    const std::vector<std::string>& overrides,
+                                                    RunConfig* run_config, std::string* config_yaml,
+                                                    const std::vector<std::string>& candidates) {
+  if (!run_config->slam.loop.enabled) {
+    if (loop_flag)
+      spdlog::info(
+          "loop closing off: the configuration's loop.enabled: false (--config or --set) over "
+          "loop_closing (--loop on)");
+    return nullptr;
+  }
+  std::shared_ptr<const Vocabulary> vocabulary;
+  if (!loop_flag) {
+    spdlog::info(
+        "loop closing off: loop_closing (--loop off) over the configuration's loop.enabled: true "
+        "(config.yaml records false)");
+  } else {
+    vocabulary = LoadLoopVocabulary(vocabulary_path, candidates);  // warns when there is none
+    if (vocabulary) return vocabulary;
+  }
+  std::vector<std::string> off = overrides;
+  off.push_back("loop.enabled=false");
+  *run_config = LoadRunConfig(config_file, off, config_yaml);
+  return nullptr;
 }
 
 }  // namespace pcr::driver

@@ -1,9 +1,10 @@
 #pragma once
-// Which vocabulary a run's loop closing uses.
+// Which vocabulary a run's loop closing uses, and whether loop closing runs at all.
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "driver/slam_config.h"
 #include "slam/loop/vocabulary.h"
 
 namespace pcr::driver {
@@ -12,8 +13,25 @@ namespace pcr::driver {
 // vocabulary/pcr_orb_voc.bin, then the installed share/pcr_orb/pcr_orb_voc.bin.
 std::vector<std::string> DefaultVocabularyPaths();
 
+// The file a run's vocabulary comes from: `path` when not empty, else the first of `candidates`
+// that is a regular file; empty when none is.
+std::string FindVocabulary(const std::string& path,
+                           const std::vector<std::string>& candidates = DefaultVocabularyPaths());
+
 // path non-empty: that file (InputError naming it when missing or bad). Empty: the first default
 // path that exists; none: null (loop closing off) with a warning.
-std::shared_ptr<const Vocabulary> LoadLoopVocabulary(const std::string& path);
+std::shared_ptr<const Vocabulary> LoadLoopVocabulary(
+    const std::string& path, const std::vector<std::string>& candidates = DefaultVocabularyPaths());
+
+// Loop closing runs when `loop_flag` (--loop), the configuration's loop.enabled and a vocabulary
+// (`vocabulary_path`, or one of `candidates`) all allow it; returns that vocabulary, null when
+// loop closing is off. When the configuration has it on but --loop off or a missing vocabulary
+// turns it off, *run_config and *config_yaml are loaded again from `config_file` and `overrides`
+// with loop.enabled=false, so that config.yaml records the setting the run has (a rerun with it
+// runs the same); the log says which setting turned it off.
+std::shared_ptr<const Vocabulary> ChooseLoopClosing(
+    bool loop_flag, const std::string& vocabulary_path, const std::string& config_file,
+    const std::vector<std::string>& overrides, RunConfig* run_config, std::string* config_yaml,
+    const std::vector<std::string>& candidates = DefaultVocabularyPaths());
 
 }  // namespace pcr::driver

@@ -4,8 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iterator>
+#include <sstream>
 #include <string>
+#include <vector>
 
+#include "driver/loop_vocabulary.h"
 #include "pcr/api.h"
 #include "support/data_paths.h"
 #include "support/log_capture.h"
@@ -14,9 +18,9 @@
 namespace pcr::api {
 namespace {
 
-// "enabled: ..." of config.yaml's loop section.
-std::string LoopEnabledLine(const std::string& config_yaml) {
-  std::ifstream in(config_yaml);
+// "enabled: ..." of the loop section of a configuration's text.
+std::string LoopEnabledLineIn(const std::string& yaml) {
+  std::istringstream in(yaml);
   bool in_loop = false;
   for (std::string line; std::getline(in, line);) {
     if (!line.empty() && line[0] != ' ') in_loop = line.rfind("loop:", 0) == 0;
@@ -25,6 +29,12 @@ std::string LoopEnabledLine(const std::string& config_yaml) {
     return line.substr(0, line.find_last_not_of(' ') + 1);
   }
   return "";
+}
+
+// "enabled: ..." of config.yaml's loop section.
+std::string LoopEnabledLine(const std::string& config_yaml) {
+  std::ifstream in(config_yaml);
+  return LoopEnabledLineIn(std::string(std::istreambuf_iterator<char>(in), {}));
 }
 
 TEST(LoopSetting, ConfigYamlRecordsTheEffectiveSettingAndTheLogSaysWhichWon) {
@@ -72,6 +82,33 @@ TEST(LoopSetting, ConfigYamlRecordsTheEffectiveSettingAndTheLogSaysWhichWon) {
   c.out_dir = dir + "/on";
   ASSERT_TRUE(api::Run(c, source).error.empty());
   EXPECT_EQ(LoopEnabledLine(c.out_dir + "/config.yaml"), "enabled: true");
+}
+
+// No vocabulary to be found: loop closing is off, and config.yaml says so (a rerun with it, once a
+// vocabulary is installed, runs as this run did); the warning names where it looked.
+TEST(LoopSetting, MissingVocabularyTurnsLoopClosingOffInConfigYaml) {
+  const std::string dir = test::MakeTempDir("pcr_loop_no_vocabulary");
+  const std::vector<std::string> nowhere = {dir + "/absent_voc.bin"};
+  driver::RunConfig run_config = driver::LoadRunConfig("", {"loop.enabled=true"}, nullptr);
+  std::string yaml;
+  {
+    test::LogCapture log;
+    const auto vocabulary =
+        driver::ChooseLoopClosing(true, "", "", {"loop.enabled=true"}, &run_config, &yaml, nowhere);
+    EXPECT_EQ(vocabulary, nullptr);
+    EXPECT_NE(log.Text().find("no vocabulary at " + nowhere[0]), std::string::npos) << log.Text();
+  }
+  EXPECT_FALSE(run_config.slam.loop.enabled);
+  EXPECT_EQ(LoopEnabledLineIn(yaml), "enabled: false") << yaml;
+
+  // A vocabulary among the candidates: on, and the configuration untouched.
+  run_config = driver::LoadRunConfig("", {}, &yaml);
+  const auto found = driver::ChooseLoopClosing(true, "", "", {}, &run_config, &yaml,
+                                               {nowhere[0], test::ShippedVocabularyPath()});
+  EXPECT_NE(found, nullptr);
+  EXPECT_TRUE(run_config.slam.loop.enabled);
+  EXPECT_EQ(driver::FindVocabulary("", nowhere), "");
+  EXPECT_EQ(driver::FindVocabulary("given.bin", nowhere), "given.bin");
 }
 
 }  // namespace
