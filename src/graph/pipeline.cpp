@@ -247,6 +247,7 @@ class GraphRun {
         options_(options),
         max_in_flight_(max_in_flight),
         realtime_(options.policy == Policy::kRealtime),
+        mono_(slam->mode() == SlamMode::kMonocular),
         source_node_(source, SourceOptionsFor(options)),
         controller_(options.controller),
         preprocess_(source, slam->mode() == SlamMode::kMonocular),
@@ -296,9 +297,10 @@ class GraphRun {
   struct FrameClock {
     std::atomic<int64_t> stereo_end_ns{-1};
     std::atomic<int64_t> mask_ready_ns{-1};
-    std::atomic<int64_t> slam_ns{0};       // summed stage calls of the SLAM path
-    std::atomic<int64_t> inference_ns{0};  // the frame's segmentation call
-    std::atomic<int64_t> pose_ns{-1};      // tracking done: the frame's pose exists
+    std::atomic<int64_t> slam_ns{0};        // summed stage calls of the SLAM path
+    std::atomic<int64_t> inference_ns{0};   // the frame's segmentation call
+    std::atomic<int64_t> preprocess_ns{0};  // its preprocess call (also in slam_ns)
+    std::atomic<int64_t> pose_ns{-1};       // tracking done: the frame's pose exists
   };
   struct Admission {
     int64_t release_ns = 0, admit_ns = 0;
@@ -349,6 +351,7 @@ class GraphRun {
       if (name != kStageLoop && name != kStageGlobalBa) {  // off the frame's path
         FrameClock& clock = clocks_[ticket.seq];
         (name == kStageSegment ? clock.inference_ns : clock.slam_ns).fetch_add(end - start);
+        if (name == kStagePreprocess) clock.preprocess_ns.fetch_add(end - start);
       }
       return out;
     } catch (const std::exception& e) {
@@ -365,7 +368,8 @@ class GraphRun {
       if (!error_ || ticket.seq < error_->seq)
         error_ = FrameError{ticket.seq, ticket.frame_index, stage, what};
     }
-    spdlog::error("pipeline: frame {} stage {}: {}", ticket.frame_index, stage, what);
+    // Debug only: the run's error (PipelineResult::error) says it, once, to whoever reports it.
+    spdlog::debug("pipeline: frame {} stage {}: {}", ticket.frame_index, stage, what);
     Wake();
   }
 
@@ -430,6 +434,7 @@ class GraphRun {
   const PipelineOptions& options_;
   const int max_in_flight_;
   const bool realtime_;
+  const bool mono_;
   std::chrono::steady_clock::time_point start_;
 
   // Clock state (mutex_).
@@ -507,17 +512,21 @@ PipelineResult GraphRun::Run() {
         if (auto out = Guarded(kStagePreprocess, t, [&] { return preprocess_(t); }))
           std::get<0>(ports).try_put(*out);
       });
-  auto orb_body = [this](const nodes::OrbNode& node, const char* stage) {
-    return [this, &node, stage](const ImagesPtr& input, auto& ports) {
+  // Monocular runs: the right branch and the stereo stage only pass empty messages on, and are
+  // not profiled (no 0 ms calls in the stage tables and the trace).
+  auto orb_body = [this](const nodes::OrbNode& node, const char* stage, bool profile) {
+    return [this, &node, stage, profile](const ImagesPtr& input, auto& ports) {
       const TsanBody tsan_body;
       const auto& images = TsanReceive(input);
-      if (auto out = Guarded(stage, images->ticket, [&] { return node(images); }))
+      if (auto out = Guarded(
+              stage, images->ticket, [&] { return node(images); }, profile))
         std::get<0>(ports).try_put(*out);
     };
   };
-  StageNode<ImagesPtr, FeaturesPtr> orb_left(g, tf::unlimited, orb_body(orb_left_, kStageOrbLeft));
+  StageNode<ImagesPtr, FeaturesPtr> orb_left(g, tf::unlimited,
+                                             orb_body(orb_left_, kStageOrbLeft, true));
   StageNode<ImagesPtr, FeaturesPtr> orb_right(g, tf::unlimited,
-                                              orb_body(orb_right_, kStageOrbRight));
+                                              orb_body(orb_right_, kStageOrbRight, !mono_));
   tf::join_node<std::tuple<FeaturesPtr, FeaturesPtr>, tf::key_matching<int64_t>> feature_join(
       g, key_of, key_of);
   StageNode<std::tuple<FeaturesPtr, FeaturesPtr>, StereoPtr> stereo(
@@ -525,8 +534,8 @@ PipelineResult GraphRun::Run() {
         const TsanBody tsan_body;
         const auto& in = TsanReceive(input);
         const FrameTicket& t = TicketOf(in);
-        auto out =
-            Guarded(kStageStereo, t, [&] { return stereo_(std::get<0>(in), std::get<1>(in)); });
+        auto out = Guarded(
+            kStageStereo, t, [&] { return stereo_(std::get<0>(in), std::get<1>(in)); }, !mono_);
         if (!out) return;
         const int64_t now = NowNs();
         clocks_[t.seq].stereo_end_ns.store(now);
@@ -817,6 +826,8 @@ void GraphRun::Complete(const FrameResultPtr& result) {
   r.output = result->output;
   r.filter_report = result->filter_report;
   r.done_ns = done;
+  r.preprocess_ms = NsToMs(clocks_[t.seq].preprocess_ns.load());
+  r.segment_ms = NsToMs(clocks_[t.seq].inference_ns.load());
 
   // Eq. 8 for this frame: T_slam (its SLAM-path stage calls, wall time, mapping included),
   // T_inference (its own network call, or the latest one when it had none or it is still
@@ -993,7 +1004,7 @@ PipelineResult GraphRun::Collect() {
         ++s.masks_skipped;
         break;
     }
-    ++s.quality_frames[static_cast<size_t>(f.quality)];
+    if (options_.adaptive) ++s.quality_frames[static_cast<size_t>(f.quality)];
   }
   s.latency = latency.Summarize();
   s.propagate = propagate.Summarize();
@@ -1030,7 +1041,9 @@ PipelineResult GraphRun::Collect() {
     if (stage == kStageStereo) return latest(end(kStageOrbLeft), end(kStageOrbRight));
     if (stage == kStageFilter) {
       const int64_t mask = clocks_[e.seq].mask_ready_ns.load();
-      return latest(end(kStageStereo), mask >= 0 ? std::optional<int64_t>(mask) : std::nullopt);
+      // Monocular: the (unprofiled) stereo stage passes the left features straight on.
+      return latest(mono_ ? end(kStageOrbLeft) : end(kStageStereo),
+                    mask >= 0 ? std::optional<int64_t>(mask) : std::nullopt);
     }
     if (stage == kStageTracking) return end(kStageFilter);
     if (stage == kStageMapping) return end(kStageTracking);

@@ -55,6 +55,8 @@ struct FrameRecord {
   int64_t seq = -1;
   int64_t frame_index = -1;
   int64_t t_ns = 0;
+  // The adaptive level the frame ran at (PipelineOptions::adaptive; without it every frame has
+  // the fixed settings and this stays kHigh: PipelineStats::adaptive tells which).
   nodes::QualityLevel quality = nodes::QualityLevel::kHigh;
   bool inference_scheduled = false;
   nodes::SegmentationOutcome segmentation = nodes::SegmentationOutcome::kNoSegmenter;
@@ -63,6 +65,9 @@ struct FrameRecord {
   double propagate_ms = 0;       // propagated masks: time spent moving the mask onto the frame
   int num_excluded = 0;
   FrameOutput output;
+  // The graph's stages of the frame outside output.times_ms (whose total is the SLAM stages'):
+  // loading and preparing its images, and its own segmentation call (0 when it had none).
+  double preprocess_ms = 0, segment_ms = 0;
   // The dynamic filter's decisions (null without the dynamic filter, and after on_frame unless
   // PipelineOptions::keep_filter_reports).
   nodes::FilterReportPtr filter_report;
@@ -100,7 +105,8 @@ struct PipelineStats {
   TimingSummary retire;     // to the frame's retirement (local mapping included)
   TimingSummary busy;  // per frame max(T_slam, T_inference) + T_sync (Eq. 8), the controller input
   std::map<std::string, StageStats> stages;
-  std::array<size_t, nodes::kNumQualityLevels> quality_frames{};  // indexed by QualityLevel
+  // Frames per adaptive level, indexed by QualityLevel (all 0 without adaptive quality).
+  std::array<size_t, nodes::kNumQualityLevels> quality_frames{};
   std::vector<QualityChange> quality_changes;
   int profile_threads = 0;
   // Process memory when the run ended (graph/heap.h; -1 where /proc is not readable): resident

@@ -114,7 +114,9 @@ nlohmann::json StatsToJson(const PipelineStats& s) {
     stage["max_queue_depth"] = st.max_queue_depth;
     j["stages"][name] = stage;
   }
-  for (int l = 0; l < nodes::kNumQualityLevels; ++l) {
+  // Without adaptive quality every frame has the fixed settings (--model, --inference-every).
+  if (!s.adaptive) j["quality"]["frames"]["fixed"] = s.frames_completed;
+  for (int l = 0; s.adaptive && l < nodes::kNumQualityLevels; ++l) {
     j["quality"]["frames"][nodes::ToString(static_cast<nodes::QualityLevel>(l))] =
         s.quality_frames[static_cast<size_t>(l)];
   }
@@ -339,7 +341,7 @@ void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
          {"tid", static_cast<int>(f.seq % lanes)},
          {"args",
           {{"seq", f.seq},
-           {"quality", nodes::ToString(f.quality)},
+           {"quality", result.stats.adaptive ? nodes::ToString(f.quality) : "fixed"},
            {"mask", nodes::ToString(f.mask)},
            {"mask_from_seq", f.mask_source_seq},
            {"propagate_ms", f.propagate_ms},
