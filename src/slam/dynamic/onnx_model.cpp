@@ -183,9 +183,43 @@ void AppendReals(const WireField& f, size_t width, std::vector<float>* out) {
   for (size_t k = 0; k < f.size; k += width) out->push_back(value(LittleEndian(f.data + k, width)));
 }
 
+// Bytes per element of raw_data for the fixed-size TensorProto.DataType values; 0 for string and
+// unknown types.
+size_t RawElementBytes(int data_type) {
+  switch (data_type) {
+    case 2:   // uint8
+    case 3:   // int8
+    case 9:   // bool
+    case 17:  // float8e4m3fn
+    case 18:  // float8e4m3fnuz
+    case 19:  // float8e5m2
+    case 20:  // float8e5m2fnuz
+      return 1;
+    case 4:   // uint16
+    case 5:   // int16
+    case 10:  // float16
+    case 16:  // bfloat16
+      return 2;
+    case OnnxTensor::kFloat:
+    case OnnxTensor::kInt32:
+    case 12:  // uint32
+      return 4;
+    case OnnxTensor::kInt64:
+    case OnnxTensor::kDouble:
+    case 13:  // uint64
+    case 14:  // complex64
+      return 8;
+    case 15:  // complex128
+      return 16;
+    default:
+      return 0;
+  }
+}
+
 // TensorProto{dims = 1, data_type = 2, float_data = 4, int32_data = 5, int64_data = 7, name = 8,
-// raw_data = 9, double_data = 10, data_location = 14}.
-OnnxTensor ParseTensor(const WireField& message) {
+// raw_data = 9, double_data = 10, data_location = 14}. Without decode_values, raw_data is only
+// checked against the dims (the values stay empty): the check costs no copy of the weights.
+OnnxTensor ParseTensor(const WireField& message, bool decode_values = true) {
   OnnxTensor t;
   WireReader r = Sub(message);
   WireField f;
@@ -239,13 +273,24 @@ OnnxTensor ParseTensor(const WireField& message) {
     }
     elements *= d;
   }
-  if (!t.is_float() && !t.is_int()) return t;  // kept without values (e.g. int8, float16)
-  if (raw) {
-    const size_t width =
-        t.data_type == OnnxTensor::kFloat || t.data_type == OnnxTensor::kInt32 ? 4 : 8;
-    if (raw_size % width != 0) {
-      throw std::invalid_argument("tensor '" + t.name + "' raw data is not whole elements");
+  if (!t.is_float() && !t.is_int()) {
+    // Kept without values (e.g. int8, float16), but raw data of the wrong size is refused as for
+    // the types read here: another reader (OpenCV DNN) would trust the dims and read past it.
+    const size_t width = RawElementBytes(t.data_type);
+    if (raw && width > 0 && raw_size != static_cast<size_t>(elements) * width) {
+      throw std::invalid_argument("tensor '" + t.name + "' has " + std::to_string(raw_size) +
+                                  " bytes of raw data for " + std::to_string(elements) +
+                                  " elements of " + std::to_string(width) + " bytes");
     }
+    return t;
+  }
+  size_t undecoded = 0;  // values of raw_data left undecoded
+  const size_t width = RawElementBytes(t.data_type);
+  if (raw && raw_size % width != 0) {
+    throw std::invalid_argument("tensor '" + t.name + "' raw data is not whole elements");
+  }
+  if (raw && !decode_values) undecoded = raw_size / width;
+  if (raw && decode_values) {
     for (size_t k = 0; k < raw_size; k += width) {
       const uint64_t bits = LittleEndian(raw + k, width);
       switch (t.data_type) {
@@ -264,7 +309,7 @@ OnnxTensor ParseTensor(const WireField& message) {
       }
     }
   }
-  const size_t have = t.is_float() ? t.floats.size() : t.ints.size();
+  const size_t have = undecoded + (t.is_float() ? t.floats.size() : t.ints.size());
   if (static_cast<int64_t>(have) != t.ElementCount()) {
     throw std::invalid_argument("tensor '" + t.name + "' has " + std::to_string(have) +
                                 " values for " + std::to_string(t.ElementCount()) + " elements");
@@ -443,7 +488,7 @@ OnnxModel ParseOnnxModel(const std::vector<uint8_t>& model_bytes) {
 }
 
 std::vector<int64_t> OnnxGraphInputShape(const std::vector<uint8_t>& model_bytes) {
-  // ModelProto{graph = 7}; GraphProto{initializer = 5 (TensorProto{name = 8}), input = 11}.
+  // ModelProto{graph = 7}; GraphProto{initializer = 5, input = 11}.
   const WireField graph = GraphOf(model_bytes, nullptr);
   WireField f;
   std::set<std::string> initializers;
@@ -451,7 +496,7 @@ std::vector<int64_t> OnnxGraphInputShape(const std::vector<uint8_t>& model_bytes
   WireReader g = Sub(graph);
   while (g.Next(&f)) {
     if (f.wire_type != 2) continue;
-    if (f.number == 5) initializers.insert(NameOf(f, 8));
+    if (f.number == 5) initializers.insert(ParseTensor(f, /*decode_values=*/false).name);
     if (f.number == 11) inputs.push_back(f);
   }
   for (const WireField& input : inputs) {

@@ -463,11 +463,13 @@ YoloSegmenter::YoloSegmenter(const YoloOptions& options) : options_(options) {
   const std::string& path = options_.model_path;
   const std::vector<uint8_t> bytes = ReadBytes(path);
 
+  // Also checks every initializer's data against its dims, for every engine: OpenCV DNN would
+  // read past a short tensor without a word.
   std::vector<int64_t> dims;
   try {
     dims = OnnxGraphInputShape(bytes);
   } catch (const std::invalid_argument& e) {
-    throw InputError(path, 0, std::string("not an ONNX model or truncated (") + e.what() + ")");
+    throw InputError(path, 0, std::string("cannot read it as an ONNX model: ") + e.what());
   }
   const std::string dims_text = OnnxDimsText(dims);
   if (dims.size() != 4 || (dims[1] > 0 && dims[1] != 3) || (dims[0] > 1)) {

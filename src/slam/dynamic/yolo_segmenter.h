@@ -165,7 +165,9 @@ struct YoloStageTimes {
 class YoloSegmenter final : public Segmenter {
  public:
   // Throws ConfigError when options are invalid, InputError naming the model (or names) file when
-  // it is missing, not ONNX, not loadable by OpenCV DNN, or has an unexpected output layout.
+  // it is missing, not ONNX, damaged (an initializer's data does not match its dims: refused,
+  // naming the tensor, before any engine is made), not loadable by the engine, or has an
+  // unexpected output layout.
   explicit YoloSegmenter(const YoloOptions& options);
 
   Segmentation Segment(const cv::Mat& image) override;

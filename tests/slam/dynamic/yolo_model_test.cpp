@@ -223,7 +223,7 @@ TEST(YoloModel, BadModelFilesAreInputErrorsNamingTheFile) {
 
   options.model_path = dir + "/notes.onnx";
   std::ofstream(options.model_path) << "# YOLO notes\nthis is a text file, not a model\n";
-  ExpectInputError(options, options.model_path, "not an ONNX model");
+  ExpectInputError(options, options.model_path, "cannot read it as an ONNX model");
 
   options.model_path = dir + "/image.onnx";
   cv::Mat picture(20, 30, CV_8UC3, cv::Scalar(10, 200, 30));
@@ -247,7 +247,7 @@ TEST(YoloModel, BadModelFilesAreInputErrorsNamingTheFile) {
   ExpectInputError(options, options.model_path, "ONNX");
 
   options.model_path = test::SharedPath("models/README.md");
-  ExpectInputError(options, options.model_path, "not an ONNX model");
+  ExpectInputError(options, options.model_path, "cannot read it as an ONNX model");
   std::filesystem::remove_all(dir);
 }
 
