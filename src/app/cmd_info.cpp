@@ -102,26 +102,52 @@ void PrintModelInfo(const std::string& path) {
     input_size = cv::Size(static_cast<int>(model.inputs[0].dims[3]),
                           static_cast<int>(model.inputs[0].dims[2]));
   }
-  try {
-    const YoloSegmenter segmenter(options);
-    const YoloOutputLayout& l = segmenter.layout();
-    input_size = segmenter.input_size();
+  // An engine runs the model only if its outputs have a YOLOv8 layout the segmenter accepts for
+  // the 80 COCO names (the commands' only names): InspectYoloOutputs, the segmenter's own check,
+  // for every engine.
+  const int num_class_names = static_cast<int>(CocoClassNames().size());
+  const auto print_layout = [](const YoloOutputLayout& l) {
     fmt::print("YOLO layout:   {} classes, {} mask coefficients, {} anchors, prototypes {}x{}\n",
                l.num_classes, l.num_mask_coeffs, l.num_anchors, l.proto_size.width,
                l.proto_size.height);
+  };
+  bool layout_printed = false;
+  try {
+    const YoloSegmenter segmenter(options);
+    input_size = segmenter.input_size();
+    print_layout(segmenter.layout());
+    layout_printed = true;
     fmt::print("opencv:        runs ({})\n", segmenter.backend());
   } catch (const std::exception& e) {
     fmt::print("opencv:        cannot run it: {}\n", e.what());
   }
+  // Why the executor (twin, onednn, cuda) cannot run the model; empty when it can.
+  std::string executor_why;
   try {
     const gpu::NetPlan plan = gpu::BuildNetPlan(bytes, input_size.height, input_size.width);
-    fmt::print(
-        "pcr executor:  runs at {}x{}: {} steps ({} fused activations), {:.1f} MiB weights, "
-        "{:.1f} MiB activations\n",
-        input_size.width, input_size.height, plan.steps.size(), plan.fused_activations,
-        gpu::ConstantFloats(plan) * 4.0 / 1048576.0, gpu::ActivationFloats(plan) * 4.0 / 1048576.0);
+    std::vector<std::vector<int>> output_shapes;
+    for (const gpu::PlanTensor& t : plan.outputs)
+      output_shapes.emplace_back(t.shape.begin(), t.shape.end());
+    try {
+      const YoloOutputLayout layout = InspectYoloOutputs(output_shapes, num_class_names, path);
+      if (!layout_printed) print_layout(layout);
+    } catch (const InputError& e) {
+      executor_why = e.what();
+    }
+    if (!executor_why.empty()) {
+      fmt::print("pcr executor:  cannot run it: {}\n", executor_why);
+    } else {
+      fmt::print(
+          "pcr executor:  runs at {}x{}: {} steps ({} fused activations), {:.1f} MiB weights, "
+          "{:.1f} MiB activations\n",
+          input_size.width, input_size.height, plan.steps.size(), plan.fused_activations,
+          gpu::ConstantFloats(plan) * 4.0 / 1048576.0,
+          gpu::ActivationFloats(plan) * 4.0 / 1048576.0);
+    }
     if (!gpu::OneDnnBuilt()) {
       fmt::print("onednn:        unavailable (this build has no oneDNN: install libdnnl-dev)\n");
+    } else if (!executor_why.empty()) {
+      fmt::print("onednn:        cannot run it: {}\n", executor_why);
     } else {
       try {
         gpu::MakeOneDnnConvKernels(plan);  // builds every convolution's primitive
@@ -131,11 +157,15 @@ void PrintModelInfo(const std::string& path) {
       }
     }
   } catch (const std::invalid_argument& e) {
-    fmt::print("pcr executor:  cannot run it: {}\n", e.what());
+    executor_why = e.what();
+    fmt::print("pcr executor:  cannot run it: {}\n", executor_why);
   }
   std::string why;
   const int devices = gpu::CudaDeviceCount(&why);
-  if (devices > 0) {
+  if (devices > 0 && !executor_why.empty()) {
+    fmt::print("cuda:          {} device(s), but cannot run it (the pcr executor's reason)\n",
+               devices);
+  } else if (devices > 0) {
     fmt::print("cuda:          {} device(s): --inference cuda\n", devices);
   } else {
     fmt::print("cuda:          unavailable ({})\n", why);
