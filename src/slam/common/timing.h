@@ -30,6 +30,8 @@ TimingSummary SummarizeTimes(const std::vector<double>& ms);
 using StageTimings = std::map<std::string, TimingSeries>;
 
 // Linear-interpolated percentile (q in [0, 100]) of unsorted values (numpy's default method).
+// NaN for no values (printers show it as "-"); an infinite value stays infinite (p100 of
+// {1, inf} is inf), and between -inf and +inf the result is NaN.
 double Percentile(std::vector<double> values, double q);
 
 // Milliseconds elapsed since `start` on the steady clock.
