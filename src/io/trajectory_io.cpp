@@ -10,15 +10,24 @@
 namespace pcr {
 namespace {
 
+// Whether the line's first non-blank character is '#'.
+bool IsComment(const std::string& line) {
+  const size_t first = line.find_first_not_of(" \t\v\f");
+  return first != std::string::npos && line[first] == '#';
+}
+
 // Reads the non-blank lines of a positional file (one record per line, blank lines only at the
-// end); calls on_line(text, line_no, index).
+// end); calls on_line(text, line_no, index). With `comments`, '#' lines are skipped and take no
+// index.
 template <typename OnLine>
-void ForEachPositionalLine(std::istream& in, const std::string& name, OnLine on_line) {
+void ForEachPositionalLine(std::istream& in, const std::string& name, bool comments,
+                           OnLine on_line) {
   io::LineReader reader(in, name);
   std::string line;
   int first_blank_line = 0;
   int64_t index = 0;
   while (reader.Next(&line)) {
+    if (comments && IsComment(line)) continue;
     if (io::IsBlank(line)) {
       if (first_blank_line == 0) first_blank_line = reader.line_no();
       continue;
@@ -43,17 +52,18 @@ std::string FormatTime(int64_t t_ns) {
 
 Trajectory ReadKittiTrajectory(std::istream& in, const std::string& name) {
   Trajectory trajectory;
-  ForEachPositionalLine(in, name, [&](const std::string& line, int line_no, int64_t index) {
-    const std::vector<double> v = io::ParseExactly(line, 12, name, line_no);
-    Eigen::Matrix3d rotation;
-    rotation << v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10];
-    StampedPose pose;
-    pose.t_ns = 0;
-    pose.frame_index = index;
-    pose.world_from_cam.linear() = io::NearestRotation(rotation, name, line_no);
-    pose.world_from_cam.translation() = Eigen::Vector3d(v[3], v[7], v[11]);
-    trajectory.push_back(pose);
-  });
+  ForEachPositionalLine(
+      in, name, /*comments=*/true, [&](const std::string& line, int line_no, int64_t index) {
+        const std::vector<double> v = io::ParseExactly(line, 12, name, line_no);
+        Eigen::Matrix3d rotation;
+        rotation << v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10];
+        StampedPose pose;
+        pose.t_ns = 0;
+        pose.frame_index = index;
+        pose.world_from_cam.linear() = io::NearestRotation(rotation, name, line_no);
+        pose.world_from_cam.translation() = Eigen::Vector3d(v[3], v[7], v[11]);
+        trajectory.push_back(pose);
+      });
   return trajectory;
 }
 
@@ -67,8 +77,7 @@ Trajectory ReadTumTrajectory(std::istream& in, const std::string& name) {
   io::LineReader reader(in, name);
   std::string line;
   while (reader.Next(&line)) {
-    const size_t first = line.find_first_not_of(" \t");
-    if (first == std::string::npos || line[first] == '#') continue;
+    if (io::IsBlank(line) || IsComment(line)) continue;
     const int line_no = reader.line_no();
     const std::vector<std::string_view> tokens = io::SplitWhitespace(line);
     if (tokens.size() != 8)
@@ -136,17 +145,18 @@ void WriteTumTrajectory(const std::string& path, const Trajectory& trajectory) {
 
 std::vector<int64_t> ReadKittiTimes(std::istream& in, const std::string& name) {
   std::vector<int64_t> times_ns;
-  ForEachPositionalLine(in, name, [&](const std::string& line, int line_no, int64_t) {
-    const std::vector<std::string_view> tokens = io::SplitWhitespace(line);
-    if (tokens.size() != 1)
-      throw InputError(
-          name, line_no,
-          "expected 1 number (time in seconds), found " + std::to_string(tokens.size()));
-    const int64_t t_ns = io::ParseSecondsToNs(tokens[0], name, line_no);
-    if (!times_ns.empty() && t_ns <= times_ns.back())
-      throw InputError(name, line_no, "timestamps must increase strictly");
-    times_ns.push_back(t_ns);
-  });
+  ForEachPositionalLine(
+      in, name, /*comments=*/false, [&](const std::string& line, int line_no, int64_t) {
+        const std::vector<std::string_view> tokens = io::SplitWhitespace(line);
+        if (tokens.size() != 1)
+          throw InputError(
+              name, line_no,
+              "expected 1 number (time in seconds), found " + std::to_string(tokens.size()));
+        const int64_t t_ns = io::ParseSecondsToNs(tokens[0], name, line_no);
+        if (!times_ns.empty() && t_ns <= times_ns.back())
+          throw InputError(name, line_no, "timestamps must increase strictly");
+        times_ns.push_back(t_ns);
+      });
   return times_ns;
 }
 

@@ -13,8 +13,9 @@
 
 namespace pcr {
 
-// frame_index = 0-based pose index (= line index), t_ns = 0. Blank lines are allowed only at the
-// end of the file (a blank line in between would shift the frame indices).
+// frame_index = 0-based pose index (the index among the data lines), t_ns = 0. '#' comment lines
+// are skipped (as evo does); blank lines are allowed only at the end of the file (a blank line in
+// between would shift the frame indices).
 Trajectory ReadKittiTrajectory(const std::string& path);
 Trajectory ReadKittiTrajectory(std::istream& in, const std::string& name);
 
