@@ -79,8 +79,7 @@ std::optional<Similarity3> UmeyamaAlignment(const std::vector<Eigen::Vector3d>& 
 
 bool AlignmentOptions::IsValid(std::string* why) const {
   if (first_n != -1 && first_n < 3) {
-    if (why)
-      *why = "alignment first_n must be -1 (all) or at least 3, got " + std::to_string(first_n);
+    if (why) *why = "first_n must be -1 (all) or at least 3, got " + std::to_string(first_n);
     return false;
   }
   return true;

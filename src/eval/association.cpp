@@ -1,5 +1,7 @@
 #include "eval/association.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -53,14 +55,16 @@ bool TimeAssociationOptions::IsValid(std::string* why) const {
   // Bounded so that both fit int64 nanoseconds (1e9 s = 1e18 ns; 9.2e18 is the limit).
   if (!std::isfinite(max_diff_s) || max_diff_s < 0 || max_diff_s > kMaxTimeAssociationS) {
     if (why)
-      *why = "max_diff must be in [0, " + std::to_string(kMaxTimeAssociationS) + "] s, got " +
-             std::to_string(max_diff_s);
+      *why =
+          fmt::format("max_diff_s must be in [0, {}] s, got {}", kMaxTimeAssociationS, max_diff_s);
     return false;
   }
   if (!std::isfinite(offset_s) || std::abs(offset_s) > kMaxTimeAssociationS) {
     if (why)
-      *why = "time offset must be finite and at most " + std::to_string(kMaxTimeAssociationS) +
-             " s in magnitude, got " + std::to_string(offset_s);
+      *why = fmt::format(
+          "offset_s must be finite and at most {} s in magnitude, "
+          "got {}",
+          kMaxTimeAssociationS, offset_s);
     return false;
   }
   return true;

@@ -1,5 +1,7 @@
 #include "eval/kitti_metrics.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -14,10 +16,15 @@ bool KittiMetricsOptions::IsValid(std::string* why) const {
     if (why) *why = message;
     return false;
   };
-  if (lengths_m.empty()) return fail("KITTI metrics need at least one segment length");
-  for (double l : lengths_m)
+  // Messages start with the field's name (NamedAsOption turns it into the option's).
+  if (lengths_m.empty()) return fail("lengths_m must hold at least one length");
+  for (double l : lengths_m) {
     if (!std::isfinite(l) || l <= 0)
-      return fail("KITTI segment lengths must be positive, got " + std::to_string(l));
+      return fail(fmt::format("lengths_m must be positive, got {}", l));
+    // A repeated length would be evaluated, and its segments counted, once per occurrence.
+    if (std::count(lengths_m.begin(), lengths_m.end(), l) > 1)
+      return fail(fmt::format("lengths_m must be distinct, got {} more than once", l));
+  }
   if (step_frames < 1) return fail("KITTI step_frames must be >= 1");
   if (!std::isfinite(frame_period_s) || frame_period_s <= 0)
     return fail("KITTI frame_period_s must be positive");

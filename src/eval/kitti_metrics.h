@@ -19,6 +19,7 @@
 namespace pcr::eval {
 
 struct KittiMetricsOptions {
+  // Distinct positive lengths in metres (a repeated one would count its segments twice).
   std::vector<double> lengths_m = {100, 200, 300, 400, 500, 600, 700, 800};
   int step_frames = 10;         // first frames 0, step, 2 step, ...
   double frame_period_s = 0.1;  // for the devkit's segment speed only (10 Hz)

@@ -87,7 +87,7 @@ std::string FormatKittiMetrics(const EvalResult& r, const KittiMetricsOptions& o
     for (double l : options.lengths_m) shortest = std::min(shortest, l);
     return fmt::format(
         "KITTI devkit metrics: no segment fits (matched ground-truth path {:.1f} m, shortest "
-        "segment {:g} m; set shorter lengths with --segments)\n",
+        "segment {:g} m; `pcr_orb eval --segments` evaluates other lengths)\n",
         r.reference_path_m, shortest);
   }
   std::string out = fmt::format("KITTI devkit metrics (every {} frames, {} segments):\n",

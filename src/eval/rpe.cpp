@@ -1,5 +1,7 @@
 #include "eval/rpe.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 #include <stdexcept>
 
@@ -85,15 +87,15 @@ bool RpeOptions::IsValid(std::string* why) const {
     if (why) *why = message;
     return false;
   };
+  // Numbers as fmt's shortest exact text: "1e+300", "2.0000001", never 300 digits.
   if (!std::isfinite(delta) || delta <= 0)
-    return fail("RPE delta must be positive, got " + std::to_string(delta));
+    return fail(fmt::format("delta must be positive, got {}", delta));
   if (delta > kMaxRpeDelta)  // beyond it a frame count would not survive the cast to size_t
-    return fail("RPE delta must be at most " + std::to_string(kMaxRpeDelta) + ", got " +
-                std::to_string(delta));
+    return fail(fmt::format("delta must be at most {}, got {}", kMaxRpeDelta, delta));
   if (unit == DeltaUnit::kFrames && delta != std::floor(delta))
-    return fail("RPE delta in frames must be a whole number, got " + std::to_string(delta));
+    return fail(fmt::format("delta in frames must be a whole number, got {}", delta));
   if (!std::isfinite(rel_tol) || rel_tol < 0)
-    return fail("RPE rel_tol must be >= 0, got " + std::to_string(rel_tol));
+    return fail(fmt::format("rel_tol must be >= 0, got {}", rel_tol));
   return true;
 }
 
