@@ -70,6 +70,28 @@ std::string OptionsText(const SynthOptions& o, int precision = 10) {
 }
 
 constexpr const char* kCompleteName = "render_complete.txt";
+constexpr const char* kOptionsName = "synth_options.txt";
+
+// Whether `dir` or a folder in it holds anything but folders.
+bool HoldsFiles(const fs::path& dir) {
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::end(it);
+       it.increment(ec))
+    if (!it->is_directory(ec)) return true;
+  return static_cast<bool>(ec);  // unreadable: not known to be empty
+}
+
+// What WriteSequence(options, out_dir) would replace although no synthetic render wrote it (see
+// RefuseForeignData), "" when nothing.
+std::string ForeignSequenceData(const fs::path& seq, const fs::path& poses) {
+  std::error_code ec;
+  if (fs::exists(seq / kOptionsName, ec) || fs::exists(seq / kCompleteName, ec)) return "";
+  if (fs::is_directory(seq, ec) && HoldsFiles(seq)) return seq.string();
+  const fs::file_status poses_status = fs::symlink_status(poses, ec);
+  if (!fs::exists(poses_status)) return "";
+  if (fs::is_regular_file(poses_status) && fs::file_size(poses, ec) == 0 && !ec) return "";
+  return poses.string();
+}
 
 // Removes the frame images (NNNNNN.png) numbered `first` or higher from dir: an older render into
 // the same folder may have held more frames, which a loader would pair with this one's lines.
@@ -110,13 +132,22 @@ WriteSummary WriteSequence(const SynthOptions& options, const std::string& out_d
                            const ProgressCallback& progress) {
   const auto start = std::chrono::steady_clock::now();
   const SyntheticWorld world(options);
+  const InstanceTable& table = world.Instances();
+  int parked = 0;
+  for (const InstanceInfo& info : table.all()) parked += info.moving ? 0 : 1;
   const fs::path seq = fs::path(out_dir) / "sequences" / options.sequence;
   const fs::path poses_dir = fs::path(out_dir) / "poses";
+  RefuseForeignData(options, out_dir);
   // A marker of an earlier render here no longer vouches for these files.
   std::error_code ec;
   // (A path through a file is reported by MakeDir below.)
   if (!fs::remove(seq / kCompleteName, ec) && ec && ec != std::errc::not_a_directory)
     throw InputError((seq / kCompleteName).string(), 0, "cannot remove: " + ec.message());
+  // synth_options.txt first: it marks the folder as synth's, for a later render's check
+  // (RefuseForeignData) even where this one stops early.
+  MakeDir(seq);
+  WriteText((seq / kOptionsName).string(),
+            OptionsText(options) + "num_parked_placed: " + std::to_string(parked) + "\n");
   const char* image_dirs[] = {"image_0", "image_1", "instance_0", "instance_1"};
   const int num_dirs = options.write_right_instances ? 4 : 3;
   for (int i = 0; i < num_dirs; ++i) MakeDir(seq / image_dirs[i]);
@@ -125,10 +156,9 @@ WriteSummary WriteSequence(const SynthOptions& options, const std::string& out_d
   MakeDir(poses_dir);
 
   WriteText((seq / "calib.txt").string(), KittiCalibText(options));
-  WriteText((seq / "synth_options.txt").string(), OptionsText(options));
   {
     std::ostringstream s;
-    world.Instances().Write(s);
+    table.Write(s);
     WriteText((seq / "instances.txt").string(), s.str());
   }
   // Text lines per frame, written at the end (or, after a failure, for the frames whose images
@@ -149,7 +179,6 @@ WriteSummary WriteSequence(const SynthOptions& options, const std::string& out_d
     WriteText((seq / "objects.txt").string(), o);
     WriteText(poses_path, p);
   };
-  const InstanceTable& table = world.Instances();
   // Frame k+1 renders while frame k's PNGs are encoded on a helper thread.
   std::thread writer;
   std::exception_ptr writer_error;
@@ -215,9 +244,21 @@ WriteSummary WriteSequence(const SynthOptions& options, const std::string& out_d
   summary.poses_path = poses_path;
   summary.frames = n;
   summary.instances = static_cast<int>(table.size());
-  for (const InstanceInfo& info : table.all()) summary.moving_instances += info.moving ? 1 : 0;
+  summary.parked_instances = parked;
+  summary.moving_instances = summary.instances - parked;
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
+}
+
+void RefuseForeignData(const SynthOptions& options, const std::string& out_dir,
+                       const std::string& advice) {
+  const fs::path seq = fs::path(out_dir) / "sequences" / options.sequence;
+  const std::string foreign =
+      ForeignSequenceData(seq, fs::path(out_dir) / "poses" / (options.sequence + ".txt"));
+  if (!foreign.empty())
+    throw InputError(foreign, 0,
+                     "not written by pcr_orb synth (" + seq.string() +
+                         " has no synth_options.txt): refusing to replace it; " + advice);
 }
 
 bool HoldsSequence(const SynthOptions& options, const std::string& out_dir) {
@@ -233,6 +274,7 @@ std::string RenderOnce(const SynthOptions& options, const std::string& out_dir,
                        const ProgressCallback& progress) {
   const fs::path seq = fs::path(out_dir) / "sequences" / options.sequence;
   if (HoldsSequence(options, out_dir)) return seq.string();
+  RefuseForeignData(options, out_dir);
   // A render of other options (or an unfinished one) may hold more frames than this one writes.
   std::error_code ec;
   fs::remove_all(seq, ec);
