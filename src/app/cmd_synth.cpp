@@ -1,5 +1,9 @@
 // pcr_orb synth: writes a synthetic KITTI-format stereo sequence with exact ground truth
 // (poses, per-pixel instance ids, object poses); see src/sim/sequence_writer.h for the layout.
+#include <spdlog/spdlog.h>
+
+#include <charconv>
+#include <cstdint>
 #include <cstdio>
 #include <string>
 
@@ -27,7 +31,19 @@ void AddSynthCommand(CLI::App& app) {
       ->required();
   cmd->add_option("--frames", args->options.frames, "Number of stereo frames")
       ->capture_default_str();
-  cmd->add_option("--seed", args->options.seed, "Random seed of the world")->capture_default_str();
+  cmd->add_option("--seed", args->options.seed, "Random seed of the world")
+      ->capture_default_str()
+      ->check(CLI::Validator(
+          [](const std::string& text) -> std::string {
+            // CLI11 reads "-1" into an unsigned option as 2^64-1.
+            uint64_t v = 0;
+            const char* end = text.data() + text.size();
+            const auto [ptr, ec] = std::from_chars(text.data(), end, v);
+            if (ec != std::errc() || ptr != end)
+              return text + " is not a whole number from 0 to 18446744073709551615";
+            return "";
+          },
+          "0..2^64-1"));
   cmd->add_option("--movers", args->options.num_movers,
                   "Moving objects (cars, pedestrians, cyclists)")
       ->capture_default_str();
@@ -47,9 +63,13 @@ void AddSynthCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--sequence", args->options.sequence, "Two-digit sequence name")
       ->capture_default_str();
-  cmd->callback([args] {
+  cmd->callback([args, cmd] {
     sim::SynthOptions options = args->options;
     options.route = sim::ParseRoute(args->route);
+    if (args->out_dir.empty()) throw ConfigError("synth: --out needs a folder, not ''");
+    if (cmd->count("--laps") > 0 && options.route != sim::RouteKind::kLoop)
+      throw ConfigError("synth: --laps applies to --route loop only, not to --route " +
+                        args->route);
     std::string why;
     // SynthOptions::IsValid names its fields: the command line's options instead.
     if (!options.IsValid(&why))
@@ -61,18 +81,27 @@ void AddSynthCommand(CLI::App& app) {
                                                         {"laps", "--laps"},
                                                         {"sequence", "--sequence"},
                                                         {"seed", "--seed"}}));
+    // (WriteSequence refuses too; this names the option.)
+    sim::RefuseForeignData(options, args->out_dir,
+                           "give another --out (or --sequence) or remove it");
     Progress progress("synth", options.frames);
     const sim::WriteSummary summary =
         sim::WriteSequence(options, args->out_dir, [&progress](int done, int total) {
           if (done < total) progress.Update(done);
         });
     progress.Finish();
+    if (summary.parked_instances < options.num_parked)
+      spdlog::warn(
+          "synth: --parked {}: only {} parked cars fit beside the route (synth_options.txt "
+          "records num_parked_placed: {})",
+          options.num_parked, summary.parked_instances, summary.parked_instances);
     std::printf(
         "wrote %d stereo frames (%dx%d, %s route, seed %llu) to %s and poses to %s: %d instances "
-        "(%d moving), %.1f s (%.1f frames/s)\n",
+        "(%d moving, %d parked), %.1f s (%.1f frames/s)\n",
         summary.frames, options.width_px, options.height_px, sim::RouteName(options.route),
         static_cast<unsigned long long>(options.seed), summary.sequence_dir.c_str(),
-        summary.poses_path.c_str(), summary.instances, summary.moving_instances, summary.seconds,
+        summary.poses_path.c_str(), summary.instances, summary.moving_instances,
+        summary.parked_instances, summary.seconds,
         summary.seconds > 0 ? summary.frames / summary.seconds : 0.0);
   });
 }
