@@ -244,7 +244,14 @@ LoopCloser::LoopCloser(const LoopClosingOptions& options,
 }
 
 void LoopCloser::OnKeyframe(KeyframeId id, const Map& map) {
-  if (!IsActive()) return;
+  if (!HasPlaceRecognition()) return;
+  const auto start = std::chrono::steady_clock::now();
+  if (!AddToDatabase(id, map)) return;
+  ++stats_.keyframes_seen;
+  stats_.add_ms.push_back(MsSince(start));
+}
+
+bool LoopCloser::AddToDatabase(KeyframeId id, const Map& map) {
   // Forget keyframes the map culled or forgot.
   for (auto it = bow_.begin(); it != bow_.end();) {
     if (map.keyframe(it->first)) {
@@ -257,8 +264,7 @@ void LoopCloser::OnKeyframe(KeyframeId id, const Map& map) {
     it = bow_.erase(it);
   }
   const Keyframe* kf = map.keyframe(id);
-  if (!kf || bow_.count(id)) return;
-  const auto start = std::chrono::steady_clock::now();
+  if (!kf || bow_.count(id)) return false;
   const std::vector<uint8_t> skip = ExcludedFlags(*kf->frame);
   BowVector bow;
   FeatureVector features;
@@ -277,8 +283,7 @@ void LoopCloser::OnKeyframe(KeyframeId id, const Map& map) {
   database_.Add(id, bow);
   bow_[id] = std::move(bow);
   features_[id] = std::move(features);
-  ++stats_.keyframes_seen;
-  stats_.add_ms.push_back(MsSince(start));
+  return true;
 }
 
 std::vector<PlaceCandidate> LoopCloser::SequenceCandidates(KeyframeId query_id, const Map& map) {
@@ -368,7 +373,14 @@ uint64_t LoopCloser::VocabularyFingerprint() const {
 }
 
 std::optional<PlaceArchive> LoopCloser::Archive(const Map& map) const {
-  if (!IsActive()) return std::nullopt;
+  if (!HasPlaceRecognition()) {
+    if (!restored_place_) return std::nullopt;
+    PlaceArchive archive = *restored_place_;
+    std::erase_if(archive.bows, [&](const auto& e) { return !map.keyframe(e.first); });
+    std::erase_if(archive.features, [&](const auto& e) { return !map.keyframe(e.first); });
+    archive.loop_edges = loop_edges_;
+    return archive;
+  }
   PlaceArchive archive;
   archive.vocabulary_fingerprint = VocabularyFingerprint();
   archive.direct_index_levels_up = options_.direct_index_levels_up;
@@ -384,7 +396,10 @@ std::optional<PlaceArchive> LoopCloser::Archive(const Map& map) const {
 
 int LoopCloser::Restore(const std::optional<PlaceArchive>& archive, const Map& map) {
   if (archive) loop_edges_ = archive->loop_edges;
-  if (!IsActive()) return 0;
+  if (!HasPlaceRecognition()) {
+    restored_place_ = archive;
+    return 0;
+  }
   const bool same = archive && archive->vocabulary_fingerprint == VocabularyFingerprint() &&
                     archive->direct_index_levels_up == options_.direct_index_levels_up;
   // A stored vector is used only when it fits this vocabulary and the keyframe's keypoints, in
@@ -419,8 +434,7 @@ int LoopCloser::Restore(const std::optional<PlaceArchive>& archive, const Map& m
         continue;
       }
     }
-    OnKeyframe(id, map);
-    ++computed;
+    if (AddToDatabase(id, map)) ++computed;
   }
   return computed;
 }
@@ -696,6 +710,7 @@ LoopOutcome LoopCloser::CloseLoop(const LoopJob& job) {
   LoopOutcome outcome;
   outcome.job = job.id;
   outcome.query = job.query;
+  outcome.metric = job.fix_scale;
   const auto verify_start = std::chrono::steady_clock::now();
   const Map& snapshot = *job.map;
   const Keyframe* query = snapshot.keyframe(job.query);
@@ -896,6 +911,7 @@ LoopOutcome LoopCloser::GlobalBundleAdjustment(const LoopJob& job, const LoopOut
   outcome.query = job.query;
   outcome.kind = LoopOutcomeKind::kGlobalBundleAdjustment;
   outcome.match = corrected.match;
+  outcome.metric = corrected.metric;
   Map work = *job.map;
   work.Apply(CorrectionDelta(work, corrected.correction));
 
@@ -1063,7 +1079,7 @@ void LoopCloser::OnOutcome(const LoopOutcome& outcome, const Map& map) {
 
 std::vector<KeyframeId> LoopCloser::PlaceCandidates(const Frame& frame, const Map& map,
                                                     int max_candidates) const {
-  if (!IsActive()) return {};
+  if (!HasPlaceRecognition()) return {};
   const std::vector<uint8_t> skip = ExcludedFlags(frame);
   BowVector bow;
   vocabulary_->Transform(frame.descriptors(), &skip, options_.direct_index_levels_up, &bow,

@@ -154,7 +154,9 @@ struct LoopOutcome {
   int candidates_tried = 0;
   int candidates_verified = 0;  // passed verification (the one with the most matches is kept)
   std::string rejection;        // why the last candidate failed (kRejected)
-  // Figures: correction size at the query (metres, degrees), optimisation costs and times.
+  // Figures: correction size at the query (degrees; metres when `metric`, the map's arbitrary
+  // units otherwise), optimisation costs and times.
+  bool metric = true;  // the job's fix_scale: a stereo map; false: a monocular one
   double correction_m = 0, correction_deg = 0;
   int fused_points = 0;
   int pose_graph_edges = 0, pose_graph_iterations = 0;
@@ -222,15 +224,21 @@ SE3 PoseOfSim3(const Sim3& cam_from_world);
 
 class LoopCloser {
  public:
-  // vocabulary may be null: then the closer is disabled (IsActive() false). Throws ConfigError
-  // for invalid options.
+  // vocabulary may be null: then there is no place recognition (HasPlaceRecognition() false)
+  // and no loop closing (IsActive() false). Throws ConfigError for invalid options.
   LoopCloser(const LoopClosingOptions& options, std::shared_ptr<const Vocabulary> vocabulary,
              bool fix_scale);
 
+  // Loop closing (detection and correction): options.enabled and a vocabulary.
   bool IsActive() const { return options_.enabled && vocabulary_ != nullptr; }
+  // The place-recognition database (keyframes' bags of words: relocalisation in the whole map,
+  // PlaceCandidates, and the place section of a saved map): a vocabulary, whether or not loop
+  // closing is enabled.
+  bool HasPlaceRecognition() const { return vocabulary_ != nullptr; }
 
   // The owner, after a keyframe's local mapping: its bag of words enters the database (its
   // excluded keypoints left out), and the database forgets keyframes the map no longer holds.
+  // Nothing without a vocabulary.
   void OnKeyframe(KeyframeId id, const Map& map);
   // The owner, after OnKeyframe: looks for a loop at keyframe id. Returns a job (with a snapshot
   // of the map, or the edits since the previous job: incremental_snapshots) when a candidate group
@@ -274,17 +282,20 @@ class LoopCloser {
   std::vector<PlaceCandidate> SequenceCandidates(KeyframeId query, const Map& map);
 
   // Relocalisation: keyframes of the whole map that look like frame (its non-excluded keypoints),
-  // best first, at most max_candidates.
+  // best first, at most max_candidates; none without a vocabulary.
   std::vector<KeyframeId> PlaceCandidates(const Frame& frame, const Map& map,
                                           int max_candidates) const;
 
-  // Saving and loading a map: the database of the map's keyframes (nullopt when inactive).
+  // Saving and loading a map: the database of the map's keyframes and the loop edges. Without a
+  // vocabulary: the place section Restore was given, as it was (its keyframes the map no longer
+  // holds left out), with the loop edges; nullopt when it was given none.
   std::optional<PlaceArchive> Archive(const Map& map) const;
   // Fills the database for a loaded map (the closer must be new): from the archive where it was
   // made with this vocabulary and direct-index level, else each keyframe's bag of words is
-  // computed again. Keyframes of the archive the map does not hold are ignored. Returns the
-  // number of keyframes whose bag of words was computed; nothing when inactive (the loop edges
-  // are kept either way).
+  // computed again (not counted in stats(): no keyframe was added). Keyframes of the archive the
+  // map does not hold are ignored. Returns the number of keyframes whose bag of words was
+  // computed. Without a vocabulary nothing is computed (0): the archive is kept for Archive. The
+  // loop edges are kept either way.
   int Restore(const std::optional<PlaceArchive>& archive, const Map& map);
   // FNV-1a 64 of the vocabulary's bytes (slam/loop/vocabulary_io.h); 0 without a vocabulary.
   uint64_t VocabularyFingerprint() const;
@@ -304,6 +315,9 @@ class LoopCloser {
     int consistency = 0;
   };
 
+  // OnKeyframe's work with a vocabulary; true when keyframe id was added to the database.
+  bool AddToDatabase(KeyframeId id, const Map& map);
+
   LoopClosingOptions options_;
   std::shared_ptr<const Vocabulary> vocabulary_;
   mutable uint64_t vocabulary_fingerprint_ = 0;  // computed on first use
@@ -316,6 +330,8 @@ class LoopCloser {
   std::map<KeyframeId, std::vector<std::pair<KeyframeId, double>>> sequence_rows_;
   std::vector<ConsistentGroup> groups_;
   std::vector<std::pair<KeyframeId, KeyframeId>> loop_edges_;
+  // Without a vocabulary: the place section of a loaded map, written back by Archive.
+  std::optional<PlaceArchive> restored_place_;
   int64_t next_job_ = 0;
   int64_t last_loop_index_ = -1;  // Keyframe::index of the newest keyframe at the last loop
   std::shared_ptr<MapEditLog> edit_log_ = std::make_shared<MapEditLog>();

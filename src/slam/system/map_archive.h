@@ -1,7 +1,7 @@
 #pragma once
 // A saved map: everything a SlamSystem needs to continue from a map it made (its keyframes with
 // their keypoints, descriptors and poses, the map points, covisibility and spanning tree, the
-// map's bookkeeping, and the place-recognition database when loop closing was active), and the
+// map's bookkeeping, and the place-recognition database when there was a vocabulary), and the
 // byte format that keeps it (pure: no files; the driver reads and writes them,
 // driver/map_file.h).
 //
@@ -48,7 +48,8 @@ struct MapArchive {
   StereoRig rig;       // the camera the keyframes were made with (baseline 0: monocular)
   ScalePyramid scale;  // their ORB pyramid
   Map map;
-  std::optional<PlaceArchive> place;  // absent when loop closing was inactive
+  // Absent when the map was made without a vocabulary (and loaded from a map without one).
+  std::optional<PlaceArchive> place;
 };
 
 std::vector<uint8_t> SerializeMapArchive(const MapArchive& archive);

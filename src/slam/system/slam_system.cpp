@@ -18,6 +18,8 @@ namespace pcr {
 namespace {
 
 constexpr size_t kMaxPendingFrames = 256;
+// A run on a loaded map warns when this many frames from its start were not relocalised in it.
+constexpr int64_t kLostInLoadedMapWarnFrames = 5;
 
 StereoRig CheckedRig(const StereoRig& rig, SlamMode mode) {
   std::string why;
@@ -64,6 +66,7 @@ SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMod
                        std::shared_ptr<const Vocabulary> vocabulary)
     : mode_(mode),
       rig_(CheckedRig(rig, mode)),
+      map_rig_(rig_),
       options_(options),
       extractor_(CheckedOptions(options)),
       tracker_(options.tracker),
@@ -74,6 +77,7 @@ SlamSystem::SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMod
   scale_.scale_factors = extractor_.scale_factors();
   scale_.level_sigma2 = extractor_.level_sigma2();
   scale_.inv_level_sigma2 = extractor_.inv_level_sigma2();
+  map_scale_ = scale_;
 }
 
 OrbFeatures SlamSystem::ExtractRight(const cv::Mat& right) const {
@@ -125,11 +129,12 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
     return none;
   }
   PlaceQuery place;
-  if (loop_closer_.IsActive())
+  if (loop_closer_.HasPlaceRecognition())
     place = [this](const Frame& f) {
       return loop_closer_.PlaceCandidates(f, map_, options_.tracker.relocalisation_keyframes);
     };
   TrackingResult result = tracker_.Track(frame, map_, place);
+  if (loaded_map_keyframes_ > 0) NoteLoadedMapStart(result, frame_index);
   if (options_.localize_only) {
     RecordTracked(result, *frame, frame_index);
     result.map_delta = MapDelta{};  // the counters: the map stays as loaded
@@ -153,18 +158,46 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
   if (initialised) {
     pending_.clear();
     const KeyframeId id(frame->id());
+    // The frame is its own keyframe: recorded at the identity from it, so that it follows its
+    // local BA (the monocular second keyframe moves in it), as InsertKeyframe records.
+    RecordTracked(result, *frame, frame_index);
+    records_.back().reference = id;
+    records_.back().cam_from_reference = SE3::Identity();
     mapper_.ProcessKeyframe(id, &map_);
     tracker_.OnKeyframeInserted(id, map_);
     if (result.first_keyframe_delta)  // monocular: the initialisation's reference keyframe
       loop_closer_.OnKeyframe(KeyframeId(result.first_keyframe_delta->new_keyframe->frame->id()),
                               map_);
     loop_closer_.OnKeyframe(id, map_);
-  } else if (map_.empty()) {
+    return result;
+  }
+  if (map_.empty()) {
     if (pending_.size() >= kMaxPendingFrames) pending_.erase(pending_.begin());
     pending_.push_back({frame->id(), frame_index, frame->t_ns()});
   }
   RecordTracked(result, *frame, frame_index);
   return result;
+}
+
+void SlamSystem::NoteLoadedMapStart(const TrackingResult& result, int64_t frame_index) {
+  if (result.status == TrackingStatus::kOk) {
+    if (frames_before_loaded_map_ >= kLostInLoadedMapWarnFrames)
+      spdlog::info("frame {} relocalised in the loaded map after {} frames that were not",
+                   frame_index, frames_before_loaded_map_);
+    loaded_map_keyframes_ = 0;  // started: nothing more to say
+    return;
+  }
+  if (++frames_before_loaded_map_ != kLostInLoadedMapWarnFrames) return;
+  spdlog::warn(
+      "the first {} frames of this run were not relocalised in the loaded map ({} keyframes{}): "
+      "a run on a loaded map starts at the first frame found in it; until then no frame is "
+      "tracked{}",
+      frames_before_loaded_map_, loaded_map_keyframes_,
+      loop_closer_.HasPlaceRecognition()
+          ? ""
+          : fmt::format(", tried against its {} newest only: no vocabulary",
+                        options_.tracker.relocalisation_keyframes),
+      options_.localize_only ? "" : " and nothing is added to the map");
 }
 
 void SlamSystem::RecordTracked(const TrackingResult& result, const Frame& frame,
@@ -225,8 +258,8 @@ MappingResult SlamSystem::InsertKeyframe(const FramePtr& frame, const TrackingRe
 MapArchive SlamSystem::ArchiveMap() const {
   MapArchive archive;
   archive.mode = mode_;
-  archive.rig = rig_;
-  archive.scale = scale_;
+  archive.rig = map_rig_;
+  archive.scale = map_scale_;
   archive.map = map_;
   archive.place = loop_closer_.Archive(map_);
   return archive;
@@ -262,11 +295,24 @@ void SlamSystem::RestoreMap(const MapArchive& archive) {
         scale_.scale_factor()));
   }
   map_ = archive.map;
+  // The map keeps the camera and pyramid it was made with (equal to this run's within the
+  // tolerance above): saving it again writes them as they were.
+  map_rig_ = archive.rig;
+  map_scale_ = archive.scale;
+  loaded_map_keyframes_ = map_.num_keyframes();
+  frames_before_loaded_map_ = 0;
   loop_closer_.ResetEditLog();
   const int computed = loop_closer_.Restore(archive.place, map_);
   if (computed > 0)
     spdlog::info("loaded map: {} keyframes' bags of words computed with this run's vocabulary",
                  computed);
+  if (!loop_closer_.HasPlaceRecognition() && !map_.empty())
+    spdlog::warn(
+        "loaded map without a vocabulary: a frame is relocalised only against the map's {} newest "
+        "keyframes (tracking.relocalisation_keyframes) and their covisible ones, not in the whole "
+        "map{}",
+        options_.tracker.relocalisation_keyframes,
+        archive.place ? " (its place-recognition database is kept for saving, not used)" : "");
   // Frame ids continue after every keyframe id the map has used.
   int64_t next = 0;
   for (const auto& [id, kf] : map_.keyframes()) next = std::max(next, id.value + 1);
@@ -292,11 +338,12 @@ bool SlamSystem::ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_inde
   loop_closer_.OnOutcome(outcome, map_);
   if (outcome.kind == LoopOutcomeKind::kCorrected && outcome.match) {
     spdlog::info(
-        "loop closed at frame {}: keyframe {} -> {} ({} matches, scale {:.4f}), moved {:.3f} m / "
+        "loop closed at frame {}: keyframe {} -> {} ({} matches, scale {:.4f}), moved {:.3f} {} / "
         "{:.2f} deg, {} points fused",
         frame_index, outcome.query.value, outcome.match->matched.value,
         outcome.match->matches.size(), outcome.match->query_from_matched.scale,
-        outcome.correction_m, outcome.correction_deg, outcome.fused_points);
+        outcome.correction_m, mode_ == SlamMode::kStereo ? "m" : "map units",
+        outcome.correction_deg, outcome.fused_points);
   } else if (outcome.kind == LoopOutcomeKind::kGlobalBundleAdjustment) {
     spdlog::info("global BA at frame {}: {} keyframes, {} points, {:.0f} ms{}", frame_index,
                  outcome.ba_keyframes, outcome.ba_points, outcome.ba_ms,

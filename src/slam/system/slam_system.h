@@ -98,8 +98,9 @@ class SlamSystem {
  public:
   // Throws ConfigError when the rig or options are invalid; the rig must carry the image size
   // and, in stereo mode, be stereo (baseline_m > 0). Monocular mode ignores the baseline.
-  // vocabulary (may be null) enables loop closing and place recognition for relocalisation
-  // (options.loop.enabled).
+  // vocabulary (may be null) enables place recognition: relocalisation in the whole map through
+  // the keyframe database, which is kept (and saved with the map) whether or not loop closing is
+  // enabled; and loop closing when options.loop.enabled.
   SlamSystem(const StereoRig& rig, const SlamOptions& options, SlamMode mode = SlamMode::kStereo,
              std::shared_ptr<const Vocabulary> vocabulary = nullptr);
 
@@ -161,12 +162,16 @@ class SlamSystem {
   const std::vector<LoopEvent>& loop_events() const { return loop_events_; }
 
   // --- Saving and loading the map (slam/system/map_archive.h) ---
-  // The map as it stands, with the place-recognition database when loop closing is active.
+  // The map as it stands, with the place-recognition database and the loop edges (without a
+  // vocabulary: those of the loaded map, as loaded), and the camera and ORB pyramid of the map
+  // (a loaded map's as loaded; else this system's).
   MapArchive ArchiveMap() const;
   // Starts from a saved map, before any frame: the map, the database (kept when made with this
-  // system's vocabulary, else computed again) and the loop edges; the next frame is relocalised
-  // in it. Throws ConfigError when frames were processed already, or when the archive was made
-  // in another mode, with another camera or another ORB pyramid.
+  // system's vocabulary, else computed again; kept as it is, unused, without a vocabulary) and
+  // the loop edges; the next frame is relocalised in it (a warning when the run's first frames
+  // are not; no frame is tracked before one is). Throws ConfigError when frames were processed
+  // already, or when the archive was made in another mode, with another camera or another ORB
+  // pyramid (beyond a relative 1e-6).
   void RestoreMap(const MapArchive& archive);
 
   const Map& map() const { return map_; }
@@ -190,6 +195,9 @@ class SlamSystem {
   // Records a tracked frame (status OK) for RefinedTrajectory(), relative to its reference
   // keyframe as the map holds it now.
   void RecordTracked(const TrackingResult& result, const Frame& frame, int64_t frame_index);
+  // A loaded map until the first frame is tracked in it: warns once when the run's first frames
+  // are not relocalised in it.
+  void NoteLoadedMapStart(const TrackingResult& result, int64_t frame_index);
 
   struct PendingFrame {  // seen before initialisation
     int64_t frame_id = -1, frame_index = -1, t_ns = 0;
@@ -197,6 +205,10 @@ class SlamSystem {
 
   SlamMode mode_;
   StereoRig rig_;
+  // The map's camera and ORB pyramid, as ArchiveMap writes them: rig_ and scale_, or a loaded
+  // map's.
+  StereoRig map_rig_;
+  ScalePyramid map_scale_;
   SlamOptions options_;
   OrbExtractor extractor_;
   ScalePyramid scale_;
@@ -211,6 +223,10 @@ class SlamSystem {
   int64_t next_frame_id_ = 0;
   std::vector<FrameRecord> records_;
   std::vector<PendingFrame> pending_;  // bounded; cleared at initialisation
+  // A loaded map's keyframes until a frame is tracked in it (0 after, and without a loaded map),
+  // and the frames before that.
+  size_t loaded_map_keyframes_ = 0;
+  int64_t frames_before_loaded_map_ = 0;
 };
 
 }  // namespace pcr

@@ -218,11 +218,16 @@ TEST_F(MapArchiveTest, AnotherVocabularyRecomputesTheDatabase) {
   slam.RestoreMap(archive);
   // Computed again with this vocabulary: the vectors as first stored, byte for byte.
   EXPECT_EQ(SerializeMapArchive(slam.ArchiveMap()), bytes);
-  // Without a vocabulary the map loads without a database.
+  // Without a vocabulary the map loads without a database; its place section is kept as it is.
   SlamSystem plain(data.rig, SmallOptions(), SlamMode::kStereo, nullptr);
   plain.RestoreMap(archive);
   EXPECT_EQ(plain.map().num_points(), archive.map.num_points());
-  EXPECT_FALSE(plain.ArchiveMap().place.has_value());
+  EXPECT_EQ(plain.loop_closer().database().size(), 0u);
+  const MapArchive kept = plain.ArchiveMap();
+  ASSERT_TRUE(kept.place.has_value());
+  EXPECT_EQ(kept.place->vocabulary_fingerprint, archive.place->vocabulary_fingerprint);
+  ExpectSamePlaceVectors(*archive.place, *kept.place);
+  EXPECT_EQ(SerializeMapArchive(kept), SerializeMapArchive(archive));
 }
 
 TEST_F(MapArchiveTest, BadBuffersAreErrorsNamingTheFile) {
