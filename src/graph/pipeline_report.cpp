@@ -266,11 +266,11 @@ std::string FormatLoopSummary(const PipelineResult& result) {
     const LoopOutcome& o = e.outcome;
     if (o.kind == LoopOutcomeKind::kCorrected && o.match)
       out += fmt::format(
-          "  loop: keyframe {} -> {} ({} matches, scale {:.4f}): moved {:.3f} m / {:.2f} deg, "
+          "  loop: keyframe {} -> {} ({} matches, scale {:.4f}): moved {:.3f} {} / {:.2f} deg, "
           "{} points fused, pose graph {} edges in {:.0f} ms\n",
           o.query.value, o.match->matched.value, o.match->matches.size(),
-          o.match->query_from_matched.scale, o.correction_m, o.correction_deg, o.fused_points,
-          o.pose_graph_edges, o.verify_ms + o.correct_ms + o.pose_graph_ms);
+          o.match->query_from_matched.scale, o.correction_m, o.metric ? "m" : "map units",
+          o.correction_deg, o.fused_points, o.pose_graph_edges, o.pose_graph_ms);
     else if (o.kind == LoopOutcomeKind::kGlobalBundleAdjustment)
       out += fmt::format("  global BA: {} keyframes, {} points, {} iterations, {:.0f} ms{}\n",
                          o.ba_keyframes, o.ba_points, o.ba_iterations, o.ba_ms,

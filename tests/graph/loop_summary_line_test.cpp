@@ -1,0 +1,51 @@
+// The "loop closing:" summary's line of a loop closed: the pose graph's own time after "pose
+// graph N edges in", and the correction in metres for a stereo map, in map units for a
+// monocular one (whose scale is arbitrary).
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "graph/pipeline.h"
+#include "graph/pipeline_report.h"
+
+namespace pcr::graph::loop_summary_line_test {
+namespace {
+
+PipelineResult OneLoop(bool metric) {
+  PipelineResult result;
+  result.loop_stats.keyframes_seen = 60;
+  result.loop_database_keyframes = 60;
+  LoopEvent event;
+  event.frame_index = 512;
+  LoopOutcome& o = event.outcome;
+  o.kind = LoopOutcomeKind::kCorrected;
+  o.query = KeyframeId(512);
+  o.match = LoopMatch{};
+  o.match->matched = KeyframeId(0);
+  o.metric = metric;
+  o.correction_m = 0.082;
+  o.correction_deg = 1.5;
+  o.pose_graph_edges = 1327;
+  o.verify_ms = 30.9;
+  o.correct_ms = 84.7;
+  o.pose_graph_ms = 204.1;
+  result.loop_events.push_back(event);
+  return result;
+}
+
+TEST(LoopSummaryLine, ThePoseGraphTimeIsThePoseGraphsAlone) {
+  const std::string text = FormatLoopSummary(OneLoop(true));
+  EXPECT_NE(text.find("pose graph 1327 edges in 204 ms"), std::string::npos) << text;
+  EXPECT_EQ(text.find("320 ms"), std::string::npos) << text;
+}
+
+TEST(LoopSummaryLine, AMonocularCorrectionIsInMapUnits) {
+  const std::string stereo = FormatLoopSummary(OneLoop(true));
+  EXPECT_NE(stereo.find("moved 0.082 m / 1.50 deg"), std::string::npos) << stereo;
+  const std::string mono = FormatLoopSummary(OneLoop(false));
+  EXPECT_NE(mono.find("moved 0.082 map units / 1.50 deg"), std::string::npos) << mono;
+  EXPECT_EQ(mono.find(" m /"), std::string::npos) << mono;
+}
+
+}  // namespace
+}  // namespace pcr::graph::loop_summary_line_test
