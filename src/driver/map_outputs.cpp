@@ -31,11 +31,15 @@ void PutVertex(std::string* body, const Eigen::Vector3d& p, uint8_t grey, Extra 
   body->append(reinterpret_cast<const char*>(&extra), sizeof(extra));
 }
 
-void WritePly(const std::string& path, size_t count, const std::string& comments,
+// Coordinates in the camera frame of the map's first keyframe; metres in stereo, the map's
+// arbitrary units in monocular runs.
+void WritePly(const std::string& path, SlamMode mode, size_t count, const std::string& comments,
               const std::string& extra_property, const std::string& body) {
   std::ofstream out(path, std::ios::binary);
   out << "ply\nformat binary_little_endian 1.0\n"
-      << "comment PCR-ORB map, world frame = the first camera (x right, y down, z forward), m\n"
+      << "comment PCR-ORB map, world frame = the camera of the map's first keyframe (x right, "
+         "y down, z forward), "
+      << (mode == SlamMode::kStereo ? "m" : "map units (monocular: arbitrary scale)") << "\n"
       << comments << "element vertex " << count << "\n"
       << "property float x\nproperty float y\nproperty float z\n"
       << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
@@ -193,7 +197,8 @@ void WriteMapFiles(const std::string& out_dir, const graph::MapSnapshot& map,
     body.reserve(map.points.size() * 19);
     for (const graph::MapCloudPoint& p : map.points)
       PutVertex(&body, p.p_in_world, p.grey, static_cast<int32_t>(p.observations));
-    WritePly(out_dir + "/map.ply", map.points.size(), "", "property int observations", body);
+    WritePly(out_dir + "/map.ply", summary.mode, map.points.size(), "", "property int observations",
+             body);
   });
   errors.Try([&] {
     std::string body, reasons;
@@ -202,7 +207,7 @@ void WriteMapFiles(const std::string& out_dir, const graph::MapSnapshot& map,
                  FilterReasonName(static_cast<FilterReason>(r)) + "\n";
     for (const RunSummary::RemovedPoint& p : summary.removed_points)
       PutVertex(&body, p.p_in_world, p.grey, static_cast<uint8_t>(p.reason));
-    WritePly(out_dir + "/map_removed.ply", summary.removed_points.size(), reasons,
+    WritePly(out_dir + "/map_removed.ply", summary.mode, summary.removed_points.size(), reasons,
              "property uchar reason", body);
   });
   errors.Try([&] { WriteTumTrajectory(out_dir + "/keyframes.txt", map.keyframes); });
