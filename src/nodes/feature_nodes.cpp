@@ -11,6 +11,10 @@ namespace {
 
 std::string FrameName(const FrameTicket& t) { return "frame " + std::to_string(t.frame_index); }
 
+std::string SizeText(const cv::Size& size) {
+  return std::to_string(size.width) + " x " + std::to_string(size.height);
+}
+
 }  // namespace
 
 ImagesPtr PreprocessNode::operator()(const FrameTicket& ticket) const {
@@ -21,14 +25,19 @@ ImagesPtr PreprocessNode::operator()(const FrameTicket& ticket) const {
   if (!monocular_) msg->right = source_.load_right(ticket.frame_index);
   if (ticket.run_inference && source_.load_left_color)
     msg->left_color = source_.load_left_color(ticket.frame_index);
+  // Against the rig's image size (when it has one), else the left image's.
+  const cv::Size rig_size(source_.rig.left.width_px, source_.rig.left.height_px);
+  const bool has_rig_size = rig_size.width > 0 && rig_size.height > 0;
   auto check = [&](const cv::Mat& image, const char* which, int type, const char* type_name) {
     if (image.empty())
       throw std::runtime_error(FrameName(ticket) + ": the " + which + " image is empty");
     if (image.type() != type)
       throw std::runtime_error(FrameName(ticket) + ": the " + which + " image is not " + type_name);
-    if (image.size() != msg->left.size())
-      throw std::runtime_error(FrameName(ticket) + ": the " + which +
-                               " image differs in size from the left one");
+    const cv::Size expected = has_rig_size ? rig_size : msg->left.size();
+    if (image.size() != expected)
+      throw std::runtime_error(
+          FrameName(ticket) + ": the " + which + " image is " + SizeText(image.size()) + ", but " +
+          (has_rig_size ? "the rig's camera is " : "the left one is ") + SizeText(expected));
   };
   check(msg->left, "left", CV_8UC1, "CV_8UC1");
   if (!monocular_) check(msg->right, "right", CV_8UC1, "CV_8UC1");

@@ -13,7 +13,8 @@ namespace pcr::nodes {
 // Loads the ticket's image pair through the source's loaders (monocular: the left image only),
 // and the colour left image when the source has one and the frame is segmented
 // (ticket.run_inference). Throws what a loader throws, and std::runtime_error naming the frame
-// when an image is empty, not CV_8UC1 (colour: CV_8UC3), or the sizes differ.
+// and the sizes when an image is empty, not CV_8UC1 (colour: CV_8UC3), or not of the rig's image
+// size (source.rig.left.width_px x height_px; the left image's where the rig has no size).
 class PreprocessNode {
  public:
   explicit PreprocessNode(const FrameSource& source, bool monocular = false)
