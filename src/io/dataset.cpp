@@ -1,8 +1,12 @@
 #include "io/dataset.h"
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <array>
 #include <charconv>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -26,11 +30,39 @@ constexpr std::array<unsigned char, 8> kPngSignature = {0x89, 'P',  'N',  'G',
 constexpr std::array<unsigned char, 12> kPngIend = {0,   0,   0,    0,    'I',  'E',
                                                     'N', 'D', 0xae, 0x42, 0x60, 0x82};
 
+std::string Lowercase(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
+}
+
 bool HasPngExtension(const std::string& path) {
-  std::string ext = fs::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return std::tolower(c); });
-  return ext == ".png";
+  return Lowercase(fs::path(path).extension().string()) == ".png";
+}
+
+std::string SizeText(const cv::Size& size) {
+  return std::to_string(size.width) + " x " + std::to_string(size.height);
+}
+
+// `image`, loaded from `path`, when its size is the rig's (or the rig has none).
+cv::Mat RequireRigSize(cv::Mat image, const std::string& path, const PinholeCamera& camera) {
+  const cv::Size expected(camera.width_px, camera.height_px);
+  if (expected.width > 0 && expected.height > 0 && image.size() != expected)
+    throw InputError(path, 0,
+                     "image is " + SizeText(image.size()) + ", but the dataset's images are " +
+                         SizeText(expected));
+  return image;
+}
+
+std::string FileName(const std::string& path) { return fs::path(path).filename().string(); }
+
+// Up to `shown` of `numbers`, comma-separated, then "and N more".
+std::string NumberList(const std::vector<int64_t>& numbers, size_t shown = 5) {
+  std::string out;
+  for (size_t i = 0; i < numbers.size() && i < shown; ++i)
+    out += (i ? ", " : "") + std::to_string(numbers[i]);
+  if (numbers.size() > shown) out += " and " + std::to_string(numbers.size() - shown) + " more";
+  return out;
 }
 
 std::vector<unsigned char> ReadBytes(const std::string& path) {
@@ -102,11 +134,12 @@ std::vector<std::string> ListFiles(const std::string& dir, const std::string& ex
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw InputError(dir, 0, "directory not found");
   std::vector<std::string> paths;
+  const std::string suffix = Lowercase(extension);
   for (const fs::directory_entry& entry : fs::directory_iterator(dir)) {
     if (!entry.is_regular_file()) continue;
-    const std::string name = entry.path().filename().string();
-    if (name.size() > extension.size() &&
-        name.compare(name.size() - extension.size(), extension.size(), extension) == 0)
+    const std::string name = Lowercase(entry.path().filename().string());
+    if (name.size() > suffix.size() &&
+        name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0)
       paths.push_back(entry.path().string());
   }
   std::sort(paths.begin(), paths.end());
@@ -212,11 +245,27 @@ void AddOtherCameras(Dataset* dataset, const std::vector<int64_t>& numbers,
     dataset->left_color_paths = dataset->left_paths;
   } else if (fs::is_directory(colour_dir, ec)) {
     // A colour folder that does not hold exactly the left images' frames is not used.
+    std::string why;
     try {
       dataset->left_color_paths = ListFrameFiles(colour_dir, ".png", &other_numbers);
-      if (other_numbers != numbers) dataset->left_color_paths.clear();
-    } catch (const InputError&) {
+      std::vector<int64_t> missing, extra;
+      std::set_difference(numbers.begin(), numbers.end(), other_numbers.begin(),
+                          other_numbers.end(), std::back_inserter(missing));
+      std::set_difference(other_numbers.begin(), other_numbers.end(), numbers.begin(),
+                          numbers.end(), std::back_inserter(extra));
+      if (!missing.empty())
+        why = "no image for frame" + std::string(missing.size() > 1 ? "s " : " ") +
+              NumberList(missing) + " of " + left_label;
+      if (!extra.empty())
+        why += (why.empty() ? "" : "; ") + std::string("frame") + (extra.size() > 1 ? "s " : " ") +
+               NumberList(extra) + " not in " + left_label;
+    } catch (const InputError& e) {
+      why = e.what();
+    }
+    if (!why.empty()) {
       dataset->left_color_paths.clear();
+      spdlog::warn("{}: colour images not used (the segmenter gets grey ones): {}", colour_dir,
+                   why);
     }
   }
 }
@@ -231,14 +280,19 @@ cv::Mat LoadGreyImage(const std::string& path) {
   return image;
 }
 
-cv::Mat Dataset::LoadLeft(size_t i) const { return LoadGreyImage(PathAt(left_paths, i, "left")); }
+cv::Mat Dataset::LoadLeft(size_t i) const {
+  const std::string& path = PathAt(left_paths, i, "left");
+  return RequireRigSize(LoadGreyImage(path), path, rig.left);
+}
 
 cv::Mat Dataset::LoadRight(size_t i) const {
-  return LoadGreyImage(PathAt(right_paths, i, "right"));
+  const std::string& path = PathAt(right_paths, i, "right");
+  return RequireRigSize(LoadGreyImage(path), path, rig.left);
 }
 
 cv::Mat Dataset::LoadLeftColor(size_t i) const {
-  return LoadImageChecked(PathAt(left_color_paths, i, "colour"), cv::IMREAD_COLOR);
+  const std::string& path = PathAt(left_color_paths, i, "colour");
+  return RequireRigSize(LoadImageChecked(path, cv::IMREAD_COLOR), path, rig.left);
 }
 
 const char* ToString(RawTruth truth) { return truth == RawTruth::kIns ? "ins" : "gps"; }
@@ -251,7 +305,11 @@ RawTruth ParseRawTruth(const std::string& text) {
 
 Dataset OpenDataset(const std::string& path, KittiCameras cams, RawTruth raw_truth) {
   std::error_code ec;
-  if (!fs::is_directory(path, ec)) throw InputError(path, 0, "dataset directory not found");
+  if (!fs::is_directory(path, ec))
+    throw InputError(path, 0,
+                     fs::exists(path, ec) ? "not a directory (a dataset is a sequence or drive "
+                                            "directory)"
+                                          : "dataset directory not found");
   const fs::path dir(path);
   if (IsKittiRawDrive(path)) return OpenKittiRaw(path, cams, raw_truth);
   if (fs::exists(dir / "calib.txt", ec)) {
@@ -267,26 +325,73 @@ Dataset OpenDataset(const std::string& path, KittiCameras cams, RawTruth raw_tru
                    "(image_00/data/)");
 }
 
-void SetRigFromProjections(const Eigen::Matrix<double, 3, 4>& p_left,
-                           const Eigen::Matrix<double, 3, 4>& p_right,
-                           const std::string& calib_name, Dataset* dataset) {
+cv::Size DatasetImageSize(const std::vector<std::string>& paths) {
+  if (paths.empty()) throw std::invalid_argument("DatasetImageSize: no images");
+  std::vector<size_t> samples = {0, paths.size() / 2, paths.size() - 1};
+  samples.erase(std::unique(samples.begin(), samples.end()), samples.end());
+  std::vector<cv::Size> sizes;
+  for (const size_t i : samples) sizes.push_back(ImageSizeOf(paths[i]));
+  for (const cv::Size& size : sizes)
+    if (sizes.size() == 1 || std::count(sizes.begin(), sizes.end(), size) >= 2) return size;
+  std::string others;
+  for (size_t k = 1; k < samples.size(); ++k)
+    others += (k > 1 ? " and " : "") + FileName(paths[samples[k]]) + " is " + SizeText(sizes[k]);
+  throw InputError(paths.front(), 0,
+                   "image is " + SizeText(sizes.front()) + ", but " + others +
+                       ": a camera's images must share one size");
+}
+
+void SetRigFromCalib(const CalibFile& calib, const std::string& left_key,
+                     const std::string& right_key, Dataset* dataset) {
+  const Eigen::Matrix<double, 3, 4> p_left = calib.Matrix3x4(left_key);
+  const int left_line = calib.Line(left_key);
   PinholeCamera& cam = dataset->rig.left;
   cam.fx = p_left(0, 0);
   cam.fy = p_left(1, 1);
   cam.cx = p_left(0, 2);
   cam.cy = p_left(1, 2);
-  const cv::Size size = ImageSizeOf(dataset->left_paths.front());
+  const cv::Size size = DatasetImageSize(dataset->left_paths);
   cam.width_px = size.width;
   cam.height_px = size.height;
+  std::string why;
+  if (!cam.IsValid(&why))
+    throw InputError(calib.name(), left_line,
+                     "entry '" + left_key + "' gives an invalid camera: " + why);
+  if (!(cam.cx >= 0 && cam.cx <= size.width && cam.cy >= 0 && cam.cy <= size.height))
+    throw InputError(calib.name(), left_line,
+                     fmt::format("entry '{}': principal point ({:g}, {:g}) lies outside the "
+                                 "{} x {} images",
+                                 left_key, cam.cx, cam.cy, size.width, size.height));
+  dataset->rig.baseline_m = 0;
   if (dataset->has_right()) {
+    if (!calib.Has(right_key))
+      throw InputError(calib.name(), 0,
+                       "missing calibration entry '" + right_key +
+                           "', the camera of the right images (" +
+                           fs::path(dataset->right_paths.front()).parent_path().string() + ")");
+    const Eigen::Matrix<double, 3, 4> p_right = calib.Matrix3x4(right_key);
+    const int right_line = calib.Line(right_key);
+    constexpr double kTolerancePx = 0.01;
+    const std::array<std::pair<const char*, std::array<double, 2>>, 4> shared = {{
+        {"fx", {p_left(0, 0), p_right(0, 0)}},
+        {"fy", {p_left(1, 1), p_right(1, 1)}},
+        {"cx", {p_left(0, 2), p_right(0, 2)}},
+        {"cy", {p_left(1, 2), p_right(1, 2)}},
+    }};
+    for (const auto& [what, values] : shared)
+      if (!(std::abs(values[0] - values[1]) <= kTolerancePx))
+        throw InputError(calib.name(), right_line,
+                         fmt::format("entry '{}': {} {:g} differs from {:g} of '{}' (rectified "
+                                     "stereo cameras share fx, fy, cx, cy)",
+                                     right_key, what, values[1], values[0], left_key));
     dataset->rig.baseline_m = (p_left(0, 3) - p_right(0, 3)) / cam.fx;
     if (!(dataset->rig.baseline_m > 0))
-      throw InputError(calib_name, 0,
-                       "stereo baseline from the projection matrices is not positive");
+      throw InputError(
+          calib.name(), right_line,
+          "stereo baseline from '" + left_key + "' and '" + right_key + "' is not positive");
   }
-  std::string why;
   if (!dataset->rig.IsValid(&why))
-    throw InputError(calib_name, 0, "calibration gives an invalid camera: " + why);
+    throw InputError(calib.name(), 0, "calibration gives an invalid camera: " + why);
 }
 
 }  // namespace pcr

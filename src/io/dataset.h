@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "io/kitti_calib.h"
 #include "slam/common/camera.h"
 #include "slam/common/pose.h"
 
@@ -58,7 +59,8 @@ struct Dataset {
     return t_ns.size() < 2 ? 0.0 : NsToSeconds(t_ns.back() - t_ns.front());
   }
 
-  // CV_8UC1; colour files are converted to grey. Throws InputError for an unreadable file and
+  // CV_8UC1; colour files are converted to grey. Throws InputError for an unreadable file, or an
+  // image whose size is not the rig's (rig.left.width_px x height_px, when set), and
   // std::out_of_range for a bad index.
   cv::Mat LoadLeft(size_t i) const;
   cv::Mat LoadRight(size_t i) const;
@@ -76,14 +78,24 @@ cv::Mat LoadGreyImage(const std::string& path);
 // Width and height of a PNG from its IHDR chunk (other formats are decoded).
 cv::Size ImageSizeOf(const std::string& path);
 
-// Fills dataset->rig from rectified 3x4 projection matrices (left, and right when the dataset has a
-// right image stream: baseline = (P_left[0][3] - P_right[0][3]) / fx) and the size of the first
-// left image. Throws InputError naming calib_name for a non-positive baseline or an invalid camera.
-void SetRigFromProjections(const Eigen::Matrix<double, 3, 4>& p_left,
-                           const Eigen::Matrix<double, 3, 4>& p_right,
-                           const std::string& calib_name, Dataset* dataset);
+// Fills dataset->rig from the rectified 3x4 projection matrices `left_key` of `calib` and, when
+// the dataset has a right image stream, `right_key` (baseline = (P_left[0][3] - P_right[0][3]) /
+// fx; without a right stream the entry is not needed), and the dataset's image size (see
+// DatasetImageSize). Throws InputError naming the calibration file and the entry's line for a
+// missing entry, a focal length that is not positive, a principal point outside the image, a
+// right camera whose fx, fy, cx or cy differ from the left one's (rectified stereo shares one
+// camera), or a baseline that is not positive.
+void SetRigFromCalib(const CalibFile& calib, const std::string& left_key,
+                     const std::string& right_key, Dataset* dataset);
 
-// Sorted paths of the files in `dir` whose names end with `extension` (e.g. ".png").
+// The size of a camera's images (`paths`, one camera, in frame order) without decoding them: the
+// size in the headers of the first, middle and last image that at least two of them share, so one
+// odd frame, the first included, does not set it (Dataset::Load* then rejects that frame). Throws
+// InputError naming the first image when the sampled images disagree with no majority.
+cv::Size DatasetImageSize(const std::vector<std::string>& paths);
+
+// Sorted paths of the files in `dir` whose names end with `extension` (e.g. ".png"), in any case
+// (".PNG" too).
 std::vector<std::string> ListFiles(const std::string& dir, const std::string& extension);
 
 // `dir` made absolute and lexically normal, without a trailing separator or "." ("07", "./07/.",
@@ -122,7 +134,7 @@ void CheckSameFileNames(const std::vector<std::string>& left, const std::string&
 // numbers are `numbers`, in folder `left_label`): the images of `right_dir`, none when it does
 // not exist (else one of each left image's name, or InputError naming right_dir); the left
 // images themselves when `color`, else the images of `colour_dir` when it holds exactly the left
-// images' frames (none otherwise).
+// images' frames (none otherwise, with a warning that names the folder and the frames that differ).
 void AddOtherCameras(Dataset* dataset, const std::vector<int64_t>& numbers,
                      const std::string& left_label, const std::string& right_dir,
                      const std::string& colour_dir, bool color);

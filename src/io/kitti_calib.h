@@ -13,12 +13,15 @@ namespace pcr {
 
 class CalibFile {
  public:
-  // Missing file, a non-blank line without "KEY:" or a repeated key throw InputError.
+  // Missing file, a non-blank line without "KEY:", a key with bytes that are not printable ASCII
+  // (a UTF-8 byte order mark, a control byte) or a repeated key throw InputError.
   static CalibFile Read(const std::string& path);
   static CalibFile Parse(std::istream& in, const std::string& name);
 
   bool Has(const std::string& key) const { return entries_.count(key) != 0; }
   const std::string& name() const { return name_; }
+  // The 1-based line of `key`; 0 when it is missing.
+  int Line(const std::string& key) const;
   // Exactly `count` finite numbers of `key`; throws when the key is missing or malformed.
   std::vector<double> Numbers(const std::string& key, size_t count) const;
   Eigen::Matrix<double, 3, 4> Matrix3x4(const std::string& key) const;  // row-major

@@ -16,7 +16,9 @@ namespace fs = std::filesystem;
 Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
   std::error_code ec;
   if (!fs::is_directory(sequence_dir, ec))
-    throw InputError(sequence_dir, 0, "sequence directory not found");
+    throw InputError(sequence_dir, 0,
+                     fs::exists(sequence_dir, ec) ? "not a directory (a sequence is a directory)"
+                                                  : "sequence directory not found");
   const fs::path dir = NormalDirectoryPath(sequence_dir);
 
   Dataset dataset;
@@ -43,8 +45,7 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
   dataset.frame_numbers = numbers;
 
   const CalibFile calib = CalibFile::Read((dir / "calib.txt").string());
-  SetRigFromProjections(calib.Matrix3x4(color ? "P2" : "P0"), calib.Matrix3x4(color ? "P3" : "P1"),
-                        calib.name(), &dataset);
+  SetRigFromCalib(calib, color ? "P2" : "P0", color ? "P3" : "P1", &dataset);
 
   // poses/NN.txt beside sequences/ (of the link's target where the sequence is a link)
   const auto poses_of = [&](const fs::path& d) {
@@ -52,9 +53,11 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
   };
   const fs::path poses_path = poses_of(FirstDirectoryWhere(dir.string(), [&](const std::string& d) {
     std::error_code e;
-    return fs::is_regular_file(poses_of(d), e);
+    return fs::exists(poses_of(d), e);
   }));
-  if (fs::is_regular_file(poses_path, ec)) {
+  if (fs::exists(poses_path, ec)) {
+    if (!fs::is_regular_file(poses_path, ec))
+      throw InputError(poses_path.string(), 0, "the ground-truth poses are not a regular file");
     const Trajectory poses = ReadKittiTrajectory(poses_path.string());
     RequireLines(poses.size(), numbers, dataset.left_paths, poses_path.string(), "poses",
                  std::to_string(dataset.size()) + " frames");

@@ -7,14 +7,16 @@
 
 namespace pcr {
 
-// Rig from P0/P1 (kGray) or P2/P3 (kColor): fx, fy, cx, cy of the left matrix, baseline
-// (P_left[0][3] - P_right[0][3]) / fx, size from the first image. A monocular sequence (no
-// image_1 / image_3) gets baseline_m = 0. image_2 fills left_color_paths when present.
+// Rig from P0/P1 (kGray) or P2/P3 (kColor) by SetRigFromCalib: fx, fy, cx, cy of the left matrix,
+// baseline (P_left[0][3] - P_right[0][3]) / fx, size from the images (DatasetImageSize). A
+// monocular sequence (no image_1 / image_3) gets baseline_m = 0 and needs no P1 / P3. image_2
+// fills left_color_paths when it holds the left images' frames.
 // Frames are paired by the number in the image names, not by position: image NNNNNN.png takes
 // line NNNNNN + 1 of times.txt and of the poses (so a clip that starts after frame 0, or has a
 // gap, gets its own lines; lines without an image are dropped), and the right (and colour) images
 // must carry the left images' names. The ground truth's frame_index is the position in the
-// dataset. Throws InputError for a missing directory or file, an image name that is not a number,
+// dataset. Throws InputError for a missing directory or file (poses/NN.txt that is there but not
+// a regular file included), an image name that is not a number,
 // an image without a line in times.txt or in the poses, or right images that are not the left
 // images' names. sequence_dir may be relative or end with '/' or "/.": the poses are looked up
 // next to the sequences folder of the directory itself.

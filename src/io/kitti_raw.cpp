@@ -242,7 +242,10 @@ std::vector<OxtsPacket> ReadOxtsPackets(const std::string& drive_dir,
 
 Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth truth) {
   std::error_code ec;
-  if (!fs::is_directory(drive_dir, ec)) throw InputError(drive_dir, 0, "drive directory not found");
+  if (!fs::is_directory(drive_dir, ec))
+    throw InputError(drive_dir, 0,
+                     fs::exists(drive_dir, ec) ? "not a directory (a drive is a directory)"
+                                               : "drive directory not found");
   const fs::path dir = NormalDirectoryPath(drive_dir);
   // The date folder's calibration (of the link's target where the drive is a link).
   const fs::path calib_dir =
@@ -272,9 +275,8 @@ Dataset OpenKittiRaw(const std::string& drive_dir, KittiCameras cams, RawTruth t
   dataset.frame_numbers = numbers;
 
   const CalibFile cam_to_cam = CalibFile::Read((calib_dir / "calib_cam_to_cam.txt").string());
-  SetRigFromProjections(cam_to_cam.Matrix3x4(color ? "P_rect_02" : "P_rect_00"),
-                        cam_to_cam.Matrix3x4(color ? "P_rect_03" : "P_rect_01"), cam_to_cam.name(),
-                        &dataset);
+  SetRigFromCalib(cam_to_cam, color ? "P_rect_02" : "P_rect_00", color ? "P_rect_03" : "P_rect_01",
+                  &dataset);
 
   const std::vector<OxtsPacket> packets = ReadOxtsPackets(dir.string(), numbers);
   if (!packets.empty()) {

@@ -20,25 +20,6 @@ bool IsSpace(char c) {
   return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
 }
 
-// A token shown in an error message: quoted, cut to a readable length, control bytes escaped.
-std::string Quote(std::string_view token) {
-  constexpr size_t kMaxShown = 40;
-  std::string out = "'";
-  for (size_t i = 0; i < token.size() && i < kMaxShown; ++i) {
-    const unsigned char c = static_cast<unsigned char>(token[i]);
-    if (c < 0x20 || c >= 0x7f) {
-      static constexpr char kHex[] = "0123456789abcdef";
-      out += "\\x";
-      out += kHex[c >> 4];
-      out += kHex[c & 0xf];
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  if (token.size() > kMaxShown) out += "...";
-  return out + "'";
-}
-
 // Strips one leading '+' (from_chars accepts only '-'); false when a second sign follows it.
 bool StripPlus(std::string_view* digits) {
   if (digits->empty() || digits->front() != '+') return true;
@@ -79,6 +60,24 @@ bool IsUnderflow(std::string_view digits) {
 }
 
 }  // namespace
+
+std::string Quote(std::string_view token) {
+  constexpr size_t kMaxShown = 40;
+  std::string out = "'";
+  for (size_t i = 0; i < token.size() && i < kMaxShown; ++i) {
+    const unsigned char c = static_cast<unsigned char>(token[i]);
+    if (c < 0x20 || c >= 0x7f) {
+      static constexpr char kHex[] = "0123456789abcdef";
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 0xf];
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  if (token.size() > kMaxShown) out += "...";
+  return out + "'";
+}
 
 std::vector<std::string_view> SplitWhitespace(std::string_view text) {
   std::vector<std::string_view> tokens;

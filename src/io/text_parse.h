@@ -16,6 +16,10 @@ namespace pcr::io {
 // Splits on ASCII whitespace (space, tab, CR, LF, VT, FF); empty tokens are dropped.
 std::vector<std::string_view> SplitWhitespace(std::string_view text);
 
+// A token as an error message shows it: quoted, cut to 40 characters, bytes below 0x20 or above
+// 0x7e as \xHH.
+std::string Quote(std::string_view token);
+
 // True when the line holds only whitespace.
 bool IsBlank(std::string_view line);
 

@@ -24,6 +24,7 @@ const char kCalib[] =
     "P3: 700 0 600 -336 0 710 180 2 0 0 1 0.003\n";
 
 // A small synthetic odometry layout: root/sequences/03/{image_0,image_1,...}, root/poses/03.txt.
+// The images have KITTI 06's size, so that kCalib's principal point lies inside them.
 class SyntheticOdometry : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -42,7 +43,7 @@ class SyntheticOdometry : public ::testing::Test {
   void WriteImages(const std::string& camera, int n, int type) {
     fs::create_directories(seq_ + "/" + camera);
     for (int i = 0; i < n; ++i) {
-      cv::Mat image(24, 32, type, cv::Scalar(10 * i, 20, 30));
+      cv::Mat image(370, 1226, type, cv::Scalar(10 * i, 20, 30));
       char name[32];
       std::snprintf(name, sizeof(name), "/%06d.png", i);
       ASSERT_TRUE(cv::imwrite(seq_ + "/" + camera + name, image));
@@ -63,8 +64,8 @@ TEST_F(SyntheticOdometry, ReadsRigTimesImagesAndGroundTruth) {
   EXPECT_DOUBLE_EQ(d.rig.left.cx, 600);
   EXPECT_DOUBLE_EQ(d.rig.left.cy, 180);
   EXPECT_DOUBLE_EQ(d.rig.baseline_m, 0.54);
-  EXPECT_EQ(d.rig.left.width_px, 32);
-  EXPECT_EQ(d.rig.left.height_px, 24);
+  EXPECT_EQ(d.rig.left.width_px, 1226);
+  EXPECT_EQ(d.rig.left.height_px, 370);
   EXPECT_EQ(d.t_ns[2], 200'000'000);
   ASSERT_TRUE(d.ground_truth.has_value());
   ASSERT_EQ(d.ground_truth->size(), 3u);  // the 4th pose is beyond the images and dropped

@@ -158,7 +158,7 @@ TEST(Oxts, InsTruthIntegratesTheVelocities) {
                std::invalid_argument);
 }
 
-// A raw drive folder built from the real calibration with tiny synthetic images.
+// A raw drive folder built from the real calibration with blank synthetic images of the real size.
 class SyntheticRaw : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -172,7 +172,8 @@ class SyntheticRaw : public ::testing::Test {
       for (int i = 0; i < 3; ++i) {
         char name[32];
         std::snprintf(name, sizeof(name), "/data/%010d.png", i);
-        ASSERT_TRUE(cv::imwrite(drive_ + "/" + cam + name, cv::Mat(8, 16, CV_8UC1, cv::Scalar(i))));
+        ASSERT_TRUE(
+            cv::imwrite(drive_ + "/" + cam + name, cv::Mat(375, 1242, CV_8UC1, cv::Scalar(i))));
       }
       WriteText(drive_ + "/" + cam + "/timestamps.txt",
                 "2011-09-26 13:04:32.0\n2011-09-26 13:04:32.1\n2011-09-26 13:04:32.2\n"
@@ -190,7 +191,7 @@ TEST_F(SyntheticRaw, MoreTimestampsThanImagesUsesTheFirst) {
   ASSERT_EQ(d.t_ns.size(), 3u);
   EXPECT_EQ(d.t_ns[2] - d.t_ns[0], 200'000'000);
   EXPECT_TRUE(d.has_right());
-  EXPECT_EQ(d.rig.left.width_px, 16);
+  EXPECT_EQ(d.rig.left.width_px, 1242);
   EXPECT_FALSE(d.ground_truth.has_value());  // no oxts folder
   EXPECT_EQ(d.LoadRight(2).at<uint8_t>(0, 0), 2);
 }
