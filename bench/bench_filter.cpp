@@ -24,6 +24,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "bench_args.h"
+#include "bench_main.h"
 #include "slam/dynamic/dynamic_filter.h"
 #include "slam/dynamic/yolo_segmenter.h"
 #include "slam/features/orb_extractor.h"
@@ -31,7 +33,7 @@
 
 namespace {
 
-const std::string kSequence = std::string(PCR_SHARED_DIR) + "/data/kitti/sequences/06/";
+const std::string kSequence = pcr::bench::SharedDir() + "/data/kitti/sequences/06/";
 
 cv::Mat LoadGrey(const std::string& camera_dir, int frame) {
   char name[32];
@@ -43,7 +45,7 @@ cv::Mat LoadGrey(const std::string& camera_dir, int frame) {
 }
 
 pcr::SE3 GroundTruthPose(int frame) {
-  const std::string path = std::string(PCR_SHARED_DIR) + "/data/kitti/poses/06.txt";
+  const std::string path = pcr::bench::SharedDir() + "/data/kitti/poses/06.txt";
   std::ifstream in(path);
   std::string line;
   for (int i = 0; std::getline(in, line); ++i) {
@@ -104,7 +106,7 @@ const PairData& PairWithSegmentation() {
   static const PairData data = [] {
     PairData d = Pair();
     pcr::YoloOptions options;
-    options.model_path = std::string(PCR_SHARED_DIR) + "/models/yolov8n-seg_coco_384x1280.onnx";
+    options.model_path = pcr::bench::SharedDir() + "/models/yolov8n-seg_coco_384x1280.onnx";
     pcr::YoloSegmenter segmenter(options);
     for (int k = 0; k < 2; ++k) d.segmentation[k] = segmenter.Segment(d.image[k]);
     return d;
@@ -265,4 +267,4 @@ BENCHMARK(BM_FilterGroundRansac)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FilterProcessWithPrior)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FilterProcessNoPrior)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FilterProcessWithPriorYolo)->Unit(benchmark::kMillisecond);
-BENCHMARK_MAIN();
+int main(int argc, char** argv) { return pcr::bench::RunBenchmarks("bench_filter", argc, argv); }

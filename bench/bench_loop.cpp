@@ -152,6 +152,7 @@ constexpr double kDriftDeltaM = 40.0;
 
 struct Args {
   std::string seeds = "1,2,3";
+  std::vector<uint64_t> seed_list;  // --seeds, parsed (CheckArgs)
   int frames = 600;
   double laps = pcr::sim::SynthOptions{}.laps;  // times round the loop (pcr_orb synth --laps)
   double speed_mps = 8;
@@ -169,6 +170,7 @@ struct Args {
   int place_stride = 2;
   int window = 10;
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
+  std::vector<double> threshold_list;  // --thresholds, parsed (CheckArgs)
   bool held_out = false;
   bool map_distance = false;           // --place: the clips' own maps place the answers
   bool road_distance = false;          // --place: the road measures the answers
@@ -179,7 +181,21 @@ struct Args {
   bool floor = false;                  // loops: the measurements' own floor (FloorOf)
 };
 
-using pcr::bench::ParseList;
+// Parses the list options into their vectors and checks what CLI11 does not; throws
+// std::invalid_argument naming the option.
+void CheckArgs(Args* a) {
+  a->seed_list = pcr::bench::ParseSeeds(a->seeds, "--seeds");
+  a->threshold_list = pcr::bench::ParseList(a->thresholds, "--thresholds");
+  const bool loops = a->place.empty() && a->cross.empty() && a->sequences.empty();
+  if (loops && a->seed_list.empty())
+    throw std::invalid_argument(std::string(a->latency ? "--latency" : "the synthetic loops") +
+                                " need at least one seed: --seeds '" + a->seeds + "'");
+  if (a->repeat < 1)
+    throw std::invalid_argument("--repeat must be at least 1, got " + std::to_string(a->repeat));
+  if (a->place_stride < 1)
+    throw std::invalid_argument("--place-stride must be at least 1, got " +
+                                std::to_string(a->place_stride));
+}
 
 // One line of a command's output ("" when it cannot run).
 std::string CommandLine(const std::string& command) {
@@ -550,9 +566,9 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
   };
   std::vector<Row> rows;
   int failed = 0;
-  for (double seed : ParseList(args.seeds)) {
+  for (uint64_t seed : args.seed_list) {
     Row r;
-    r.seed = static_cast<uint64_t>(seed);
+    r.seed = seed;
     const pcr::Dataset d = pcr::OpenDataset(LoopSequence(args, r.seed));
     r.frames = d.size();
     r.path_m = d.ground_truth ? pcr::PathLength(*d.ground_truth) : kNaN;
@@ -730,14 +746,10 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
 // --- Latency -----------------------------------------------------------------------------------
 
 int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary) {
-  const std::vector<double> seeds = ParseList(args.seeds);
-  if (seeds.empty()) {
-    std::fprintf(stderr, "--latency needs a seed\n");
-    return 1;
-  }
-  const pcr::Dataset d = pcr::OpenDataset(LoopSequence(args, static_cast<uint64_t>(seeds[0])));
-  std::printf("\nTracking latency, pipelined, %d threads, %s, seed %d, %zu frames (ms)\n",
-              args.threads, args.mode.c_str(), static_cast<int>(seeds[0]), d.size());
+  const uint64_t seed = args.seed_list.at(0);  // CheckArgs: at least one
+  const pcr::Dataset d = pcr::OpenDataset(LoopSequence(args, seed));
+  std::printf("\nTracking latency, pipelined, %d threads, %s, seed %llu, %zu frames (ms)\n",
+              args.threads, args.mode.c_str(), static_cast<unsigned long long>(seed), d.size());
   std::printf("%5s %4s | %7s %7s %7s | %5s | %5s %7s %7s | %4s %8s | %6s\n", "round", "loop",
               "lat p50", "lat p99", "lat max", "loops", "loop n", "p50", "max", "gBA", "max",
               "wall s");
@@ -1657,7 +1669,7 @@ int RunPlace(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& sha
   const int revisits = clip_queries(-1).revisits;
   std::printf("\nbest database frame with a minimum score:\n%9s %8s %7s %5s %9s %7s\n", "min score",
               "accepted", "correct", "other", "precision", "recall");
-  for (double t : ParseList(args.thresholds)) {
+  for (double t : args.threshold_list) {
     int accepted = 0, correct = 0, other = 0;
     for (const Best& b : bests) {
       if (b.score < t) continue;
@@ -1925,8 +1937,7 @@ int main(int argc, char** argv) {
   app.add_option("--cross", a.cross,
                  "whole-system place recognition across clips: each clip mapped, every other "
                  "clip localised in its map");
-  app.add_option("--place-stride", a.place_stride, "--place: every N-th frame")
-      ->check(CLI::PositiveNumber)
+  app.add_option("--place-stride", a.place_stride, "--place: every N-th frame (at least 1)")
       ->capture_default_str();
   app.add_option("--window", a.window, "--place: excluded frames of the query's clip (+-)")
       ->capture_default_str();
@@ -1961,6 +1972,7 @@ int main(int argc, char** argv) {
   const std::string commit =
       CommandLine("git -C '" + source_dir.string() + "' describe --always --dirty 2>/dev/null");
   try {
+    CheckArgs(&a);
     const std::shared_ptr<const pcr::Vocabulary> vocabulary =
         pcr::driver::LoadLoopVocabulary(a.vocabulary);
     std::printf("bench_loop: commit %s, vocabulary %s (%zu words), load average %s\n",

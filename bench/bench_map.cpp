@@ -211,6 +211,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
   try {
+    const std::vector<uint64_t> seeds = pcr::bench::ParseSeeds(a.seeds, "--seeds");
     fs::create_directories(a.work);
     std::printf(
         "| run | mapped | tracked | keyframes | MB | save ms | load ms | same bytes | localised "
@@ -224,13 +225,13 @@ int main(int argc, char** argv) {
       const size_t n = pcr::OpenDataset(seq).size();
       ok = MapAndLocalise(a, fs::path(seq).filename().string(), seq, n, 0, n) && ok;
     }
-    for (double seed : pcr::bench::ParseList(a.seeds)) {
+    for (uint64_t seed : seeds) {
       pcr::sim::SynthOptions o;
       o.route = pcr::sim::RouteKind::kLoop;
       o.frames = a.frames;
       o.speed_mps = a.speed_mps;
       o.num_movers = a.movers;
-      o.seed = static_cast<uint64_t>(seed);
+      o.seed = seed;
       o = o.Scaled(a.scale);
       const fs::path dir = fmt::format("{}/loop_s{}_f{}_v{}_m{}_x{}", a.work, o.seed, o.frames,
                                        o.speed_mps, o.num_movers, a.scale);
@@ -238,7 +239,8 @@ int main(int argc, char** argv) {
       const pcr::Dataset d = pcr::OpenDataset(sequence);
       const size_t revisit = RevisitFrame(*d.ground_truth);
       if (revisit >= d.size()) {
-        std::printf("| loop seed %g | the route does not come back to its start |\n", seed);
+        std::printf("| loop seed %llu | the route does not come back to its start |\n",
+                    static_cast<unsigned long long>(seed));
         ok = false;
         continue;
       }

@@ -66,15 +66,13 @@
 #include "driver/run_slam.h"
 #include "io/dataset.h"
 #include "io/kitti_tracking.h"
+#include "slam/common/error.h"
 #include "slam/common/timing.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
 namespace {
 
-std::string SharedDir() {
-  if (const char* env = std::getenv("PCR_SHARED_DIR"); env && *env) return env;
-  return PCR_SHARED_DIR;
-}
+using pcr::bench::SharedDir;
 
 struct Args {
   std::string reference = SharedDir() + "/models/yolov8n-seg_coco_224x640.onnx";
@@ -139,10 +137,8 @@ Args ParseArgs(int argc, char** argv) {
       a.reference = value();
     } else if (arg == "--threads") {
       a.threads.clear();
-      for (double t : pcr::bench::ParseList(value())) {
-        if (!(t >= 1 && t <= 256)) throw std::invalid_argument("--threads: counts in 1..256");
-        a.threads.push_back(static_cast<int>(t));
-      }
+      for (const std::string& t : pcr::bench::SplitList(value()))
+        a.threads.push_back(pcr::bench::ParseInt(t, "--threads", 1, 256));
       if (a.threads.empty()) throw std::invalid_argument("--threads needs a count");
     } else if (arg == "--frames") {
       a.frames = value();
@@ -151,8 +147,7 @@ Args ParseArgs(int argc, char** argv) {
     } else if (arg == "--labels") {
       a.labels = value();
     } else if (arg == "--runs") {
-      a.runs = std::stoi(value());
-      if (a.runs < 1 || a.runs > 1000) throw std::invalid_argument("--runs must be in 1..1000");
+      a.runs = pcr::bench::ParseInt(value(), "--runs", 1, 1000);
     } else if (arg == "--detail") {
       a.detail = true;
     } else if (arg == "--int8") {
@@ -162,6 +157,17 @@ Args ParseArgs(int argc, char** argv) {
     } else if (arg == "--engines") {
       a.engines = pcr::bench::SplitList(value());
       if (a.engines.empty()) throw std::invalid_argument("--engines needs a name");
+      for (const std::string& engine : a.engines) {
+        // The driver's check of an engine, whose message names pcr_orb's --inference.
+        try {
+          pcr::YoloOptions probe;
+          pcr::driver::ApplyInference(engine, &probe);
+        } catch (const pcr::ConfigError& e) {
+          const std::string why = e.what(), flag = "--inference";
+          throw std::invalid_argument(
+              why.rfind(flag, 0) == 0 ? "--engines" + why.substr(flag.size()) : why);
+        }
+      }
     } else if (arg == "-h" || arg == "--help") {
       std::printf("%s", kUsage);
       std::exit(0);

@@ -46,6 +46,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.h"
 #include "graph/heap.h"
 #include "graph/pipeline.h"
 #include "nodes/filter_node.h"
@@ -88,41 +89,41 @@ Args ParseArgs(int argc, char** argv) {
       return v == "on";
     };
     if (arg == "--frames") {
-      a.frames = std::stoi(value());
+      a.frames = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--warmup") {
-      a.warmup = std::stoi(value());
+      a.warmup = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--sample-every") {
-      a.sample_every = std::stoi(value());
+      a.sample_every = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--world-frames") {
-      a.world_frames = std::stoi(value());
+      a.world_frames = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--scale") {
-      a.scale = std::stod(value());
+      a.scale = pcr::bench::ParseNumber(value(), arg);
     } else if (arg == "--segmenter") {
       a.segmenter = value();
     } else if (arg == "--filter") {
       a.filter = on_off();
     } else if (arg == "--threads") {
-      a.threads = std::stoi(value());
+      a.threads = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--max-in-flight") {
-      a.max_in_flight = std::stoi(value());
+      a.max_in_flight = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--seed") {
-      a.seed = std::stoull(value());
+      a.seed = pcr::bench::ParseUnsigned(value(), arg);
     } else if (arg == "--movers") {
-      a.movers = std::stoi(value());
+      a.movers = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--parked") {
-      a.parked = std::stoi(value());
+      a.parked = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--speed") {
-      a.speed_mps = std::stod(value());
+      a.speed_mps = pcr::bench::ParseNumber(value(), arg);
     } else if (arg == "--max-keyframes") {
-      a.max_keyframes = std::stoi(value());
+      a.max_keyframes = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--trim") {
       a.trim = true;
     } else if (arg == "--heap-policy") {
       a.heap_policy = on_off();
     } else if (arg == "--trim-every") {
-      a.trim_every = std::stoi(value());
+      a.trim_every = pcr::bench::ParseInt(value(), arg);
     } else if (arg == "--mmap-threshold") {
-      a.mmap_threshold = std::stoull(value());
+      a.mmap_threshold = pcr::bench::ParseUnsigned(value(), arg);
     } else if (arg == "--per-frame") {
       a.per_frame = value();
     } else if (arg == "--trim-after-keyframe") {
@@ -144,6 +145,11 @@ Args ParseArgs(int argc, char** argv) {
   if (a.frames < 1 || a.sample_every < 1 || a.warmup < 0 || a.world_frames < 50)
     throw std::invalid_argument(
         "--frames, --sample-every >= 1, --warmup >= 0, --world-frames >= 50");
+  // The verdicts compare the samples after the warm-up with the one at its end.
+  if (a.warmup >= a.frames)
+    throw std::invalid_argument("--warmup " + std::to_string(a.warmup) +
+                                " leaves no frame to measure: it must be less than --frames " +
+                                std::to_string(a.frames));
   return a;
 }
 

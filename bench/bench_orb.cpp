@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.h"
+#include "bench_main.h"
 #include "slam/features/orb_extractor.h"
 
 namespace {
@@ -20,7 +22,7 @@ namespace {
 const cv::Mat& KittiImage() {
   static const cv::Mat image = [] {
     const std::string path =
-        std::string(PCR_SHARED_DIR) + "/data/kitti/sequences/06/image_0/000000.png";
+        pcr::bench::SharedDir() + "/data/kitti/sequences/06/image_0/000000.png";
     cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
     if (img.empty()) throw std::runtime_error("cannot read " + path);
     return img;
@@ -98,4 +100,4 @@ BENCHMARK(BM_CvOrbFast)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) { return pcr::bench::RunBenchmarks("bench_orb", argc, argv); }

@@ -108,10 +108,7 @@ namespace {
 
 using pcr::graph::Policy;
 
-std::string SharedDir() {
-  if (const char* env = std::getenv("PCR_SHARED_DIR"); env && *env) return env;
-  return PCR_SHARED_DIR;
-}
+using pcr::bench::SharedDir;
 
 struct BenchArgs {
   std::string sequence = SharedDir() + "/data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync";

@@ -5,15 +5,17 @@
 //   mono07    real monocular, KITTI 07 (160 frames, Sim(3) ATE target <= 1% of the path)
 //   mono00    real monocular, KITTI 00 (100 frames, likewise)
 // Each input runs twice to check that trajectories repeat exactly. Usage:
-//   bench_slam [case ...] [--synth-frames N] [--shared DIR]
+//   bench_slam [case ...] [--synth-frames N] [--shared DIR]   (--shared: default $PCR_SHARED_DIR,
+//                                                             else the build's)
 #include <spdlog/spdlog.h>
 
+#include <CLI/CLI.hpp>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <string>
 #include <vector>
 
+#include "bench_args.h"
 #include "driver/driver.h"
 #include "io/dataset.h"
 #include "sim/sequence_writer.h"
@@ -33,24 +35,8 @@ bool SameTrajectory(const pcr::Trajectory& a, const pcr::Trajectory& b) {
   return true;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  std::string shared = PCR_SHARED_DIR;
-  int synth_frames = 300;
-  std::vector<std::string> wanted;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--shared") && i + 1 < argc) {
-      shared = argv[++i];
-    } else if (!std::strcmp(argv[i], "--synth-frames") && i + 1 < argc) {
-      synth_frames = std::atoi(argv[++i]);
-    } else {
-      wanted.push_back(argv[i]);
-    }
-  }
-  if (wanted.empty()) wanted = {"kitti06", "raw0005", "synth", "mono07", "mono00"};
-  spdlog::set_level(spdlog::level::warn);
-
+// Runs the cases named in `wanted` (CLI-checked names) and prints the table.
+int Run(const std::vector<std::string>& wanted, const std::string& shared, int synth_frames) {
   std::vector<Case> cases;
   for (const std::string& w : wanted) {
     if (w == "kitti06") {
@@ -70,9 +56,6 @@ int main(int argc, char** argv) {
       const auto summary = pcr::sim::WriteSequence(o, out);
       std::printf("  %.1f s\n", summary.seconds);
       cases.push_back({w, summary.sequence_dir});
-    } else {
-      std::fprintf(stderr, "unknown case %s\n", w.c_str());
-      return 2;
     }
   }
 
@@ -111,4 +94,31 @@ int main(int argc, char** argv) {
     std::printf("%s", text.substr(0, cut).c_str());
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"End-to-end SLAM accuracy and speed: ATE/RPE, losses, repeatability, stage times"};
+  std::string shared = pcr::bench::SharedDir();
+  int synth_frames = 300;
+  std::vector<std::string> wanted;
+  app.add_option("cases", wanted, "inputs to run (default: all)")
+      ->check(CLI::IsMember({"kitti06", "raw0005", "synth", "mono07", "mono00"}));
+  app.add_option("--synth-frames", synth_frames, "frames of the synthetic static street")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  app.add_option("--shared", shared,
+                 "the shared data folder (default: $PCR_SHARED_DIR, else "
+                 "the build's)")
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  if (wanted.empty()) wanted = {"kitti06", "raw0005", "synth", "mono07", "mono00"};
+  spdlog::set_level(spdlog::level::warn);
+  try {
+    return Run(wanted, shared, synth_frames);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_slam: %s\n", e.what());
+    return 1;
+  }
 }

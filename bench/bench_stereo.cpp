@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "bench_args.h"
+#include "bench_main.h"
 #include "slam/features/orb_extractor.h"
 #include "slam/features/stereo_matcher.h"
 
@@ -16,7 +18,7 @@ namespace {
 
 cv::Mat LoadGrey(const char* camera_dir) {
   const std::string path =
-      std::string(PCR_SHARED_DIR) + "/data/kitti/sequences/06/" + camera_dir + "/000000.png";
+      pcr::bench::SharedDir() + "/data/kitti/sequences/06/" + camera_dir + "/000000.png";
   cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
   if (img.empty()) throw std::runtime_error("cannot read " + path);
   return img;
@@ -85,4 +87,4 @@ BENCHMARK(BM_StereoFrame)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) { return pcr::bench::RunBenchmarks("bench_stereo", argc, argv); }

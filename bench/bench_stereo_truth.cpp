@@ -170,19 +170,13 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_stereo_truth: --frames and --stride must be >= 1\n");
     return 1;
   }
-  std::vector<double> seed_list;
+  std::vector<uint64_t> seed_list;
   try {
-    seed_list = pcr::bench::ParseList(seeds);
-  } catch (const std::exception&) {
-    std::fprintf(stderr, "bench_stereo_truth: --seeds must be a list of numbers: %s\n",
-                 seeds.c_str());
+    seed_list = pcr::bench::ParseSeeds(seeds, "--seeds");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_stereo_truth: %s\n", e.what());
     return 1;
   }
-  for (double seed : seed_list)
-    if (!(seed >= 0 && seed == std::floor(seed))) {
-      std::fprintf(stderr, "bench_stereo_truth: a seed must be a whole number >= 0: %g\n", seed);
-      return 1;
-    }
   cv::setNumThreads(1);
   const std::vector<Setting> settings = Settings();
   std::vector<std::array<Stats, kRowNames.size()>> stats(settings.size());
@@ -191,10 +185,10 @@ int main(int argc, char** argv) {
   int measured_frames = 0, road_frames = 0;
   std::printf("bench_stereo_truth: seeds %s, loop of %d frames, every %d'th, load average %s\n",
               seeds.c_str(), frames, stride, pcr::bench::LoadAverage().c_str());
-  for (double seed : seed_list) {
+  for (uint64_t seed : seed_list) {
     pcr::sim::SynthOptions o;
     o.frames = frames;
-    o.seed = static_cast<uint64_t>(seed);
+    o.seed = seed;
     o.route = pcr::sim::RouteKind::kLoop;
     const pcr::sim::SyntheticWorld world(o);
     const pcr::StereoRig rig = world.Rig();

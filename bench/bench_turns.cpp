@@ -27,7 +27,9 @@
 #include "eval/evaluation.h"
 #include "io/dataset.h"
 #include "sim/sequence_writer.h"
+#include "slam/common/error.h"
 #include "slam/common/lie.h"
+#include "slam/common/validation.h"
 #include "slam/geometry/cv_pose.h"
 #include "slam/geometry/se3.h"
 
@@ -97,6 +99,7 @@ struct Score {
   double max_rotation_deg = -1;
   int worst_frame = -1;
   double ate_m = -1;
+  std::string ate_error;  // why there is no ATE (e.g. a standing ego: nothing to align)
 };
 
 Score Evaluate(const pcr::Dataset& d, const pcr::Trajectory& tracked) {
@@ -114,12 +117,89 @@ Score Evaluate(const pcr::Dataset& d, const pcr::Trajectory& tracked) {
   }
   pcr::eval::EvalOptions options;
   options.alignment.mode = pcr::eval::AlignMode::kSe3;
-  s.ate_m = pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(*d.ground_truth, tracked), options)
-                .ape.trans_m.rmse;
+  try {
+    s.ate_m =
+        pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(*d.ground_truth, tracked), options)
+            .ape.trans_m.rmse;
+  } catch (const std::exception& e) {
+    s.ate_error = e.what();
+  }
   return s;
 }
 
-using pcr::bench::ParseList;
+// An ATE column: "-" where there is none.
+std::string Ate(const Score& s) {
+  return s.ate_m >= 0 ? fmt::format("{:9.3f}", s.ate_m) : "        -";
+}
+
+struct Case {
+  std::string name, path;
+};
+
+// The synthetic loops of the command line's lists, rendered under `work` where not there yet.
+std::vector<Case> Loops(int frames, const std::string& seeds, const std::string& speeds,
+                        const std::string& movers, const std::string& work) {
+  std::vector<Case> cases;
+  for (uint64_t seed : pcr::bench::ParseSeeds(seeds, "--seeds"))
+    for (double speed : pcr::bench::ParseList(speeds, "--speeds"))
+      for (const std::string& m : pcr::bench::SplitList(movers)) {
+        pcr::sim::SynthOptions o;
+        o.frames = frames;
+        o.seed = seed;
+        o.speed_mps = speed;
+        o.num_movers = pcr::bench::ParseInt(m, "--movers", 0);
+        o.route = pcr::sim::RouteKind::kLoop;
+        std::string why;
+        if (!o.IsValid(&why))
+          throw std::invalid_argument(pcr::NamedAsOption(
+              why,
+              {{"frames", "--frames"}, {"num_movers", "--movers"}, {"speed_mps", "--speeds"}}));
+        const std::string name = fmt::format("loop s{} {}m/s {}mv", o.seed, speed, o.num_movers);
+        const std::string dir =
+            fmt::format("{}/loop_s{}_v{}_m{}_f{}", work, o.seed, speed, o.num_movers, frames);
+        if (!pcr::sim::HoldsSequence(o, dir)) {
+          std::printf("writing %s ...\n", name.c_str());
+          std::fflush(stdout);
+        }
+        cases.push_back({name, pcr::sim::RenderOnce(o, dir)});
+      }
+  if (cases.empty())
+    throw std::invalid_argument("--seeds, --speeds and --movers need a value each");
+  return cases;
+}
+
+int Run(const std::vector<Case>& cases) {
+  std::printf("\n%-22s %6s | %7s %8s %9s | %7s %8s %9s | %9s\n", "sequence", "frames", "tracked",
+              "max rot", "ATE m", "naive", "max rot", "ATE m", "ATE ratio");
+  int worse = 0;
+  for (const Case& c : cases) {
+    const pcr::Dataset d = pcr::OpenDataset(c.path);
+    if (!d.has_right())
+      throw pcr::InputError(c.path, 0, "no right images: bench_turns compares stereo trackers");
+    pcr::driver::DriverOptions options;
+    options.pipeline.policy = pcr::graph::Policy::kSequential;
+    const pcr::driver::DriverResult run =
+        pcr::driver::RunDataset(d, pcr::driver::RunConfig{}, {0, d.size()}, options);
+    const Score ours = Evaluate(d, run.summary.tracked);
+    const Score naive = Evaluate(d, NaiveStereoVo(d));
+    const bool has_ratio = ours.ate_m >= 0 && naive.ate_m > 0;
+    const double ratio = has_ratio ? ours.ate_m / naive.ate_m : -1;
+    if (ours.tracked < d.size() || ours.max_rotation_deg >= 1.0 || ratio > 0.5) ++worse;
+    std::printf("%-22s %6zu | %7zu %7.3f° %s | %7zu %7.3f° %s | %9s\n", c.name.c_str(), d.size(),
+                ours.tracked, ours.max_rotation_deg, Ate(ours).c_str(), naive.tracked,
+                naive.max_rotation_deg, Ate(naive).c_str(),
+                has_ratio ? fmt::format("{:.3f}", ratio).c_str() : "-");
+    for (const Score* s : {&ours, &naive})
+      if (!s->ate_error.empty())
+        std::printf("  no ATE (%s): %s\n", s == &ours ? "PCR-ORB" : "naive", s->ate_error.c_str());
+    std::fflush(stdout);
+  }
+  std::printf(
+      "\n%d of %zu cases miss a target (every frame tracked, rotation error < 1 degree, ATE <= "
+      "0.5x the naive VO's)\n",
+      worse, cases.size());
+  return 0;
+}
 
 }  // namespace
 
@@ -136,54 +216,14 @@ int main(int argc, char** argv) {
   app.add_option("--sequence", sequences, "KITTI sequences with ground truth (instead of loops)");
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
-
-  struct Case {
-    std::string name, path;
-  };
-  std::vector<Case> cases;
-  for (const std::string& s : sequences)
-    cases.push_back({std::filesystem::path(s).filename().string(), s});
-  if (sequences.empty()) {
-    for (double seed : ParseList(seeds))
-      for (double speed : ParseList(speeds))
-        for (double m : ParseList(movers)) {
-          pcr::sim::SynthOptions o;
-          o.frames = frames;
-          o.seed = static_cast<uint64_t>(seed);
-          o.speed_mps = speed;
-          o.num_movers = static_cast<int>(m);
-          o.route = pcr::sim::RouteKind::kLoop;
-          const std::string name = fmt::format("loop s{} {}m/s {}mv", o.seed, speed, o.num_movers);
-          const std::string dir =
-              fmt::format("{}/loop_s{}_v{}_m{}_f{}", work, o.seed, speed, o.num_movers, frames);
-          if (!pcr::sim::HoldsSequence(o, dir)) {
-            std::printf("writing %s ...\n", name.c_str());
-            std::fflush(stdout);
-          }
-          cases.push_back({name, pcr::sim::RenderOnce(o, dir)});
-        }
+  try {
+    std::vector<Case> cases;
+    for (const std::string& s : sequences)
+      cases.push_back({std::filesystem::path(s).filename().string(), s});
+    if (sequences.empty()) cases = Loops(frames, seeds, speeds, movers, work);
+    return Run(cases);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_turns: %s\n", e.what());
+    return 1;
   }
-  std::printf("\n%-22s %6s | %7s %8s %9s | %7s %8s %9s | %9s\n", "sequence", "frames", "tracked",
-              "max rot", "ATE m", "naive", "max rot", "ATE m", "ATE ratio");
-  int worse = 0;
-  for (const Case& c : cases) {
-    const pcr::Dataset d = pcr::OpenDataset(c.path);
-    pcr::driver::DriverOptions options;
-    options.pipeline.policy = pcr::graph::Policy::kSequential;
-    const pcr::driver::DriverResult run =
-        pcr::driver::RunDataset(d, pcr::driver::RunConfig{}, {0, d.size()}, options);
-    const Score ours = Evaluate(d, run.summary.tracked);
-    const Score naive = Evaluate(d, NaiveStereoVo(d));
-    const double ratio = naive.ate_m > 0 ? ours.ate_m / naive.ate_m : -1;
-    if (ours.tracked < d.size() || ours.max_rotation_deg >= 1.0 || ratio > 0.5) ++worse;
-    std::printf("%-22s %6zu | %7zu %7.3f° %9.3f | %7zu %7.3f° %9.3f | %9.3f\n", c.name.c_str(),
-                d.size(), ours.tracked, ours.max_rotation_deg, ours.ate_m, naive.tracked,
-                naive.max_rotation_deg, naive.ate_m, ratio);
-    std::fflush(stdout);
-  }
-  std::printf(
-      "\n%d of %zu cases miss a target (every frame tracked, rotation error < 1 degree, ATE <= "
-      "0.5x the naive VO's)\n",
-      worse, cases.size());
-  return 0;
 }

@@ -14,15 +14,14 @@
 #include <stdexcept>
 #include <string>
 
+#include "bench_args.h"
+#include "bench_main.h"
 #include "driver/inference.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
 namespace {
 
-std::string SharedDir() {
-  if (const char* env = std::getenv("PCR_SHARED_DIR"); env && *env) return env;
-  return PCR_SHARED_DIR;
-}
+using pcr::bench::SharedDir;
 
 std::string& Inference() {
   static std::string inference = "opencv";
@@ -137,9 +136,5 @@ int main(int argc, char** argv) {
         ->UseRealTime()
         ->Iterations(5);
   }
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  benchmark::RunSpecifiedBenchmarks();
-  benchmark::Shutdown();
-  return 0;
+  return pcr::bench::RunBenchmarks("bench_yolo", argc, argv);
 }
