@@ -53,9 +53,12 @@ inline int ParseInt(const std::string& text, const std::string& option,
   int value = 0;
   const char* end = text.data() + text.size();
   const auto [ptr, ec] = std::from_chars(text.data(), end, value);
-  if (text.empty() || ec != std::errc() || ptr != end || value < lo || value > hi)
-    throw std::invalid_argument(option + ": '" + text + "' is not a whole number from " +
-                                std::to_string(lo) + " to " + std::to_string(hi));
+  if (text.empty() || ec != std::errc() || ptr != end || value < lo || value > hi) {
+    const bool any = lo == std::numeric_limits<int>::min() && hi == std::numeric_limits<int>::max();
+    throw std::invalid_argument(
+        option + ": '" + text + "' is not a whole number" +
+        (any ? std::string() : " from " + std::to_string(lo) + " to " + std::to_string(hi)));
+  }
   return value;
 }
 
