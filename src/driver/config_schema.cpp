@@ -1,5 +1,6 @@
 #include "driver/config_schema.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cctype>
@@ -9,6 +10,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <type_traits>
 #include <utility>
 
 #include "slam/common/error.h"
@@ -233,7 +235,6 @@ std::optional<ConfigSchema::Origin> ConfigSchema::Blame(
 
 std::string ConfigSchema::Dump() const {
   YAML::Emitter out;
-  out.SetDoublePrecision(12);
   out << YAML::BeginMap;
   std::vector<std::string> order;
   for (const Field& f : fields_)
@@ -243,7 +244,20 @@ std::string ConfigSchema::Dump() const {
     for (const Field& f : fields_) {
       if (f.section != section) continue;
       out << YAML::Key << f.key << YAML::Value;
-      std::visit([&](auto* field) { out << *field; }, f.ptr);
+      std::visit(
+          [&](auto* field) {
+            // A number as the shortest text that reads back as the same double (0.1, not
+            // 0.10000000000000001; 0.5371506532679237 whole, not rounded to 12 digits), so that
+            // a rerun with --config OUT/config.yaml runs with exactly the same values.
+            if constexpr (std::is_same_v<decltype(*field), double&>) {
+              if (std::isfinite(*field)) {
+                out << fmt::format("{}", *field);
+                return;
+              }
+            }
+            out << *field;
+          },
+          f.ptr);
       if (!f.doc.empty()) out << YAML::Comment(f.doc);
     }
     out << YAML::EndMap;
