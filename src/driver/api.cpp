@@ -1,11 +1,14 @@
 // include/pcr/api.h on the driver (driver/driver.h).
 #include "pcr/api.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string_view>
 
 #include "driver/driver.h"
@@ -15,6 +18,7 @@
 #include "slam/common/error.h"
 #include "slam/common/timing.h"
 #include "slam/common/validation.h"
+#include "slam/loop/vocabulary_io.h"
 
 namespace pcr::api {
 namespace {
@@ -60,6 +64,32 @@ FrameResult ToFrameResult(const graph::FrameRecord& r) {
   f.mask = nodes::ToString(r.mask);
   f.latency_ms = r.latency_ms;
   return f;
+}
+
+// stats.json's record of the vocabulary loop closing ran with (null: none, loop closing off):
+// its file and what identifies it (the fingerprint a saved map records, LoopCloser's).
+nlohmann::json VocabularyJson(const std::string& file,
+                              const std::shared_ptr<const Vocabulary>& vocabulary) {
+  if (!vocabulary) return nullptr;
+  const std::vector<uint8_t> bytes = SerializeVocabulary(*vocabulary);
+  return {{"file", file},
+          {"words", vocabulary->num_words()},
+          {"branching", vocabulary->branching()},
+          {"depth", vocabulary->depth()},
+          {"fnv1a64", fmt::format("{:016x}", Fnv1a64(bytes.data(), bytes.size()))}};
+}
+
+// ... and of the map the run started from (--load-map; null: none).
+nlohmann::json LoadedMapJson(const std::string& file,
+                             const std::shared_ptr<const MapArchive>& archive, bool localize_only) {
+  if (file.empty() || !archive) return nullptr;
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(file, ec);
+  return {{"file", file},
+          {"bytes", ec ? nlohmann::json(nullptr) : nlohmann::json(bytes)},
+          {"keyframes", archive->map.num_keyframes()},
+          {"map_points", archive->map.num_points()},
+          {"localize_only", localize_only}};
 }
 
 driver::DriverOptions ToDriverOptions(const Config& c) {
@@ -112,9 +142,10 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   driver::DriverOptions options = ToDriverOptions(config);
   // Loop closing runs when loop_closing (--loop), the configuration's loop.enabled and a
   // vocabulary all allow it; config.yaml records the setting the run has.
-  options.pipeline.vocabulary =
-      driver::ChooseLoopClosing(config.loop_closing, config.vocabulary, config.config_file,
-                                config.overrides, &run_config, &config_yaml);
+  std::string vocabulary_file;
+  options.pipeline.vocabulary = driver::ChooseLoopClosing(
+      config.loop_closing, config.vocabulary, config.config_file, config.overrides, &run_config,
+      &config_yaml, driver::DefaultVocabularyPaths(), &vocabulary_file);
   driver::DynamicRunOptions& d = run_config.dynamic;  // its filter options come from the file
   d.segmenter = config.segmenter;
   d.model_path = config.model;
@@ -181,8 +212,12 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
     output_errors.Try([&] { earlier = driver::RemoveRunOutputs(config.out_dir); });
   if (!config.out_dir.empty())
     output_errors.Try([&] {
-      driver::WriteDriverOutputs(config.out_dir, run, config_yaml,
-                                 driver::DriverOptionsJson(run_config, options));
+      nlohmann::json options_json = driver::DriverOptionsJson(run_config, options);
+      // What config.yaml cannot hold and a rerun needs: the vocabulary and the map started from.
+      options_json["vocabulary"] = VocabularyJson(vocabulary_file, options.pipeline.vocabulary);
+      options_json["load_map"] =
+          LoadedMapJson(config.load_map, options.pipeline.initial_map, config.localize_only);
+      driver::WriteDriverOutputs(config.out_dir, run, config_yaml, options_json);
     });
   if (!config.save_map.empty() && run.pipeline.final_map) {
     // Also after a failed frame: the map as it stood (the error is reported below).

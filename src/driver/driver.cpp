@@ -146,6 +146,11 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   if ((!options.model_high.empty() || !options.model_low.empty()) && dynamic.segmenter != "yolo")
     throw ConfigError("--model-high and --model-low need --segmenter yolo, not '" +
                       dynamic.segmenter + "'");
+  // The fixed settings (without --adaptive) run --model alone.
+  if ((!options.model_high.empty() || !options.model_low.empty()) && !options.pipeline.adaptive)
+    throw ConfigError(
+        "--model-high and --model-low need --adaptive on (only the adaptive quality levels run "
+        "them; without it every frame is segmented with --model)");
   if (dynamic.truth_miss_rate != 0 && dynamic.segmenter != "truth")
     throw ConfigError("--truth-miss-rate needs --segmenter truth, not '" + dynamic.segmenter + "'");
   if (!(dynamic.truth_miss_rate >= 0 && dynamic.truth_miss_rate <= 1))
@@ -155,6 +160,10 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   // so a value other than the default is what tells that one was given.
   const graph::PipelineOptions defaults;
   const graph::PipelineOptions& pipeline_options = options.pipeline;
+  if (pipeline_options.adaptive && pipeline_options.inference_every != defaults.inference_every)
+    throw ConfigError(
+        "--inference-every needs --adaptive off (the adaptive quality levels set their own "
+        "inference cadence)");
   if (pipeline_options.policy != graph::Policy::kRealtime) {
     const std::string policy = graph::ToString(pipeline_options.policy);
     if (pipeline_options.rate != defaults.rate)
@@ -184,6 +193,9 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   const nodes::FrameSource source = SourceFromDataset(dataset, rig, range, options.mode, color);
   Segmenters segmenters =
       MakeSegmenters(dataset, dynamic, options.model_high, options.model_low, source);
+  DriverResult result;
+  if (dynamic.segmenter == "yolo")  // the engine that --inference (auto, say) resolved to
+    result.inference_engine = static_cast<const YoloSegmenter*>(segmenters.set.fast)->backend();
   // After the segmenters, so that a segmenter's own set-up error (the truth segmenter on a
   // sequence without instance images) comes first.
   if (!dynamic.model_path.empty() && dynamic.segmenter != "yolo")
@@ -205,7 +217,6 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
     spdlog::info("segmenter {} without --filter on: its masks alone exclude keypoints",
                  dynamic.segmenter);
 
-  DriverResult result;
   RunSummary& summary = result.summary;
   summary.dataset_name = dataset.name;
   summary.mode = options.mode;
@@ -213,7 +224,7 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   graph::PipelineOptions pipeline = options.pipeline;
   pipeline.mode = options.mode;
   pipeline.on_frame = [&](size_t done, size_t total, const graph::FrameRecord& record) {
-    AddFrameToSummary(record.output, stereo, &summary);
+    AddFrameToSummary(record.output, record.preprocess_ms, record.segment_ms, stereo, &summary);
     if (audit && record.filter_report) {
       std::vector<char> truth;
       audit->Add(record.frame_index, *record.filter_report, &summary, &truth,
@@ -258,7 +269,9 @@ nlohmann::json DriverOptionsJson(const RunConfig& config, const DriverOptions& o
           {"rate", p.rate},
           {"waiting_capacity", p.waiting_capacity},
           {"mask_deadline_ms", p.mask_deadline_ms},
-          {"inference_every", p.inference_every},
+          // The adaptive levels have their own cadence (--inference-every is the fixed one's).
+          {"inference_every",
+           p.adaptive ? nlohmann::json("per quality level") : nlohmann::json(p.inference_every)},
           {"propagate_masks", p.carry.propagate ? "on" : "off"},
           {"adaptive", p.adaptive ? "on" : "off"},
           {"segmenter", d.segmenter},
@@ -279,6 +292,9 @@ void WriteDriverOutputs(const std::string& out_dir, const DriverResult& result,
   CreateOutputDirectory(out_dir);
   nlohmann::json pipeline = graph::StatsToJson(result.pipeline.stats);
   pipeline["options"] = options_json;
+  // "inference" is what was asked for (auto, say); this is what ran.
+  if (!result.inference_engine.empty())
+    pipeline["options"]["inference_engine"] = result.inference_engine;
   // The trajectories, configuration and stats.json first, then the map files and the pictures;
   // each is tried even when an earlier one failed.
   OutputErrors errors;

@@ -27,8 +27,10 @@ struct DriverOptions {
   SlamMode mode = SlamMode::kStereo;
   // Policy, threads, adaptive quality, ... (its on_frame is the driver's; use on_frame below).
   graph::PipelineOptions pipeline;
-  std::string model_high;  // adaptive quality: the accurate segmenter's model (optional)
-  std::string model_low;   // adaptive quality: the light segmenter's model (optional)
+  // Adaptive quality (pipeline.adaptive) only: the accurate and the light segmenter's models
+  // (optional; RunDataset refuses them without it).
+  std::string model_high;
+  std::string model_low;
   // Called after each completed frame, in frame order (progress).
   std::function<void(size_t done, size_t total, const graph::FrameRecord& record)> on_frame;
 };
@@ -36,6 +38,9 @@ struct DriverOptions {
 struct DriverResult {
   RunSummary summary;
   graph::PipelineResult pipeline;
+  // --segmenter yolo: the engine the network ran on (YoloSegmenter::backend(): what --inference,
+  // auto say, resolved to); empty without YOLO.
+  std::string inference_engine;
 };
 
 // The source of frames [range.first, range.end) of a dataset with the given rig. Monocular

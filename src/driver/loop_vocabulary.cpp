@@ -35,8 +35,10 @@ std::string Listed(const std::vector<std::string>& paths) {
 }  // namespace
 
 std::shared_ptr<const Vocabulary> LoadLoopVocabulary(const std::string& path,
-                                                     const std::vector<std::string>& candidates) {
+                                                     const std::vector<std::string>& candidates,
+                                                     std::string* file) {
   const std::string chosen = FindVocabulary(path, candidates);
+  if (file) file->clear();
   if (chosen.empty()) {
     spdlog::warn("loop closing off: no vocabulary at {} (train one with pcr_orb vocab)",
                  Listed(candidates));
@@ -47,15 +49,22 @@ std::shared_ptr<const Vocabulary> LoadLoopVocabulary(const std::string& path,
   spdlog::info("loop closing: vocabulary {} ({} words, k={} L={}, read in {:.0f} ms)", chosen,
                vocabulary->num_words(), vocabulary->branching(), vocabulary->depth(),
                MsSince(start));
+  if (file) *file = chosen;
   return vocabulary;
 }
 
-std::shared_ptr<const Vocabulary> ChooseLoopClosing(bool loop_flag,
-                                                    const std::string& vocabulary_path,
-                                                    const std::string& config_file,
-                                                    const std::vector<std::string>& overrides,
-                                                    RunConfig* run_config, std::string* config_yaml,
-                                                    const std::vector<std::string>& candidates) {
+std::shared_ptr<const Vocabulary> ChooseLoopClosing(
+    bool loop_flag, const std::string& vocabulary_path, const std::string& config_file,
+    const std::vector<std::string>& overrides, RunConfig* run_config, std::string* config_yaml,
+    const std::vector<std::string>& candidates, std::string* vocabulary_file) {
+  if (vocabulary_file) vocabulary_file->clear();
+  // A vocabulary for loop closing that does not run is not read: a warning, not an error, as a
+  // rerun with --config OUT/config.yaml (loop.enabled: false) keeps its --vocabulary.
+  if (!vocabulary_path.empty() && (!loop_flag || !run_config->slam.loop.enabled))
+    spdlog::warn("vocabulary (--vocabulary {}) is not used: loop closing is off ({})",
+                 vocabulary_path,
+                 !loop_flag ? "loop_closing (--loop off)"
+                            : "the configuration's loop.enabled: false (--config or --set)");
   if (!run_config->slam.loop.enabled) {
     if (loop_flag)
       spdlog::info(
@@ -69,7 +78,8 @@ std::shared_ptr<const Vocabulary> ChooseLoopClosing(bool loop_flag,
         "loop closing off: loop_closing (--loop off) over the configuration's loop.enabled: true "
         "(config.yaml records false)");
   } else {
-    vocabulary = LoadLoopVocabulary(vocabulary_path, candidates);  // warns when there is none
+    // Warns when there is none.
+    vocabulary = LoadLoopVocabulary(vocabulary_path, candidates, vocabulary_file);
     if (vocabulary) return vocabulary;
   }
   std::vector<std::string> off = overrides;

@@ -35,7 +35,12 @@ struct RunSummary {
   std::string dataset_name;
   SlamMode mode = SlamMode::kStereo;
   FrameRange range;
+  // frames_in = tracked + lost + not_initialized (the frames that ran; a realtime run's dropped
+  // frames are not in). Tracked: the frames with a pose in `tracked` (CompleteSummary: the
+  // monocular initialisation's reference frame was not initialised when it ran, and is tracked
+  // once the initialisation succeeds).
   size_t frames_in = 0, frames_tracked = 0, frames_lost = 0, frames_not_initialized = 0;
+  std::vector<int64_t> not_initialized_frame_indices;  // the frames counted not initialised
   size_t keyframes = 0, map_points = 0;
   double wall_s = 0;
   // One pose per input frame (frame_index and t_ns set): tracked frames as refined by mapping,
@@ -44,7 +49,10 @@ struct RunSummary {
   Trajectory tracked;  // tracked frames only
   std::vector<bool> frame_tracked;
   Trajectory ground_truth;  // the dataset's ground truth of the per_frame frames (empty: none)
-  StageTimings stages;      // per-stage milliseconds, "total" for the whole frame
+  // Per-stage milliseconds; "total": the sum of a frame's stages (its compute time: preprocess,
+  // segment, the SLAM stages), not its wall-clock latency. filter_flow, filter_ransac and
+  // filter_scoring (FilterAudit) are parts of "filter".
+  StageTimings stages;
   std::optional<eval::EvalResult> evaluation;
   eval::EvalOptions eval_options;
   // Dynamic filter (when on): per-reason counts, stage times, and on synthetic sequences the
@@ -79,12 +87,17 @@ StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera);
 // than 1% (fx, cx or the baseline).
 void WarnIfCameraOverrideDiffers(const Dataset& dataset, const CameraOverride& camera);
 
-// Counts one processed frame (status, stage times, map size) into the summary.
-void AddFrameToSummary(const FrameOutput& out, bool stereo, RunSummary* summary);
+// Counts one processed frame (status, stage times, map size) into the summary. The stage times:
+// out.times_ms (the SLAM stages; local_mapping where mapping ran: a keyframe inserted, not the
+// initialisation's, or loop outcomes applied), preprocess_ms (loading the frame's images) and
+// segment_ms (its own segmentation call; 0: none, not counted), "total" their sum.
+void AddFrameToSummary(const FrameOutput& out, double preprocess_ms, double segment_ms, bool stereo,
+                       RunSummary* summary);
 
 // Fills per_frame (one pose per frame index in [first, end), holding the last known pose where a
-// frame was not tracked) and frame_tracked from summary->tracked, then evaluates against the
-// dataset's ground truth when present (SE(3) alignment, Sim(3) for monocular runs).
+// frame was not tracked) and frame_tracked from summary->tracked, counts a frame counted not
+// initialised that has a pose there as tracked, then evaluates against the dataset's ground truth
+// when present (SE(3) alignment, Sim(3) for monocular runs).
 void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool monocular,
                      RunSummary* summary);
 

@@ -33,8 +33,9 @@ class MappingNode {
 
   explicit MappingNode(SlamSystem* slam) : slam_(slam) {}
   static bool NeedsMapping(const TrackedMsg& tracked) { return tracked.keyframe.insert; }
-  // FrameOutput::times_ms.total is the sum of the frame's stage times (its compute time; the
-  // wall-clock latency is measured by the graph).
+  // FrameOutput::times_ms.total is the sum of the frame's SLAM stage times (features to mapping;
+  // the graph's preprocess and segment calls are FrameRecord's, and the run summary's total adds
+  // them; the wall-clock latency is measured by the graph).
   FrameResultPtr operator()(const TrackedPtr& tracked);
   // The map owner's whole call for one frame: mapping as above, then the loop outcomes that
   // arrived since the last call (in the order they were made), then loop detection on the new
