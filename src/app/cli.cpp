@@ -2,6 +2,7 @@
 #include <spdlog/spdlog.h>
 
 #include <charconv>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <memory>
@@ -9,6 +10,7 @@
 #include <system_error>
 
 #include "app/commands.h"
+#include "app/progress.h"
 #include "graph/heap.h"
 #include "pcr/version.h"
 
@@ -16,11 +18,11 @@ namespace pcr::app {
 namespace {
 
 // The log on two streams: lines below warn on stdout (with the progress and the report),
-// warnings and errors on stderr.
+// warnings and errors on stderr; each on a line of its own, not after a progress bar.
 class SplitSink : public spdlog::sinks::sink {
  public:
   void log(const spdlog::details::log_msg& msg) override {
-    (msg.level >= spdlog::level::warn ? err_ : out_)->log(msg);
+    WriteLogLine([&] { (msg.level >= spdlog::level::warn ? err_ : out_)->log(msg); });
   }
   void flush() override {
     out_->flush();
@@ -43,6 +45,19 @@ class SplitSink : public spdlog::sinks::sink {
 };
 
 }  // namespace
+
+CLI::Validator UnsignedWhole64() {
+  return CLI::Validator(
+      [](const std::string& text) -> std::string {
+        uint64_t v = 0;
+        const char* end = text.data() + text.size();
+        const auto [ptr, ec] = std::from_chars(text.data(), end, v);
+        if (ec != std::errc() || ptr != end)
+          return text + " is not a whole number from 0 to 18446744073709551615";
+        return "";
+      },
+      "0..2^64-1");
+}
 
 int Main(int argc, char** argv) {
   CLI::App app{

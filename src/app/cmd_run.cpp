@@ -182,14 +182,18 @@ void RunFrames(const std::string& name, FrameArgs& a) {
     const StopSignals signals;
     result = api::Run(c, source, [&](const api::FrameResult& f, size_t done, size_t total) {
       if (!progress) progress = std::make_unique<Progress>(name, static_cast<int64_t>(total));
+      // Frames complete in frame order: those of the range before this one that did not
+      // complete were dropped (realtime).
+      const int64_t reached = f.frame_index - source.first + 1;
       progress->Update(
           static_cast<int64_t>(done),
-          fmt::format("tracked {} kf {} pts {}", f.tracked_points, f.map_keyframes, f.map_points));
+          fmt::format("tracked {} kf {} pts {}", f.tracked_points, f.map_keyframes, f.map_points),
+          reached - static_cast<int64_t>(done));
     });
   }
   if (progress) {
     if (result.error.empty())
-      progress->Finish();
+      progress->Finish("", static_cast<int64_t>(result.stats.frames_dropped));
     else
       progress->Stop();  // the frames done, not 100%
   }

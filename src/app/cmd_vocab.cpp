@@ -13,6 +13,7 @@
 
 #include "app/commands.h"
 #include "app/progress.h"
+#include "driver/run_slam.h"
 #include "driver/vocabulary_file.h"
 #include "io/dataset.h"
 #include "sim/synthetic_world.h"
@@ -85,7 +86,8 @@ void AddVocabCommand(CLI::App& app) {
   cmd->add_option("--iterations", args->options.max_iterations, "k-medians iterations per node")
       ->capture_default_str();
   cmd->add_option("--seed", args->options.seed, "Seed of the k-means++ sampling")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(UnsignedWhole64());
   cmd->add_option("--stride", args->stride, "Every stride-th image of each directory")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
@@ -112,6 +114,8 @@ void AddVocabCommand(CLI::App& app) {
     if (args->out.empty()) throw ConfigError("vocab: --out FILE is required to train");
     std::string why;
     if (!args->options.IsValid(&why)) throw ConfigError("vocab: " + why);
+    // Before any image is read: the file is written after the extraction and the training.
+    driver::CheckOutputFile(args->out, "--out");
     std::vector<std::string> paths;
     for (const std::string& dir : args->image_dirs) {
       const std::vector<std::string> images = ImagesOf(dir, args->stride, args->max_images);

@@ -18,6 +18,10 @@ void AddVocabCommand(CLI::App& app);     // cmd_vocab.cpp: train the place-recog
 // (pcr::ParseRawTruth); *raw_truth holds the default.
 void AddRawTruthOption(CLI::App* cmd, std::string* raw_truth);
 
+// A check for an unsigned 64-bit option (a seed): a whole number from 0 to 2^64-1. CLI11 reads
+// "-1" into an unsigned option as 2^64-1.
+CLI::Validator UnsignedWhole64();
+
 // Runs the command line; returns the process exit code.
 int Main(int argc, char** argv);
 
