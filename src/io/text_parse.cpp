@@ -220,12 +220,32 @@ std::ifstream OpenInputFile(const std::string& path) {
   return in;
 }
 
-void WriteFileAtomically(const std::string& path, const std::function<void(std::ostream&)>& write) {
+void WriteFileAtomically(const std::string& given_path,
+                         const std::function<void(std::ostream&)>& write) {
   namespace fs = std::filesystem;
+  std::error_code status_ec;
+  const fs::file_status target = fs::status(given_path, status_ec);  // follows links
+  if (fs::exists(target) && !fs::is_regular_file(target)) {
+    // A FIFO or a device (/dev/stdout): written in place; renaming over it would replace it.
+    if (fs::is_directory(target)) throw InputError(given_path, 0, "is a directory");
+    std::ofstream out(given_path, std::ios::binary);
+    if (!out) throw InputError(given_path, 0, "cannot open for writing");
+    write(out);
+    out.flush();
+    if (!out) throw InputError(given_path, 0, "write failed");
+    return;
+  }
+  // Through a symbolic link: the file it names is replaced, not the link.
+  std::string path = given_path;
+  if (fs::is_symlink(fs::symlink_status(given_path, status_ec))) {
+    const fs::path resolved = fs::weakly_canonical(given_path, status_ec);
+    if (!status_ec) path = resolved.string();
+  }
   const std::string tmp_path = path + ".tmp." + std::to_string(::getpid());
   {
     std::ofstream out(tmp_path, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(path, 0, "cannot open a temporary file for writing: " + tmp_path);
+    if (!out)
+      throw InputError(given_path, 0, "cannot open a temporary file for writing: " + tmp_path);
     try {
       write(out);
     } catch (...) {
@@ -239,7 +259,7 @@ void WriteFileAtomically(const std::string& path, const std::function<void(std::
       out.close();
       std::error_code ignored;
       fs::remove(tmp_path, ignored);
-      throw InputError(path, 0, "write failed (disk full?)");
+      throw InputError(given_path, 0, "write failed (disk full?)");
     }
   }
   std::error_code ec;
@@ -247,7 +267,7 @@ void WriteFileAtomically(const std::string& path, const std::function<void(std::
   if (ec) {
     std::error_code ignored;
     fs::remove(tmp_path, ignored);
-    throw InputError(path, 0, "cannot replace file: " + ec.message());
+    throw InputError(given_path, 0, "cannot replace file: " + ec.message());
   }
 }
 

@@ -66,8 +66,10 @@ class LineReader {
 std::ifstream OpenInputFile(const std::string& path);
 
 // Writes a file through `write` into a temporary file beside `path`, then renames it over
-// `path`, so a failure never leaves a half-written file in place of a good one. Throws
-// InputError(path, 0, ...) when the file cannot be written.
+// `path`, so a failure never leaves a half-written file in place of a good one. A symbolic link
+// is followed (the file it names is replaced, the link stays); an existing target that is not a
+// regular file (a FIFO, /dev/stdout) is written in place. Throws InputError(path, 0, ...) when
+// the file cannot be written.
 void WriteFileAtomically(const std::string& path, const std::function<void(std::ostream&)>& write);
 
 }  // namespace pcr::io

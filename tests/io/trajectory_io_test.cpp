@@ -1,9 +1,14 @@
 #include "io/trajectory_io.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <random>
 #include <sstream>
 
@@ -109,6 +114,28 @@ TEST_F(TrajectoryIoTest, WriterExceptionLeavesTheOldFileIntact) {
   int files = 0;
   for ([[maybe_unused]] const auto& entry : fs::directory_iterator(dir_)) ++files;
   EXPECT_EQ(files, 1);
+}
+
+// A link is followed (the file it names gets the text, the link stays a link); a FIFO is
+// written in place, not replaced by a regular file (eval --json /dev/stdout renamed over it).
+TEST_F(TrajectoryIoTest, WritingThroughALinkOrIntoAFifoKeepsThem) {
+  WriteText(Path("real.txt"), "old\n");
+  fs::create_symlink(Path("real.txt"), Path("link.txt"));
+  io::WriteFileAtomically(Path("link.txt"), [](std::ostream& out) { out << "new\n"; });
+  EXPECT_TRUE(fs::is_symlink(fs::symlink_status(Path("link.txt"))));
+  std::ifstream real(Path("real.txt"));
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(real)), {}), "new\n");
+
+  const std::string fifo = Path("fifo");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const int reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);  // so opening to write works
+  ASSERT_GE(reader, 0);
+  io::WriteFileAtomically(fifo, [](std::ostream& out) { out << "through\n"; });
+  EXPECT_TRUE(fs::is_fifo(fs::status(fifo)));
+  char buffer[16] = {};
+  const ssize_t n = ::read(reader, buffer, sizeof(buffer));
+  ::close(reader);
+  EXPECT_EQ(std::string(buffer, n > 0 ? static_cast<size_t>(n) : 0), "through\n");
 }
 
 TEST_F(TrajectoryIoTest, KittiRotationIsReOrthonormalised) {
