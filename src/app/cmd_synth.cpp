@@ -2,8 +2,6 @@
 // (poses, per-pixel instance ids, object poses); see src/sim/sequence_writer.h for the layout.
 #include <spdlog/spdlog.h>
 
-#include <charconv>
-#include <cstdint>
 #include <cstdio>
 #include <string>
 
@@ -33,17 +31,7 @@ void AddSynthCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--seed", args->options.seed, "Random seed of the world")
       ->capture_default_str()
-      ->check(CLI::Validator(
-          [](const std::string& text) -> std::string {
-            // CLI11 reads "-1" into an unsigned option as 2^64-1.
-            uint64_t v = 0;
-            const char* end = text.data() + text.size();
-            const auto [ptr, ec] = std::from_chars(text.data(), end, v);
-            if (ec != std::errc() || ptr != end)
-              return text + " is not a whole number from 0 to 18446744073709551615";
-            return "";
-          },
-          "0..2^64-1"));
+      ->check(UnsignedWhole64());  // CLI11 reads "-1" into an unsigned option as 2^64-1
   cmd->add_option("--movers", args->options.num_movers,
                   "Moving objects (cars, pedestrians, cyclists)")
       ->capture_default_str();
