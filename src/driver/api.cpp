@@ -143,9 +143,10 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   // Loop closing runs when loop_closing (--loop), the configuration's loop.enabled and a
   // vocabulary all allow it; config.yaml records the setting the run has.
   std::string vocabulary_file;
-  options.pipeline.vocabulary = driver::ChooseLoopClosing(
-      config.loop_closing, config.vocabulary, config.config_file, config.overrides, &run_config,
-      &config_yaml, driver::DefaultVocabularyPaths(), &vocabulary_file);
+  options.pipeline.vocabulary =
+      driver::ChooseLoopClosing(config.loop_closing, !config.load_map.empty(), config.vocabulary,
+                                config.config_file, config.overrides, &run_config, &config_yaml,
+                                driver::DefaultVocabularyPaths(), &vocabulary_file);
   driver::DynamicRunOptions& d = run_config.dynamic;  // its filter options come from the file
   d.segmenter = config.segmenter;
   d.model_path = config.model;

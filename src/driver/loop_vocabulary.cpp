@@ -53,39 +53,45 @@ std::shared_ptr<const Vocabulary> LoadLoopVocabulary(const std::string& path,
   return vocabulary;
 }
 
-std::shared_ptr<const Vocabulary> ChooseLoopClosing(
-    bool loop_flag, const std::string& vocabulary_path, const std::string& config_file,
-    const std::vector<std::string>& overrides, RunConfig* run_config, std::string* config_yaml,
-    const std::vector<std::string>& candidates, std::string* vocabulary_file) {
+std::shared_ptr<const Vocabulary> ChooseLoopClosing(bool loop_flag, bool loaded_map,
+                                                    const std::string& vocabulary_path,
+                                                    const std::string& config_file,
+                                                    const std::vector<std::string>& overrides,
+                                                    RunConfig* run_config, std::string* config_yaml,
+                                                    const std::vector<std::string>& candidates,
+                                                    std::string* vocabulary_file) {
   if (vocabulary_file) vocabulary_file->clear();
+  const bool configured = run_config->slam.loop.enabled;
+  const char* off_by = !loop_flag ? "loop_closing (--loop off)"
+                                  : "the configuration's loop.enabled: false (--config or --set)";
   // A vocabulary for loop closing that does not run is not read: a warning, not an error, as a
   // rerun with --config OUT/config.yaml (loop.enabled: false) keeps its --vocabulary.
-  if (!vocabulary_path.empty() && (!loop_flag || !run_config->slam.loop.enabled))
+  if (!vocabulary_path.empty() && !loaded_map && (!loop_flag || !configured))
     spdlog::warn("vocabulary (--vocabulary {}) is not used: loop closing is off ({})",
-                 vocabulary_path,
-                 !loop_flag ? "loop_closing (--loop off)"
-                            : "the configuration's loop.enabled: false (--config or --set)");
-  if (!run_config->slam.loop.enabled) {
-    if (loop_flag)
-      spdlog::info(
-          "loop closing off: the configuration's loop.enabled: false (--config or --set) over "
-          "loop_closing (--loop on)");
-    return nullptr;
-  }
-  std::shared_ptr<const Vocabulary> vocabulary;
-  if (!loop_flag) {
+                 vocabulary_path, off_by);
+  if (!configured && loop_flag)
+    spdlog::info(
+        "loop closing off: the configuration's loop.enabled: false (--config or --set) over "
+        "loop_closing (--loop on)");
+  if (configured && !loop_flag)
     spdlog::info(
         "loop closing off: loop_closing (--loop off) over the configuration's loop.enabled: true "
         "(config.yaml records false)");
-  } else {
+  const bool loop_closing = loop_flag && configured;
+  std::shared_ptr<const Vocabulary> vocabulary;
+  if (loop_closing || loaded_map) {
     // Warns when there is none.
     vocabulary = LoadLoopVocabulary(vocabulary_path, candidates, vocabulary_file);
-    if (vocabulary) return vocabulary;
+    if (!loop_closing && vocabulary)
+      spdlog::info("loop closing off ({}); the vocabulary serves relocalisation in the loaded map",
+                   off_by);
   }
-  std::vector<std::string> off = overrides;
-  off.push_back("loop.enabled=false");
-  *run_config = LoadRunConfig(config_file, off, config_yaml);
-  return nullptr;
+  if (configured && !(loop_closing && vocabulary)) {
+    std::vector<std::string> off = overrides;
+    off.push_back("loop.enabled=false");
+    *run_config = LoadRunConfig(config_file, off, config_yaml);
+  }
+  return vocabulary;
 }
 
 }  // namespace pcr::driver

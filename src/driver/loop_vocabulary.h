@@ -27,15 +27,18 @@ std::shared_ptr<const Vocabulary> LoadLoopVocabulary(
 
 // Loop closing runs when `loop_flag` (--loop), the configuration's loop.enabled and a vocabulary
 // (`vocabulary_path`, or one of `candidates`) all allow it; returns that vocabulary, null when
-// loop closing is off. When the configuration has it on but --loop off or a missing vocabulary
+// there is none to use. When the configuration has it on but --loop off or a missing vocabulary
 // turns it off, *run_config and *config_yaml are loaded again from `config_file` and `overrides`
 // with loop.enabled=false, so that config.yaml records the setting the run has (a rerun with it
-// runs the same); the log says which setting turned it off. A `vocabulary_path` given while
-// --loop off or the configuration turns loop closing off is not read, with a warning.
-// vocabulary_file (optional): the file the vocabulary was read from ("" when off).
+// runs the same); the log says which setting turned it off. With `loaded_map` (--load-map) the
+// vocabulary is read also when loop closing is off: relocalisation asks the map's keyframe
+// database, which loop.enabled does not switch (it switches loop detection and correction).
+// Otherwise a `vocabulary_path` given while loop closing is off is not read, with a warning.
+// vocabulary_file (optional): the file the vocabulary was read from ("" when none).
 std::shared_ptr<const Vocabulary> ChooseLoopClosing(
-    bool loop_flag, const std::string& vocabulary_path, const std::string& config_file,
-    const std::vector<std::string>& overrides, RunConfig* run_config, std::string* config_yaml,
+    bool loop_flag, bool loaded_map, const std::string& vocabulary_path,
+    const std::string& config_file, const std::vector<std::string>& overrides,
+    RunConfig* run_config, std::string* config_yaml,
     const std::vector<std::string>& candidates = DefaultVocabularyPaths(),
     std::string* vocabulary_file = nullptr);
 

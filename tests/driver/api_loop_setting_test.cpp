@@ -93,8 +93,8 @@ TEST(LoopSetting, MissingVocabularyTurnsLoopClosingOffInConfigYaml) {
   std::string yaml;
   {
     test::LogCapture log;
-    const auto vocabulary =
-        driver::ChooseLoopClosing(true, "", "", {"loop.enabled=true"}, &run_config, &yaml, nowhere);
+    const auto vocabulary = driver::ChooseLoopClosing(true, false, "", "", {"loop.enabled=true"},
+                                                      &run_config, &yaml, nowhere);
     EXPECT_EQ(vocabulary, nullptr);
     EXPECT_NE(log.Text().find("no vocabulary at " + nowhere[0]), std::string::npos) << log.Text();
   }
@@ -103,7 +103,7 @@ TEST(LoopSetting, MissingVocabularyTurnsLoopClosingOffInConfigYaml) {
 
   // A vocabulary among the candidates: on, and the configuration untouched.
   run_config = driver::LoadRunConfig("", {}, &yaml);
-  const auto found = driver::ChooseLoopClosing(true, "", "", {}, &run_config, &yaml,
+  const auto found = driver::ChooseLoopClosing(true, false, "", "", {}, &run_config, &yaml,
                                                {nowhere[0], test::ShippedVocabularyPath()});
   EXPECT_NE(found, nullptr);
   EXPECT_TRUE(run_config.slam.loop.enabled);

@@ -111,6 +111,33 @@ TEST(MapFile, TheSecondLapIsLocalisedInTheSavedMapOfTheFirst) {
             std::string::npos);
 }
 
+// --loop off with a loaded map: the vocabulary still serves relocalisation in the whole map
+// (loop closing switches loop detection and correction only). KITTI 06's first frames are 40 m
+// behind the map's newest keyframes, which alone a relocalisation without the database tries.
+TEST(MapFile, LoopClosingOffStillRelocalisesAnywhereInTheLoadedMap) {
+  const std::string dir = test::MakeTempDir("pcr_map_loop_off");
+  const std::string sequence = test::SharedPath("data/kitti/sequences/06");
+  api::Config c;
+  c.threads = 2;
+  c.save_map = dir + "/06.map";
+  const api::Result mapped = api::Run(c, api::Source::Dataset(sequence, 0, 51));
+  ASSERT_TRUE(mapped.error.empty()) << mapped.error;
+  ASSERT_GT(mapped.stats.keyframes, 12u) << "more keyframes than relocalisation's newest 10";
+
+  api::Config l = c;
+  l.load_map = c.save_map;
+  l.save_map = dir + "/again.map";
+  l.localize_only = true;
+  l.loop_closing = false;
+  const api::Result loc = api::Run(l, api::Source::Dataset(sequence, 0, 4));
+  ASSERT_TRUE(loc.error.empty()) << loc.error;
+  EXPECT_EQ(loc.stats.frames_tracked, 4u);
+  EXPECT_GE(loc.stats.relocalisations, 1);
+  EXPECT_EQ(loc.stats.loops_closed, 0);
+  // The place section and the loop edges are saved back: the same bytes.
+  EXPECT_EQ(ReadFileBytes(l.save_map, "map"), ReadFileBytes(c.save_map, "map"));
+}
+
 // A raw drive is evaluated against the ground truth the source asks for: the OXTS velocities
 // integrated (default) or its GPS positions, whose path runs 4% short of the velocities on drive
 // 0005; over its first 20 frames the ATE is 0.055 m against the first and 0.112 m against the

@@ -148,7 +148,7 @@ TEST(RunStatsHonesty, AVocabularyForLoopClosingThatIsOffIsWarnedAbout) {
   std::string yaml;
   {
     test::LogCapture log;
-    EXPECT_EQ(ChooseLoopClosing(false, vocabulary, "", {}, &run_config, &yaml), nullptr);
+    EXPECT_EQ(ChooseLoopClosing(false, false, vocabulary, "", {}, &run_config, &yaml), nullptr);
     EXPECT_NE(log.Text().find("vocabulary (--vocabulary " + vocabulary +
                               ") is not used: loop closing is off (loop_closing (--loop off))"),
               std::string::npos)
@@ -157,8 +157,9 @@ TEST(RunStatsHonesty, AVocabularyForLoopClosingThatIsOffIsWarnedAbout) {
   run_config = LoadRunConfig("", {"loop.enabled=false"}, &yaml);
   {
     test::LogCapture log;
-    EXPECT_EQ(ChooseLoopClosing(true, vocabulary, "", {"loop.enabled=false"}, &run_config, &yaml),
-              nullptr);
+    EXPECT_EQ(
+        ChooseLoopClosing(true, false, vocabulary, "", {"loop.enabled=false"}, &run_config, &yaml),
+        nullptr);
     EXPECT_NE(log.Text().find("is not used: loop closing is off (the configuration's "
                               "loop.enabled: false"),
               std::string::npos)
@@ -167,7 +168,7 @@ TEST(RunStatsHonesty, AVocabularyForLoopClosingThatIsOffIsWarnedAbout) {
   // On: the file read is told.
   run_config = LoadRunConfig("", {}, &yaml);
   std::string file;
-  EXPECT_NE(ChooseLoopClosing(true, vocabulary, "", {}, &run_config, &yaml,
+  EXPECT_NE(ChooseLoopClosing(true, false, vocabulary, "", {}, &run_config, &yaml,
                               DefaultVocabularyPaths(), &file),
             nullptr);
   EXPECT_EQ(file, vocabulary);
