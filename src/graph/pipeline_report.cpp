@@ -258,10 +258,12 @@ std::string FormatLoopSummary(const PipelineResult& result) {
   std::string out = fmt::format(
       "loop closing: {} loops closed, {} global BAs ({} aborted); {} keyframes in the database "
       "({} added in this run), {} queries, {} candidates, {} jobs rejected ({} candidates failed "
-      "the geometry); detection p50 {:.2f} p99 {:.2f} ms\n",
+      "the geometry); detection {}\n",
       st.corrections, st.global_bas, st.global_bas_aborted, result.loop_database_keyframes,
       st.keyframes_seen, st.detections, st.candidates, st.rejected, st.candidates_rejected,
-      d.p50_ms, d.p99_ms);
+      // No detection timed (a localisation-only run): no time, not a measured 0.
+      st.detect_ms.empty() ? std::string("not run")
+                           : fmt::format("p50 {:.2f} p99 {:.2f} ms", d.p50_ms, d.p99_ms));
   for (const LoopEvent& e : result.loop_events) {
     const LoopOutcome& o = e.outcome;
     if (o.kind == LoopOutcomeKind::kCorrected && o.match)

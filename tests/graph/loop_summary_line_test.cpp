@@ -47,5 +47,18 @@ TEST(LoopSummaryLine, AMonocularCorrectionIsInMapUnits) {
   EXPECT_EQ(mono.find(" m /"), std::string::npos) << mono;
 }
 
+// A run that timed no detection (localisation in a loaded map) prints no detection time: not a
+// measured 0.00 ms.
+TEST(LoopSummaryLine, NoDetectionIsNotTimedAsZero) {
+  PipelineResult result;
+  result.loop_database_keyframes = 18;
+  const std::string none = FormatLoopSummary(result);
+  EXPECT_NE(none.find("detection not run"), std::string::npos) << none;
+  EXPECT_EQ(none.find("0.00"), std::string::npos) << none;
+  result.loop_stats.detect_ms = {2.0, 4.0};
+  const std::string some = FormatLoopSummary(result);
+  EXPECT_NE(some.find("detection p50 "), std::string::npos) << some;
+}
+
 }  // namespace
 }  // namespace pcr::graph::loop_summary_line_test
