@@ -45,7 +45,8 @@ TEST(YoloModelChecks, EveryEngineRefusesADamagedModelWithTheSameError) {
   for (const std::string& e : errors) EXPECT_EQ(e, errors[0]);
 
   // info refuses it with the same words.
-  const test::CommandOutput r = test::RunPcrOrb("--log-level error info --model " + yolo.model_path);
+  const test::CommandOutput r =
+      test::RunPcrOrb("--log-level error info --model " + yolo.model_path);
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find(errors[0]), std::string::npos) << r.err;
 }
@@ -64,7 +65,8 @@ TEST(YoloModelChecks, InfoSaysNoEngineRunsAModelOfTheWrongYoloLayout) {
                                 .Model();
   const std::string path = test::MakeTempDir("yolo_layout") + "/seg48.onnx";
   std::ofstream(path, std::ios::binary)
-      .write(reinterpret_cast<const char*>(model.data()), static_cast<std::streamsize>(model.size()));
+      .write(reinterpret_cast<const char*>(model.data()),
+             static_cast<std::streamsize>(model.size()));
 
   const test::CommandOutput r = test::RunPcrOrb("--log-level off info --model " + path);
   EXPECT_EQ(r.status, 0) << r.err;
