@@ -225,10 +225,17 @@ void WriteFileAtomically(const std::string& given_path,
   namespace fs = std::filesystem;
   std::error_code status_ec;
   const fs::file_status target = fs::status(given_path, status_ec);  // follows links
-  if (fs::exists(target) && !fs::is_regular_file(target)) {
-    // A FIFO or a device (/dev/stdout): written in place; renaming over it would replace it.
-    if (fs::is_directory(target)) throw InputError(given_path, 0, "is a directory");
-    std::ofstream out(given_path, std::ios::binary);
+  const bool link = fs::is_symlink(fs::symlink_status(given_path, status_ec));
+  // /dev/stdout and the like: a link into /proc/<pid>/fd names an open descriptor, whose file
+  // (a pipe, a terminal, or the file the shell redirected to, perhaps with >>) is appended to,
+  // never replaced.
+  const bool descriptor =
+      given_path.starts_with("/dev/") || given_path.starts_with("/proc/") ||
+      (link && fs::read_symlink(given_path, status_ec).string().starts_with("/proc/"));
+  if (fs::is_directory(target)) throw InputError(given_path, 0, "is a directory");
+  if (descriptor || (fs::exists(target) && !fs::is_regular_file(target))) {
+    // A FIFO or a device: written in place; renaming over it would replace it.
+    std::ofstream out(given_path, std::ios::binary | std::ios::app);
     if (!out) throw InputError(given_path, 0, "cannot open for writing");
     write(out);
     out.flush();
@@ -237,7 +244,7 @@ void WriteFileAtomically(const std::string& given_path,
   }
   // Through a symbolic link: the file it names is replaced, not the link.
   std::string path = given_path;
-  if (fs::is_symlink(fs::symlink_status(given_path, status_ec))) {
+  if (link) {
     const fs::path resolved = fs::weakly_canonical(given_path, status_ec);
     if (!status_ec) path = resolved.string();
   }

@@ -138,6 +138,21 @@ TEST_F(TrajectoryIoTest, WritingThroughALinkOrIntoAFifoKeepsThem) {
   EXPECT_EQ(std::string(buffer, n > 0 ? static_cast<size_t>(n) : 0), "through\n");
 }
 
+// /dev/stdout redirected to a file (>> out.txt) is a link into /proc/self/fd: the file is
+// appended to, not replaced by a renamed temporary file (which lost what stood in it).
+TEST_F(TrajectoryIoTest, WritingToAnOpenDescriptorsLinkAppendsToItsFile) {
+  const std::string file = Path("redirected.txt");
+  const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0600);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::write(fd, "PREFIX\n", 7), 7);
+  const std::string link = Path("stdout_link");
+  fs::create_symlink("/proc/self/fd/" + std::to_string(fd), link);
+  io::WriteFileAtomically(link, [](std::ostream& out) { out << "json\n"; });
+  ::close(fd);
+  std::ifstream in(file);
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(in)), {}), "PREFIX\njson\n");
+}
+
 TEST_F(TrajectoryIoTest, KittiRotationIsReOrthonormalised) {
   // A rotation about z by 0.3 rad written with 4 significant digits.
   WriteText(Path("p.txt"),
