@@ -67,16 +67,15 @@ FrameResult ToFrameResult(const graph::FrameRecord& r) {
 }
 
 // stats.json's record of the vocabulary loop closing ran with (null: none, loop closing off):
-// its file and what identifies it (the fingerprint a saved map records, LoopCloser's).
+// its file and what identifies it (VocabularyFingerprint, which a saved map records too).
 nlohmann::json VocabularyJson(const std::string& file,
                               const std::shared_ptr<const Vocabulary>& vocabulary) {
   if (!vocabulary) return nullptr;
-  const std::vector<uint8_t> bytes = SerializeVocabulary(*vocabulary);
   return {{"file", file},
           {"words", vocabulary->num_words()},
           {"branching", vocabulary->branching()},
           {"depth", vocabulary->depth()},
-          {"fnv1a64", fmt::format("{:016x}", Fnv1a64(bytes.data(), bytes.size()))}};
+          {"fnv1a64", fmt::format("{:016x}", VocabularyFingerprint(*vocabulary))}};
 }
 
 // ... and of the map the run started from (--load-map; null: none).

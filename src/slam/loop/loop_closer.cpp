@@ -365,10 +365,8 @@ std::vector<PlaceCandidate> LoopCloser::SequenceCandidates(KeyframeId query_id, 
 
 uint64_t LoopCloser::VocabularyFingerprint() const {
   if (!vocabulary_) return 0;
-  if (vocabulary_fingerprint_ == 0) {
-    const std::vector<uint8_t> bytes = SerializeVocabulary(*vocabulary_);
-    vocabulary_fingerprint_ = Fnv1a64(bytes.data(), bytes.size());
-  }
+  if (vocabulary_fingerprint_ == 0)
+    vocabulary_fingerprint_ = pcr::VocabularyFingerprint(*vocabulary_);
   return vocabulary_fingerprint_;
 }
 

@@ -16,6 +16,11 @@ constexpr size_t kChecksumBytes = 8;
 
 }  // namespace
 
+uint64_t VocabularyFingerprint(const Vocabulary& vocabulary) {
+  const std::vector<uint8_t> bytes = SerializeVocabulary(vocabulary);
+  return Fnv1a64(bytes.data(), bytes.size());
+}
+
 std::vector<uint8_t> SerializeVocabulary(const Vocabulary& vocabulary) {
   const VocabularyOptions& o = vocabulary.options();
   const std::vector<Vocabulary::Node>& nodes = vocabulary.nodes();

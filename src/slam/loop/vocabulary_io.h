@@ -25,6 +25,9 @@ inline constexpr uint16_t kVocabularyFormatVersion = 1;
 // The bytes of the format above; deterministic (the same vocabulary gives the same bytes).
 std::vector<uint8_t> SerializeVocabulary(const Vocabulary& vocabulary);
 
+// FNV-1a 64 of those bytes: what a saved map's place section and a run's stats.json record.
+uint64_t VocabularyFingerprint(const Vocabulary& vocabulary);
+
 // Reads the format back. Throws pcr::InputError(name, 0, reason) on a foreign, truncated,
 // corrupted or inconsistent buffer: too short for a header, wrong magic, unsupported version,
 // size not matching the node count, checksum mismatch, or a tree Vocabulary::FromNodes refuses.
