@@ -33,8 +33,7 @@ std::string LoopEnabledLineIn(const std::string& yaml) {
 
 // "enabled: ..." of config.yaml's loop section.
 std::string LoopEnabledLine(const std::string& config_yaml) {
-  std::ifstream in(config_yaml);
-  return LoopEnabledLineIn(std::string(std::istreambuf_iterator<char>(in), {}));
+  return LoopEnabledLineIn(test::ReadFileText(config_yaml));
 }
 
 TEST(LoopSetting, ConfigYamlRecordsTheEffectiveSettingAndTheLogSaysWhichWon) {

@@ -8,16 +8,12 @@
 #include <string>
 
 #include "pcr_orb_command.h"
+#include "support/data_paths.h"
 
 // (A namespace of its own: the unity build may share another test file's anonymous one.)
 namespace pcr::app::synth_command_test {
 namespace {
 namespace fs = std::filesystem;
-
-std::string FileBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
 
 // Before, --seed -1 rendered with seed 18446744073709551615.
 TEST(SynthCommand, ANegativeSeedIsRefused) {
@@ -68,7 +64,7 @@ TEST(SynthCommand, ARealSequenceUnderOutIsNotReplaced) {
   fs::copy_file(test::SharedPath("data/kitti/sequences/06/image_0/000000.png"),
                 seq / "image_0" / "000000.png");
   fs::copy_file(test::SharedPath("data/kitti/sequences/06/calib.txt"), seq / "calib.txt");
-  const std::string calib = FileBytes(seq / "calib.txt");
+  const std::string calib = test::ReadFileText(seq / "calib.txt");
   const test::CommandOutput r =
       test::RunPcrOrb("--log-level warn synth --frames 1 --sequence 06 --out " + out.string());
   EXPECT_NE(r.status, 0);
@@ -76,7 +72,7 @@ TEST(SynthCommand, ARealSequenceUnderOutIsNotReplaced) {
       << r.err;
   EXPECT_NE(r.err.find("give another --out (or --sequence) or remove it"), std::string::npos)
       << r.err;
-  EXPECT_EQ(FileBytes(seq / "calib.txt"), calib);
+  EXPECT_EQ(test::ReadFileText(seq / "calib.txt"), calib);
   EXPECT_FALSE(fs::exists(seq / "synth_options.txt"));
   EXPECT_FALSE(fs::exists(out / "poses"));
 }
@@ -91,7 +87,7 @@ TEST(SynthCommand, ParkedCarsThatDoNotFitAreReported) {
             std::string::npos)
       << r.err;
   EXPECT_NE(r.out.find("17 instances (0 moving, 17 parked)"), std::string::npos) << r.out;
-  const std::string options = FileBytes(out / "sequences" / "00" / "synth_options.txt");
+  const std::string options = test::ReadFileText(out / "sequences" / "00" / "synth_options.txt");
   EXPECT_NE(options.find("\nnum_parked: 50\n"), std::string::npos) << options;
   EXPECT_NE(options.find("\nnum_parked_placed: 17\n"), std::string::npos) << options;
 }

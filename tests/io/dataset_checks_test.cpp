@@ -22,11 +22,6 @@ using test::WriteText;
 
 constexpr int kFrames = 5;
 
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 // root/sequences/06 with KITTI 06's calib.txt and its first five stereo frames, root/poses/06.txt.
 class DatasetChecks : public ::testing::Test {
  protected:
@@ -36,7 +31,7 @@ class DatasetChecks : public ::testing::Test {
     const std::string real = test::SharedPath("data/kitti/sequences/06");
     fs::create_directories(seq_);
     fs::copy_file(real + "/calib.txt", seq_ + "/calib.txt");
-    calib_ = ReadText(seq_ + "/calib.txt");
+    calib_ = test::ReadFileText(seq_ + "/calib.txt");
     WriteText(seq_ + "/times.txt", "0.0\n0.1\n0.2\n0.3\n0.4\n");
     std::string poses;
     for (int i = 0; i < kFrames; ++i) poses += "1 0 0 0 0 1 0 0 0 0 1 " + std::to_string(i) + "\n";

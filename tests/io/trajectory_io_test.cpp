@@ -108,9 +108,7 @@ TEST_F(TrajectoryIoTest, WriterExceptionLeavesTheOldFileIntact) {
                                          throw std::runtime_error("boom");
                                        }),
                std::runtime_error);
-  std::ifstream in(Path("good.txt"));
-  std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  EXPECT_EQ(content, "precious\n");
+  EXPECT_EQ(test::ReadFileText(Path("good.txt")), "precious\n");
   int files = 0;
   for ([[maybe_unused]] const auto& entry : fs::directory_iterator(dir_)) ++files;
   EXPECT_EQ(files, 1);
@@ -123,8 +121,7 @@ TEST_F(TrajectoryIoTest, WritingThroughALinkOrIntoAFifoKeepsThem) {
   fs::create_symlink(Path("real.txt"), Path("link.txt"));
   io::WriteFileAtomically(Path("link.txt"), [](std::ostream& out) { out << "new\n"; });
   EXPECT_TRUE(fs::is_symlink(fs::symlink_status(Path("link.txt"))));
-  std::ifstream real(Path("real.txt"));
-  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(real)), {}), "new\n");
+  EXPECT_EQ(test::ReadFileText(Path("real.txt")), "new\n");
 
   const std::string fifo = Path("fifo");
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
@@ -149,8 +146,7 @@ TEST_F(TrajectoryIoTest, WritingToAnOpenDescriptorsLinkAppendsToItsFile) {
   fs::create_symlink("/proc/self/fd/" + std::to_string(fd), link);
   io::WriteFileAtomically(link, [](std::ostream& out) { out << "json\n"; });
   ::close(fd);
-  std::ifstream in(file);
-  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(in)), {}), "PREFIX\njson\n");
+  EXPECT_EQ(test::ReadFileText(file), "PREFIX\njson\n");
 }
 
 TEST_F(TrajectoryIoTest, KittiRotationIsReOrthonormalised) {

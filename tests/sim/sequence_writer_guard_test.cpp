@@ -19,11 +19,6 @@ namespace pcr::sim::guard_test {
 namespace {
 namespace fs = std::filesystem;
 
-std::string FileBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 size_t CountFiles(const fs::path& dir) {
   return static_cast<size_t>(std::distance(fs::directory_iterator(dir), fs::directory_iterator{}));
 }
@@ -70,9 +65,9 @@ TEST(SequenceWriterGuardTest, ARealKittiSequenceIsNotReplaced) {
   const fs::path out = test::MakeTempDir("sim_guard_kitti");
   CopyKitti06(out);
   const fs::path seq = out / "sequences" / "06";
-  const std::string frame0 = FileBytes(seq / "image_0" / "000000.png");
-  const std::string calib = FileBytes(seq / "calib.txt");
-  const std::string poses = FileBytes(out / "poses" / "06.txt");
+  const std::string frame0 = test::ReadFileText(seq / "image_0" / "000000.png");
+  const std::string calib = test::ReadFileText(seq / "calib.txt");
+  const std::string poses = test::ReadFileText(out / "poses" / "06.txt");
   const SynthOptions options = Small("06");
 
   const std::string error = InputErrorOf([&] { WriteSequence(options, out.string()); });
@@ -87,9 +82,9 @@ TEST(SequenceWriterGuardTest, ARealKittiSequenceIsNotReplaced) {
   EXPECT_EQ(CountFiles(seq / "image_1"), 5u);
   EXPECT_FALSE(fs::exists(seq / "instance_0"));
   EXPECT_FALSE(fs::exists(seq / "synth_options.txt"));
-  EXPECT_EQ(FileBytes(seq / "image_0" / "000000.png"), frame0);
-  EXPECT_EQ(FileBytes(seq / "calib.txt"), calib);
-  EXPECT_EQ(FileBytes(out / "poses" / "06.txt"), poses);
+  EXPECT_EQ(test::ReadFileText(seq / "image_0" / "000000.png"), frame0);
+  EXPECT_EQ(test::ReadFileText(seq / "calib.txt"), calib);
+  EXPECT_EQ(test::ReadFileText(out / "poses" / "06.txt"), poses);
 
   // Another sequence of the same root is written.
   EXPECT_NO_THROW(WriteSequence(Small("07"), out.string()));
@@ -101,12 +96,12 @@ TEST(SequenceWriterGuardTest, ARealKittiSequenceIsNotReplaced) {
 TEST(SequenceWriterGuardTest, APosesFileThatSynthDidNotWriteIsNotReplaced) {
   const fs::path out = test::MakeTempDir("sim_guard_poses");
   fs::create_directories(out / "poses");
-  const std::string poses = FileBytes(test::SharedPath("data/kitti/poses/06.txt"));
+  const std::string poses = test::ReadFileText(test::SharedPath("data/kitti/poses/06.txt"));
   std::ofstream(out / "poses" / "00.txt", std::ios::binary) << poses;
   const SynthOptions options = Small("00");
   const std::string error = InputErrorOf([&] { WriteSequence(options, out.string()); });
   EXPECT_EQ(error.rfind((out / "poses" / "00.txt").string() + ": not written", 0), 0u) << error;
-  EXPECT_EQ(FileBytes(out / "poses" / "00.txt"), poses);
+  EXPECT_EQ(test::ReadFileText(out / "poses" / "00.txt"), poses);
   EXPECT_FALSE(fs::exists(out / "sequences" / "00" / "synth_options.txt"));
 
   std::ofstream(out / "poses" / "00.txt", std::ios::trunc);  // empty: nothing to lose
@@ -154,7 +149,7 @@ TEST(SequenceWriterGuardTest, ParkedCarsThatDoNotFitAreCounted) {
   const fs::path seq = out / "sequences" / "00";
   const InstanceTable table = InstanceTable::Read((seq / "instances.txt").string());
   EXPECT_EQ(static_cast<int>(table.size()), summary.parked_instances);
-  const std::string text = FileBytes(seq / "synth_options.txt");
+  const std::string text = test::ReadFileText(seq / "synth_options.txt");
   EXPECT_NE(text.find("\nnum_parked: 50\n"), std::string::npos) << text;
   EXPECT_NE(text.find("\nnum_parked_placed: " + std::to_string(summary.parked_instances) + "\n"),
             std::string::npos)
@@ -165,7 +160,7 @@ TEST(SequenceWriterGuardTest, ParkedCarsThatDoNotFitAreCounted) {
   options.num_parked = 2;
   const WriteSummary two = WriteSequence(options, out.string());
   EXPECT_EQ(two.parked_instances, 2);
-  EXPECT_NE(FileBytes(seq / "synth_options.txt").find("\nnum_parked_placed: 2\n"),
+  EXPECT_NE(test::ReadFileText(seq / "synth_options.txt").find("\nnum_parked_placed: 2\n"),
             std::string::npos);
 }
 

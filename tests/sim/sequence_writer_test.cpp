@@ -32,11 +32,6 @@ std::vector<double> Numbers(const std::string& text) {
   return out;
 }
 
-std::string FileBytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 size_t CountFiles(const fs::path& dir) {
   return static_cast<size_t>(std::distance(fs::directory_iterator(dir), fs::directory_iterator{}));
 }
@@ -135,13 +130,13 @@ TEST(SequenceWriterTest, SameSeedWritesIdenticalFiles) {
         "sequences/00/instance_0/000002.png", "sequences/00/objects.txt",
         "sequences/00/instances.txt", "poses/00.txt"}) {
     // FileBytes reads a missing file as empty: two missing files must not pass as identical.
-    const std::string in_a = FileBytes(fs::path(a) / rel);
+    const std::string in_a = test::ReadFileText(fs::path(a) / rel);
     EXPECT_FALSE(in_a.empty()) << rel;
-    EXPECT_EQ(in_a, FileBytes(fs::path(b) / rel)) << rel;
+    EXPECT_EQ(in_a, test::ReadFileText(fs::path(b) / rel)) << rel;
   }
-  const std::string image_c = FileBytes(fs::path(c) / "sequences/00/image_0/000002.png");
+  const std::string image_c = test::ReadFileText(fs::path(c) / "sequences/00/image_0/000002.png");
   EXPECT_FALSE(image_c.empty());
-  EXPECT_NE(FileBytes(fs::path(a) / "sequences/00/image_0/000002.png"), image_c);
+  EXPECT_NE(test::ReadFileText(fs::path(a) / "sequences/00/image_0/000002.png"), image_c);
   for (const auto& dir : {a, b, c}) fs::remove_all(dir);
 }
 

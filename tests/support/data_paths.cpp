@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <mutex>
 #include <random>
 #include <sstream>
@@ -19,6 +20,11 @@ std::string SharedDir() {
 }
 
 std::string SharedPath(const std::string& relative) { return SharedDir() + "/" + relative; }
+
+std::string ReadFileText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
 
 std::vector<double> CalibRow(const std::string& path, const std::string& key) {
   std::ifstream in(path);

@@ -15,6 +15,9 @@ std::string SharedPath(const std::string& relative);
 // the test process exits normally; PCR_KEEP_TEST_DIRS=1 in the environment keeps it for a look.
 std::string MakeTempDir(const std::string& prefix);
 
+// A file's whole contents, byte for byte; empty when it cannot be read.
+std::string ReadFileText(const std::string& path);
+
 // The 12 numbers after `key` (e.g. "P0:" or "P_rect_02:") on its line of a KITTI calibration
 // file; a test failure and zeros when the file or the line is missing.
 std::vector<double> CalibRow(const std::string& path, const std::string& key);
