@@ -18,6 +18,7 @@
 #include "io/kitti_odometry.h"
 #include "io/kitti_raw.h"
 #include "slam/common/error.h"
+#include "slam/common/image.h"
 
 namespace pcr {
 namespace {
@@ -38,10 +39,6 @@ std::string Lowercase(std::string text) {
 
 bool HasPngExtension(const std::string& path) {
   return Lowercase(fs::path(path).extension().string()) == ".png";
-}
-
-std::string SizeText(const cv::Size& size) {
-  return std::to_string(size.width) + " x " + std::to_string(size.height);
 }
 
 // `image`, loaded from `path`, when its size is the rig's (or the rig has none).

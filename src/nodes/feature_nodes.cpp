@@ -4,16 +4,13 @@
 #include <stdexcept>
 #include <string>
 
+#include "slam/common/image.h"
 #include "slam/common/timing.h"
 
 namespace pcr::nodes {
 namespace {
 
 std::string FrameName(const FrameTicket& t) { return "frame " + std::to_string(t.frame_index); }
-
-std::string SizeText(const cv::Size& size) {
-  return std::to_string(size.width) + " x " + std::to_string(size.height);
-}
 
 }  // namespace
 

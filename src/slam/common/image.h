@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 namespace pcr {
@@ -13,6 +14,11 @@ namespace pcr {
 inline cv::Point NearestPixel(const cv::Mat& image, const cv::Point2f& p) {
   return {std::clamp(static_cast<int>(std::lround(p.x)), 0, image.cols - 1),
           std::clamp(static_cast<int>(std::lround(p.y)), 0, image.rows - 1)};
+}
+
+// "W x H", as messages about image sizes give it.
+inline std::string SizeText(const cv::Size& size) {
+  return std::to_string(size.width) + " x " + std::to_string(size.height);
 }
 
 // The grey level (CV_8UC1 image) at each keypoint's nearest pixel.
