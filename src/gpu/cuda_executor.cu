@@ -18,6 +18,7 @@
 #include <variant>
 #include <vector>
 
+#include "gpu/cublas_library.h"
 #include "gpu/cuda_pass_end.cuh"
 #include "gpu/executor.h"
 #include "gpu/net_plan.h"
@@ -190,12 +191,17 @@ class CudaExecutor final : public Executor {
     max_blocks_ = std::max(1, prop.multiProcessorCount) * 32;
 
     Check(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking), "cudaStreamCreateWithFlags");
-    Check(cublasCreate(&cublas_), "cublasCreate");
-    Check(cublasSetStream(cublas_, stream_), "cublasSetStream");
+    try {
+      blas_ = &Cublas();  // opened by the first executor (cublas_library.h)
+    } catch (const std::exception& e) {
+      Fail(e.what());
+    }
+    Check(blas_->create(&cublas_), "cublasCreate");
+    Check(blas_->set_stream(cublas_, stream_), "cublasSetStream");
     // Plain FP32 GEMMs (no TF32 tensor-op math), so that the results agree with the CPU twin's
     // Eigen GEMMs to float rounding (summation order aside). CUBLAS_DEFAULT_MATH is cuBLAS's
     // default already; set explicitly so that a change of default cannot slip in TF32.
-    Check(cublasSetMathMode(cublas_, CUBLAS_DEFAULT_MATH), "cublasSetMathMode");
+    Check(blas_->set_math_mode(cublas_, CUBLAS_DEFAULT_MATH), "cublasSetMathMode");
 
     // Sizes first, so that a faulty plan is refused before anything is allocated for it.
     const std::vector<PlanBuffer>& bufs = plan_->buffers;
@@ -263,7 +269,7 @@ class CudaExecutor final : public Executor {
     host_input_ = nullptr;
     if (host_outputs_) cudaFreeHost(host_outputs_);
     host_outputs_ = nullptr;
-    if (cublas_) cublasDestroy(cublas_);
+    if (cublas_) blas_->destroy(cublas_);
     cublas_ = nullptr;
     if (stream_) cudaStreamDestroy(stream_);
     stream_ = nullptr;
@@ -294,7 +300,7 @@ class CudaExecutor final : public Executor {
 
   void Check(cublasStatus_t s, const std::string& call) const {
     if (s == CUBLAS_STATUS_SUCCESS) return;
-    Fail(call + " failed: " + cublasGetStatusString(s));
+    Fail(call + " failed: " + blas_->status_string(s));
   }
 
   void CheckLaunch(const char* kernel) const {
@@ -440,8 +446,8 @@ class CudaExecutor final : public Executor {
     if (m <= 0 || n <= 0) return;
     const float one = 1.0f, zero = 0.0f;
     const int mi = static_cast<int>(m), ni = static_cast<int>(n), ki = static_cast<int>(k);
-    Check(cublasSgemm(cublas_, CUBLAS_OP_N, CUBLAS_OP_N, ni, mi, ki, &one, b, ni, a,
-                      std::max(ki, 1), &zero, c, ni),
+    Check(blas_->sgemm(cublas_, CUBLAS_OP_N, CUBLAS_OP_N, ni, mi, ki, &one, b, ni, a,
+                       std::max(ki, 1), &zero, c, ni),
           "cublasSgemm");
   }
 
@@ -538,6 +544,7 @@ class CudaExecutor final : public Executor {
   int step_ = -1;  // the step being validated or enqueued, for error messages; -1 outside steps
 
   cudaStream_t stream_ = nullptr;
+  const CublasLibrary* blas_ = nullptr;  // set before cublas_
   cublasHandle_t cublas_ = nullptr;
   std::vector<float*> buffers_;  // per plan buffer; null where the plan's buffer is empty
   std::vector<int64_t> sizes_;   // floats allocated per plan buffer
