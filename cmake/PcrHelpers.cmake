@@ -12,6 +12,7 @@ function(pcr_layer name dir)
   target_include_directories(${name} PUBLIC ${CMAKE_SOURCE_DIR}/src ${CMAKE_SOURCE_DIR}/include)
   target_link_libraries(${name} PUBLIC ${ARGN})
   set_target_properties(${name} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+  pcr_precompiled_headers(${name} library)
 endfunction()
 
 # pcr_test(NAME DIR LIBS...): one GoogleTest executable from every .cpp below tests/DIR.
@@ -21,6 +22,7 @@ function(pcr_test name dir)
     return()
   endif()
   add_executable(${name} ${srcs})
+  pcr_precompiled_headers(${name} test)
   target_link_libraries(${name} PRIVATE ${ARGN} pcr_test_support GTest::gtest GTest::gtest_main)
   target_compile_definitions(${name} PRIVATE PCR_SHARED_DIR="${PCR_SHARED_DIR}"
                                              PCR_SOURCE_DIR="${CMAKE_SOURCE_DIR}")

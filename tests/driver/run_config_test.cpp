@@ -21,8 +21,9 @@ std::string WriteFile(const std::string& dir, const std::string& name, const std
 TEST(RunConfig, KittiPresetsLoadAndValidate) {
   for (const char* preset : {"kitti00-02", "kitti03", "kitti04-12"}) {
     std::string yaml;
-    const RunConfig c =
-        LoadRunConfig(std::string(PCR_SOURCE_DIR) + "/config/" + preset + ".yaml", {}, &yaml);
+    const std::filesystem::path file =
+        std::filesystem::path(PCR_SOURCE_DIR) / "config" / (std::string(preset) + ".yaml");
+    const RunConfig c = LoadRunConfig(file.string(), {}, &yaml);
     EXPECT_EQ(c.slam.orb.num_features, 2000) << preset;
     EXPECT_TRUE(c.camera.Active()) << preset;
     EXPECT_NEAR(c.camera.baseline_m, 0.537, 1e-3) << preset;
