@@ -11,19 +11,9 @@
 #include <vector>
 
 namespace pcr::gpu {
-namespace {
-
-template <typename Fn>
-bool Resolve(void* handle, const char* symbol, Fn* out, std::string* missing) {
-  *out = reinterpret_cast<Fn>(dlsym(handle, symbol));
-  if (*out == nullptr && missing->empty()) *missing = symbol;
-  return *out != nullptr;
-}
-
-}  // namespace
 
 std::vector<std::string> CublasCandidates() {
-  const std::string soname = "libcublas.so." + std::to_string(CUBLAS_VER_MAJOR);
+  const std::string soname = "libcublas.so." + std::to_string(CublasMajorVersion());
   std::vector<std::string> names = {soname};
 #if defined(PCR_CUBLAS_DIR)
   names.push_back(std::string(PCR_CUBLAS_DIR) + "/" + soname);
@@ -43,12 +33,16 @@ CublasLibrary LoadCublas(const std::vector<std::string>& candidates) {
     CublasLibrary lib;
     lib.path = name;
     std::string missing;
-    Resolve(handle, "cublasCreate_v2", &lib.create, &missing);
-    Resolve(handle, "cublasDestroy_v2", &lib.destroy, &missing);
-    Resolve(handle, "cublasSetStream_v2", &lib.set_stream, &missing);
-    Resolve(handle, "cublasSetMathMode", &lib.set_math_mode, &missing);
-    Resolve(handle, "cublasGetStatusString", &lib.status_string, &missing);
-    Resolve(handle, "cublasSgemm_v2", &lib.sgemm, &missing);
+    const auto resolve = [&](const char* symbol, void** out) {
+      *out = dlsym(handle, symbol);
+      if (*out == nullptr && missing.empty()) missing = symbol;
+    };
+    resolve("cublasCreate_v2", &lib.create);
+    resolve("cublasDestroy_v2", &lib.destroy);
+    resolve("cublasSetStream_v2", &lib.set_stream);
+    resolve("cublasSetMathMode", &lib.set_math_mode);
+    resolve("cublasGetStatusString", &lib.status_string);
+    resolve("cublasSgemm_v2", &lib.sgemm);
     if (missing.empty()) return lib;  // kept open for the rest of the process
     tried += "\n  " + name + ": has no symbol " + missing;
     dlclose(handle);

@@ -25,7 +25,34 @@
 #include "gpu/tensor_math.h"
 
 namespace pcr::gpu {
+
+int CublasMajorVersion() { return CUBLAS_VER_MAJOR; }
+
 namespace {
+
+// The process's cuBLAS (cublas_library.h, opened on first use) with its entry points' types.
+struct CublasApi {
+  decltype(&cublasCreate_v2) create;
+  decltype(&cublasDestroy_v2) destroy;
+  decltype(&cublasSetStream_v2) set_stream;
+  decltype(&cublasSetMathMode) set_math_mode;
+  decltype(&cublasGetStatusString) status_string;
+  decltype(&cublasSgemm_v2) sgemm;
+
+  explicit CublasApi(const CublasLibrary& lib)
+      : create(reinterpret_cast<decltype(create)>(lib.create)),
+        destroy(reinterpret_cast<decltype(destroy)>(lib.destroy)),
+        set_stream(reinterpret_cast<decltype(set_stream)>(lib.set_stream)),
+        set_math_mode(reinterpret_cast<decltype(set_math_mode)>(lib.set_math_mode)),
+        status_string(reinterpret_cast<decltype(status_string)>(lib.status_string)),
+        sgemm(reinterpret_cast<decltype(sgemm)>(lib.sgemm)) {}
+
+  // Throws (cublas_library.h's error) while the library cannot be opened; a later call tries again.
+  static const CublasApi& Get() {
+    static const CublasApi api(Cublas());
+    return api;
+  }
+};
 
 // ---- Kernels: thin loops over tensor_math.h ----
 
@@ -192,7 +219,7 @@ class CudaExecutor final : public Executor {
 
     Check(cudaStreamCreateWithFlags(&stream_, cudaStreamNonBlocking), "cudaStreamCreateWithFlags");
     try {
-      blas_ = &Cublas();  // opened by the first executor (cublas_library.h)
+      blas_ = &CublasApi::Get();  // opened by the first executor (cublas_library.h)
     } catch (const std::exception& e) {
       Fail(e.what());
     }
@@ -544,7 +571,7 @@ class CudaExecutor final : public Executor {
   int step_ = -1;  // the step being validated or enqueued, for error messages; -1 outside steps
 
   cudaStream_t stream_ = nullptr;
-  const CublasLibrary* blas_ = nullptr;  // set before cublas_
+  const CublasApi* blas_ = nullptr;  // set before cublas_
   cublasHandle_t cublas_ = nullptr;
   std::vector<float*> buffers_;  // per plan buffer; null where the plan's buffer is empty
   std::vector<int64_t> sizes_;   // floats allocated per plan buffer
@@ -586,6 +613,10 @@ std::unique_ptr<Executor> MakeCudaExecutor(std::shared_ptr<const NetPlan> plan, 
                              " requested, the CUDA runtime sees " + std::to_string(count));
   }
   return std::make_unique<CudaExecutor>(std::move(plan), device);
+}
+
+std::string CublasStatusText(int status) {
+  return CublasApi::Get().status_string(static_cast<cublasStatus_t>(status));
 }
 
 }  // namespace pcr::gpu
