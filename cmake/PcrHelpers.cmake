@@ -15,7 +15,8 @@ function(pcr_layer name dir)
   pcr_precompiled_headers(${name} library)
 endfunction()
 
-# pcr_test(NAME DIR LIBS...): one GoogleTest executable from every .cpp below tests/DIR.
+# pcr_test(NAME DIR LIBS...): one GoogleTest executable from every .cpp below tests/DIR, one CTest
+# test per GoogleTest suite (PCR_CTEST_PER_SUITE) or per GoogleTest test.
 function(pcr_test name dir)
   file(GLOB_RECURSE srcs CONFIGURE_DEPENDS "${CMAKE_SOURCE_DIR}/tests/${dir}/*.cpp")
   if(NOT srcs)
@@ -26,8 +27,27 @@ function(pcr_test name dir)
   target_link_libraries(${name} PRIVATE ${ARGN} pcr_test_support GTest::gtest GTest::gtest_main)
   target_compile_definitions(${name} PRIVATE PCR_SHARED_DIR="${PCR_SHARED_DIR}"
                                              PCR_SOURCE_DIR="${CMAKE_SOURCE_DIR}")
-  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ENVIRONMENT
-                       "PCR_SHARED_DIR=${PCR_SHARED_DIR}")
+  if(NOT PCR_CTEST_PER_SUITE)
+    gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 PROPERTIES ENVIRONMENT
+                         "PCR_SHARED_DIR=${PCR_SHARED_DIR}")
+    return()
+  endif()
+  # One CTest test per GoogleTest suite (cmake/PcrGTestSuites.cmake), listed after each link.
+  set(suites_file "${CMAKE_CURRENT_BINARY_DIR}/${name}_suites.cmake")
+  add_custom_command(
+    TARGET ${name} POST_BUILD BYPRODUCTS "${suites_file}"
+    COMMAND "${CMAKE_COMMAND}" -D "TEST_EXECUTABLE=$<TARGET_FILE:${name}>"
+            -D "TEST_FILE=${suites_file}" -D "TEST_ENVIRONMENT=PCR_SHARED_DIR=${PCR_SHARED_DIR}"
+            -D "TEST_COSTS=${PCR_CTEST_SUITE_COSTS}" -P "${CMAKE_SOURCE_DIR}/cmake/PcrGTestSuites.cmake"
+    VERBATIM)
+  set(include_file "${CMAKE_CURRENT_BINARY_DIR}/${name}_suites_include.cmake")
+  file(WRITE "${include_file}"
+       "if(EXISTS [==[${suites_file}]==])\n"
+       "  include([==[${suites_file}]==])\n"
+       "else()\n"
+       "  add_test([==[${name}_NOT_BUILT]==] [==[${name}_NOT_BUILT]==])\n"
+       "endif()\n")
+  set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES "${include_file}")
 endfunction()
 
 # pcr_use_allocator(TARGET): an executable that runs whole sequences links jemalloc, when the
