@@ -30,7 +30,14 @@ function(pcr_pch_origin kind pic)
   target_precompile_headers(pcr_pch_${kind} PRIVATE ${PCR_PCH_HEADERS} ${arg_HEADERS})
 endfunction()
 
-if(PCR_PRECOMPILED_HEADERS)
+# GCC only: GCC skips a precompiled header that does not fit a target (falling back to the
+# headers themselves), while Clang (the fuzz preset) refuses one made with other -D options.
+set(PCR_USE_PCH OFF)
+if(PCR_PRECOMPILED_HEADERS AND CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+  set(PCR_USE_PCH ON)
+endif()
+
+if(PCR_USE_PCH)
   set(pch_libs Eigen3::Eigen ${OpenCV_LIBS} spdlog::spdlog fmt::fmt)
   pcr_pch_origin(library ON LIBS ${pch_libs})
   pcr_pch_origin(executable OFF LIBS ${pch_libs})
@@ -41,12 +48,12 @@ if(PCR_PRECOMPILED_HEADERS)
 endif()
 
 # pcr_precompiled_headers(TARGET library|executable|test): TARGET's C++ sources reuse the
-# precompiled header of that kind (nothing when PCR_PRECOMPILED_HEADERS is off).
+# precompiled header of that kind (nothing when PCR_USE_PCH is off).
 function(pcr_precompiled_headers target kind)
   if(NOT kind MATCHES "^(library|executable|test)$")
     message(FATAL_ERROR "pcr_precompiled_headers: kind must be library, executable or test")
   endif()
-  if(PCR_PRECOMPILED_HEADERS)
+  if(PCR_USE_PCH)
     target_precompile_headers(${target} REUSE_FROM pcr_pch_${kind})
   endif()
 endfunction()
