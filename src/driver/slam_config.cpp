@@ -33,7 +33,9 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("stereo", "max_depth_m", &st.max_depth_m, "0: no limit");
   s.Add("stereo", "sad_window_half_px", &st.sad_window_half_px);
   s.Add("stereo", "sad_search_half_px", &st.sad_search_half_px);
-  s.Add("stereo", "outlier_sad_factor", &st.outlier_sad_factor);
+  s.Add("stereo", "outlier_sad_factor", &st.outlier_sad_factor,
+        "a match whose SAD exceeds the median's times this is dropped (default 1.5 x 1.4, "
+        "ORB-SLAM's: the product as a double is 2.0999999999999996)");
   s.Add("stereo", "subpixel_fit", &c.subpixel_fit, "parabola or equiangular");
   s.Add("stereo", "slant_refinement", &st.slant_refinement,
         "Gauss-Newton refinement with a disparity gradient down the window");

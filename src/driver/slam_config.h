@@ -37,7 +37,9 @@ struct DynamicRunOptions {
   double conf_threshold = YoloOptions{}.conf_threshold;
   // Mask threshold on sigmoid(coefficients . prototypes) (segmenter.mask_threshold, and
   // segmenter.light_mask_threshold for the light network, < 0: the same).
-  double mask_threshold = YoloOptions{}.mask_threshold;
+  // Written as a decimal, not copied from YoloOptions' float (0.3f is 0.30000001192092896 as a
+  // double, which config.yaml would show): a run casts it back to exactly that float.
+  double mask_threshold = 0.3;
   double light_mask_threshold = -1.0;
   DynamicFilterOptions options;  // the filter's configuration (config section "filter")
 };

@@ -93,9 +93,13 @@ TEST(RunConfig, FilterSectionConfiguresTheDynamicFilter) {
 }
 
 TEST(RunConfig, SegmenterThresholdsAreConfiguredAndChecked) {
-  const RunConfig defaults = LoadRunConfig("", {}, nullptr);
-  EXPECT_FLOAT_EQ(static_cast<float>(defaults.dynamic.mask_threshold),
-                  YoloOptions{}.mask_threshold);
+  std::string yaml;
+  const RunConfig defaults = LoadRunConfig("", {}, &yaml);
+  // The network gets exactly YoloOptions' threshold, and config.yaml shows it as it was written
+  // (not 0.30000001192092896, a float's value as a double).
+  EXPECT_EQ(static_cast<float>(defaults.dynamic.mask_threshold), YoloOptions{}.mask_threshold);
+  EXPECT_NE(yaml.find("mask_threshold: 0.3 "), std::string::npos) << yaml;
+  EXPECT_EQ(yaml.find("0.3000000"), std::string::npos) << yaml;
   EXPECT_LT(defaults.dynamic.light_mask_threshold, 0.0);  // the light network: the same
   const RunConfig c = LoadRunConfig("",
                                     {"segmenter.conf_threshold=0.3", "segmenter.mask_threshold=0.4",
