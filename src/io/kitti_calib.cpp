@@ -20,11 +20,6 @@ CalibFile CalibFile::Parse(std::istream& in, const std::string& name) {
     if (colon == std::string::npos || key_tokens.size() != 1)
       throw InputError(name, reader.line_no(), "expected 'KEY: values'");
     const std::string key(key_tokens[0]);
-    // A key that no reader asks for is kept silently, so a mangled one ("\xEF\xBB\xBFP0" behind
-    // a byte order mark) would otherwise surface as a missing entry without a line.
-    if (reader.line_no() == 1 && key.rfind("\xEF\xBB\xBF", 0) == 0)
-      throw InputError(name, reader.line_no(),
-                       "the file starts with a UTF-8 byte order mark (EF BB BF); save it without");
     if (std::any_of(key.begin(), key.end(), [](char c) {
           return static_cast<unsigned char>(c) < 0x21 || static_cast<unsigned char>(c) > 0x7e;
         }))

@@ -207,6 +207,7 @@ bool LineReader::Next(std::string* line) {
   if (!std::getline(in_, *line)) return false;
   ++line_no_;
   if (!line->empty() && line->back() == '\r') line->pop_back();
+  if (line_no_ == 1 && line->rfind("\xEF\xBB\xBF", 0) == 0) line->erase(0, 3);
   return true;
 }
 

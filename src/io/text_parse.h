@@ -47,7 +47,9 @@ std::vector<double> ParseExactly(std::string_view line, size_t count, const std:
 // close to a rotation (max |m^T m - I| > 1e-2, or det(m) <= 0): such a matrix is not a pose.
 Eigen::Matrix3d NearestRotation(const Eigen::Matrix3d& m, const std::string& name, int line);
 
-// Reads lines one at a time and counts them (1-based), stripping a trailing '\r'.
+// Reads lines one at a time and counts them (1-based), stripping a trailing '\r' and a UTF-8
+// byte order mark before the first line (as `pcr_orb eval` does: a file saved by an editor that
+// writes one reads the same).
 class LineReader {
  public:
   LineReader(std::istream& in, std::string name) : in_(in), name_(std::move(name)) {}
