@@ -136,7 +136,9 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
                        "frames " + std::to_string(range.first) + ":" + std::to_string(range.end));
   const bool stereo = options.mode == SlamMode::kStereo;
   if (stereo && !dataset.has_right())
-    throw ConfigError(dataset.root + ": stereo mode needs a right image stream (image_1)");
+    throw ConfigError(dataset.root + ": stereo mode needs a right image stream (image_1)" +
+                      (dataset.right_unused.empty() ? "" : ": " + dataset.right_unused) +
+                      "; --mode mono runs the left images alone");
   const DynamicRunOptions& dynamic = config.dynamic;
   if (!dynamic.truth_labels.empty() && !dynamic.filter)
     throw ConfigError("--truth-labels needs --filter on");

@@ -360,12 +360,16 @@ void SetRigFromCalib(const CalibFile& calib, const std::string& left_key,
                                  "{} x {} images",
                                  left_key, cam.cx, cam.cy, size.width, size.height));
   dataset->rig.baseline_m = 0;
+  if (dataset->has_right() && !calib.Has(right_key)) {
+    // A monocular calibration beside a folder of right images: usable for mono, so the right
+    // images are left out (with a warning) and a stereo run says why it has none.
+    dataset->right_unused = calib.name() + " has no entry '" + right_key +
+                            "', the camera of the right images (" +
+                            fs::path(dataset->right_paths.front()).parent_path().string() + ")";
+    dataset->right_paths.clear();
+    spdlog::warn("{}: right images not used, monocular only", dataset->right_unused);
+  }
   if (dataset->has_right()) {
-    if (!calib.Has(right_key))
-      throw InputError(calib.name(), 0,
-                       "missing calibration entry '" + right_key +
-                           "', the camera of the right images (" +
-                           fs::path(dataset->right_paths.front()).parent_path().string() + ")");
     const Eigen::Matrix<double, 3, 4> p_right = calib.Matrix3x4(right_key);
     const int right_line = calib.Line(right_key);
     constexpr double kTolerancePx = 0.01;

@@ -44,7 +44,9 @@ struct Dataset {
   // poses/NN.txt, or the OXTS folder and what the positions came from; empty without ground truth
   std::string ground_truth_source;
   std::vector<std::string> left_paths;
-  std::vector<std::string> right_paths;       // empty for a monocular sequence
+  std::vector<std::string> right_paths;  // empty for a monocular sequence
+  // Why a folder of right images is not used (the calibration lacks their camera), else empty.
+  std::string right_unused;
   std::vector<std::string> left_color_paths;  // camera 2 colour images when present, else empty
 
   size_t size() const { return left_paths.size(); }

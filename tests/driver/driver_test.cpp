@@ -47,6 +47,31 @@ void ExpectSameSummary(const RunSummary& a, const RunSummary& b) {
   }
 }
 
+// A sequence whose right images are left out (a calib.txt without P1, io's dataset checks): the
+// stereo run's error says why there are none and what runs instead; mono runs.
+TEST(Driver, AStereoRunSaysWhyTheRightImagesAreNotUsed) {
+  Dataset dataset = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
+  dataset.right_paths.clear();
+  dataset.rig.baseline_m = 0;
+  dataset.right_unused = "calib.txt has no entry 'P1', the camera of the right images (image_1)";
+  try {
+    RunDataset(dataset, RunConfig{}, FrameRange{0, 3}, WithPolicy(graph::Policy::kSequential));
+    FAIL() << "a stereo run without right images ran";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("stereo mode needs a right image stream (image_1): calib.txt has no entry "
+                        "'P1', the camera of the right images (image_1); --mode mono runs the "
+                        "left images alone"),
+              std::string::npos)
+        << what;
+  }
+  const DriverResult mono =
+      RunDataset(dataset, RunConfig{}, FrameRange{0, 3},
+                 WithPolicy(graph::Policy::kSequential, SlamMode::kMonocular));
+  EXPECT_TRUE(mono.summary.error.empty()) << mono.summary.error;
+  EXPECT_EQ(mono.summary.frames_in, 3u);
+}
+
 TEST(Driver, MonocularRunsThroughTheGraphTheSameInEveryPolicy) {
   const Dataset dataset = OpenDataset(test::SharedPath("data/kitti/sequences/07"));
   const RunConfig config;
