@@ -5,7 +5,6 @@
 
 #include <dlfcn.h>
 
-#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -53,10 +52,8 @@ CublasLibrary LoadCublas(const std::vector<std::string>& candidates) {
 }
 
 const CublasLibrary& Cublas() {
-  static std::mutex mutex;
-  static CublasLibrary loaded;
-  std::lock_guard<std::mutex> lock(mutex);
-  if (loaded.create == nullptr) loaded = LoadCublas(CublasCandidates());
+  // Initialised once, under the language's lock for statics; a throw leaves it to the next call.
+  static const CublasLibrary loaded = LoadCublas(CublasCandidates());
   return loaded;
 }
 
