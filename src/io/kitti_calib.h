@@ -14,7 +14,8 @@ namespace pcr {
 class CalibFile {
  public:
   // Missing file, a non-blank line without "KEY:", a key with bytes that are not printable ASCII
-  // (a UTF-8 byte order mark, a control byte) or a repeated key throw InputError.
+  // (a control byte; a UTF-8 byte order mark before the first line is read past, io::LineReader)
+  // or a repeated key throw InputError.
   static CalibFile Read(const std::string& path);
   static CalibFile Parse(std::istream& in, const std::string& name);
 
