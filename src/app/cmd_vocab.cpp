@@ -115,7 +115,7 @@ void AddVocabCommand(CLI::App& app) {
     std::string why;
     if (!args->options.IsValid(&why)) throw ConfigError("vocab: " + why);
     // Before any image is read: the file is written after the extraction and the training.
-    driver::CheckOutputFile(args->out, "--out");
+    driver::CheckOutputFile(args->out, "--out", "", kVocabularyMagic);
     std::vector<std::string> paths;
     for (const std::string& dir : args->image_dirs) {
       const std::vector<std::string> images = ImagesOf(dir, args->stride, args->max_images);

@@ -19,6 +19,7 @@
 #include "slam/common/timing.h"
 #include "slam/common/validation.h"
 #include "slam/loop/vocabulary_io.h"
+#include "slam/system/map_archive.h"
 
 namespace pcr::api {
 namespace {
@@ -172,7 +173,9 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   if (!config.out_dir.empty()) driver::CheckOutputDirectory(config.out_dir, "out_dir (--out)");
   // A map saved into --out may name it before it exists: it is made before the map is saved.
   if (!config.save_map.empty())
-    driver::CheckOutputFile(config.save_map, "save_map (--save-map)", config.out_dir);
+    driver::CheckOutputFile(config.save_map, "save_map (--save-map)", config.out_dir,
+                            kMapArchiveMagic);
+  driver::CheckOutputsOutsideImages(dataset, config.out_dir, config.save_map);
   if (source.first < 0 || source.end < 0) throw ConfigError("Source: negative frame number");
   const driver::FrameRange range =
       driver::FrameRange{static_cast<size_t>(source.first), static_cast<size_t>(source.end)}.Within(

@@ -4,8 +4,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -19,6 +23,18 @@
 
 namespace pcr::driver {
 namespace {
+
+// Whether a file can be made in dir: a probe file is created and removed again (access() says
+// yes to root for any directory, /proc's included, where nothing can be created). Returns why
+// not, or "" when it can.
+std::string WhyNotWritable(const std::filesystem::path& dir) {
+  std::string probe = (dir / ".pcr-orb-probe-XXXXXX").string();
+  const int fd = mkstemp(probe.data());
+  if (fd < 0) return std::strerror(errno);
+  close(fd);
+  unlink(probe.c_str());
+  return "";
+}
 
 nlohmann::json TimingJson(const TimingSummary& s) {
   return {{"count", s.count},   {"mean_ms", s.mean_ms}, {"p50_ms", s.p50_ms},
@@ -173,8 +189,44 @@ void CheckOutputDirectory(const std::string& out_dir, const std::string& what) {
   const std::string cannot = what + ": cannot create the output directory: ";
   if (!fs::is_directory(p, ec))
     throw InputError(out_dir, 0, cannot + p.string() + " is not a directory");
-  if (access(p.c_str(), W_OK | X_OK) != 0)
-    throw InputError(out_dir, 0, cannot + p.string() + " is not writable");
+  if (const std::string why = WhyNotWritable(p); !why.empty())
+    throw InputError(out_dir, 0, cannot + p.string() + " is not writable (" + why + ")");
+}
+
+void CheckOutputsOutsideImages(const Dataset& dataset, const std::string& out_dir,
+                               const std::string& save_map) {
+  namespace fs = std::filesystem;
+  auto resolved = [](const fs::path& p) {
+    std::error_code ec;
+    fs::path r = fs::weakly_canonical(fs::absolute(p, ec), ec);
+    return ec ? fs::path(NormalDirectoryPath(p.string())) : r.lexically_normal();
+  };
+  // Whether dir is folder or lies inside it.
+  auto within = [](const fs::path& dir, const fs::path& folder) {
+    auto d = dir.begin();
+    for (auto f = folder.begin(); f != folder.end(); ++f, ++d) {
+      if (f->empty()) continue;  // a trailing separator
+      if (d == dir.end() || *d != *f) return false;
+    }
+    return true;
+  };
+  std::vector<fs::path> folders;
+  for (const std::vector<std::string>* paths :
+       {&dataset.left_paths, &dataset.right_paths, &dataset.left_color_paths}) {
+    if (!paths->empty()) folders.push_back(resolved(fs::path(paths->front()).parent_path()));
+  }
+  auto check = [&](const std::string& path, const fs::path& dir, const std::string& what) {
+    for (const fs::path& folder : folders)
+      if (within(dir, folder))
+        throw InputError(path, 0,
+                         what + ": lies in the dataset's image folder " + folder.string() +
+                             "; choose a place outside the dataset's image folders");
+  };
+  if (!out_dir.empty()) check(out_dir, resolved(out_dir), "out_dir (--out)");
+  if (!save_map.empty()) {
+    const fs::path parent = fs::path(save_map).parent_path();
+    check(save_map, resolved(parent.empty() ? fs::path(".") : parent), "save_map (--save-map)");
+  }
 }
 
 const std::vector<std::string>& RunOutputNames() {
@@ -221,12 +273,23 @@ bool SameDirectory(const std::string& a, const std::string& b) {
 }  // namespace
 
 void CheckOutputFile(const std::string& path, const std::string& what,
-                     const std::string& made_before) {
+                     const std::string& made_before, std::string_view replaces_only) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const fs::path p(path);
   if (fs::is_directory(p, ec) || p.filename().empty())
     throw InputError(path, 0, what + ": is a directory, not a file");
+  if (!replaces_only.empty() && fs::exists(p, ec)) {
+    std::ifstream in(p, std::ios::binary);
+    std::string head(replaces_only.size(), '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    if (!in || head != replaces_only)
+      throw InputError(path, 0,
+                       fmt::format("{}: the file exists and is not one this option writes (it does "
+                                   "not begin with {}): not replaced; remove it or choose another "
+                                   "name",
+                                   what, replaces_only));
+  }
   // made_before or a directory above it: a directory once the run has made made_before.
   if (!made_before.empty()) {
     const fs::path file(NormalDirectoryPath(path));
@@ -251,8 +314,9 @@ void CheckOutputFile(const std::string& path, const std::string& what,
     throw InputError(path, 0, what + ": the directory " + dir.string() + " does not exist");
   if (!fs::is_directory(dir, ec))
     throw InputError(path, 0, what + ": " + dir.string() + " is not a directory");
-  if (access(dir.c_str(), W_OK | X_OK) != 0)
-    throw InputError(path, 0, what + ": the directory " + dir.string() + " is not writable");
+  if (const std::string why = WhyNotWritable(dir); !why.empty())
+    throw InputError(path, 0,
+                     what + ": the directory " + dir.string() + " is not writable (" + why + ")");
 }
 
 void OutputErrors::Try(const std::function<void()>& write) {

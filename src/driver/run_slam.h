@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "driver/slam_config.h"
@@ -109,6 +110,12 @@ void CreateOutputDirectory(const std::string& out_dir);
 // directory. `what` names the option in the message ("out_dir (--out)").
 void CheckOutputDirectory(const std::string& out_dir, const std::string& what);
 
+// Before any frame runs: throws InputError when out_dir (a directory) or save_map (a file; each
+// may be empty) is, or lies in, a folder of the dataset's images, where the run's files would
+// mix with its frames (and a later run would refuse the folder's unknown names).
+void CheckOutputsOutsideImages(const Dataset& dataset, const std::string& out_dir,
+                               const std::string& save_map);
+
 // Every name a run writes into its out_dir (WriteRunOutputs' files, trace.json, the map files of
 // map_outputs.h and timing.png), in the order they are written.
 const std::vector<std::string>& RunOutputNames();
@@ -128,8 +135,11 @@ std::vector<std::string> RemoveRunOutputs(const std::string& out_dir);
 // CheckOutputDirectory and made before the file is written); a path in made_before that is one of
 // RunOutputNames is refused (the file would replace that output, or the output the file), and so
 // is made_before itself or a directory above it (a directory, not a file, once it is made).
+// Where replaces_only is given (a format's magic bytes, "PCRMAP"), an existing file is replaced
+// only when it begins with them: a run cannot overwrite its own calibration or an image.
+// Writability is tried by making (and removing) a file in the directory.
 void CheckOutputFile(const std::string& path, const std::string& what,
-                     const std::string& made_before = "");
+                     const std::string& made_before = "", std::string_view replaces_only = {});
 
 // Writes a run's outputs one after another so that one that fails does not keep the others from
 // being written: Try(write) runs write and keeps the first exception (later ones are logged),

@@ -9,7 +9,7 @@
 namespace pcr {
 namespace {
 
-constexpr char kMagic[6] = {'P', 'C', 'R', 'V', 'O', 'C'};
+constexpr std::string_view kMagic = kVocabularyMagic;
 constexpr size_t kHeaderBytes = 36;
 constexpr size_t kNodeBytes = 48;
 constexpr size_t kChecksumBytes = 8;
@@ -26,7 +26,7 @@ std::vector<uint8_t> SerializeVocabulary(const Vocabulary& vocabulary) {
   const std::vector<Vocabulary::Node>& nodes = vocabulary.nodes();
   std::vector<uint8_t> out;
   out.reserve(kHeaderBytes + nodes.size() * kNodeBytes + kChecksumBytes);
-  out.insert(out.end(), kMagic, kMagic + sizeof kMagic);
+  out.insert(out.end(), kMagic.begin(), kMagic.end());
   PutLittleEndian(kVocabularyFormatVersion, 2, &out);
   PutLittleEndian(static_cast<uint32_t>(o.branching), 4, &out);
   PutLittleEndian(static_cast<uint32_t>(o.depth), 4, &out);
@@ -46,7 +46,7 @@ std::vector<uint8_t> SerializeVocabulary(const Vocabulary& vocabulary) {
 
 Vocabulary DeserializeVocabulary(const uint8_t* data, size_t size, const std::string& name) {
   auto fail = [&name](const std::string& reason) { throw InputError(name, 0, reason); };
-  if (size < sizeof kMagic || std::memcmp(data, kMagic, sizeof kMagic) != 0)
+  if (size < kMagic.size() || std::memcmp(data, kMagic.data(), kMagic.size()) != 0)
     fail("not a PCR-ORB vocabulary (no PCRVOC magic)");
   if (size < kHeaderBytes + kChecksumBytes) {
     fail("truncated vocabulary: " + std::to_string(size) + " bytes, a header needs " +

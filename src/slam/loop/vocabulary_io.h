@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "slam/common/byte_codec.h"  // Fnv1a64
@@ -21,6 +22,8 @@
 namespace pcr {
 
 inline constexpr uint16_t kVocabularyFormatVersion = 1;
+// The first bytes of every file of this format.
+inline constexpr std::string_view kVocabularyMagic = "PCRVOC";
 
 // The bytes of the format above; deterministic (the same vocabulary gives the same bytes).
 std::vector<uint8_t> SerializeVocabulary(const Vocabulary& vocabulary);

@@ -12,7 +12,7 @@
 namespace pcr {
 namespace {
 
-constexpr char kMagic[6] = {'P', 'C', 'R', 'M', 'A', 'P'};
+constexpr std::string_view kMagic = kMapArchiveMagic;
 constexpr size_t kChecksumBytes = 8;
 constexpr size_t kPoseBytes = 12 * 8;
 // Smallest encodings, for the reader's count checks.
@@ -298,7 +298,7 @@ PlaceArchive GetPlace(ByteReader* r) {
 
 std::vector<uint8_t> SerializeMapArchive(const MapArchive& archive) {
   ByteWriter w;
-  w.Raw(kMagic, sizeof kMagic);
+  w.Raw(kMagic.data(), kMagic.size());
   w.U16(kMapFormatVersion);
   w.U8(archive.mode == SlamMode::kMonocular ? 1 : 0);
   const PinholeCamera& c = archive.rig.left;
@@ -345,11 +345,11 @@ std::vector<uint8_t> SerializeMapArchive(const MapArchive& archive) {
 MapArchive DeserializeMapArchive(const uint8_t* data, size_t size, const std::string& name,
                                  bool verify_checksum) {
   auto fail = [&name](const std::string& reason) { throw InputError(name, 0, reason); };
-  if (size < sizeof kMagic || std::memcmp(data, kMagic, sizeof kMagic) != 0)
+  if (size < kMagic.size() || std::memcmp(data, kMagic.data(), kMagic.size()) != 0)
     fail("not a PCR-ORB map (no PCRMAP magic)");
-  if (size < sizeof kMagic + 3 + kChecksumBytes)
+  if (size < kMagic.size() + 3 + kChecksumBytes)
     fail("truncated map: " + std::to_string(size) + " bytes");
-  const uint64_t version = GetLittleEndian(data + sizeof kMagic, 2);
+  const uint64_t version = GetLittleEndian(data + kMagic.size(), 2);
   if (version != kMapFormatVersion) {
     fail("unsupported map format version " + std::to_string(version) + " (this build reads " +
          std::to_string(kMapFormatVersion) + ")");
@@ -359,7 +359,7 @@ MapArchive DeserializeMapArchive(const uint8_t* data, size_t size, const std::st
     fail("checksum mismatch: the map file is truncated or corrupted");
 
   ByteReader r(data, body, name);
-  uint8_t skip[sizeof kMagic + 2];
+  uint8_t skip[kMagic.size() + 2];
   r.Raw(skip, sizeof skip);
   MapArchive archive;
   const uint8_t mode = r.U8();

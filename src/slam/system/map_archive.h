@@ -31,6 +31,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "slam/common/camera.h"
@@ -42,6 +43,8 @@
 namespace pcr {
 
 inline constexpr uint16_t kMapFormatVersion = 1;
+// The first bytes of every file of this format.
+inline constexpr std::string_view kMapArchiveMagic = "PCRMAP";
 
 struct MapArchive {
   SlamMode mode = SlamMode::kStereo;
