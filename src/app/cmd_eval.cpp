@@ -2,6 +2,7 @@
 // definitions and the KITTI devkit metrics (see src/eval).
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -213,6 +214,12 @@ eval::EvalResult EvaluateOne(const EvalArgs& a, const LoadedTrajectory& gt,
                           "with --gt-times and " +
                           which.times_option + "); these match by frame index");
     associated = eval::AssociateByFrameIndex(gt.poses, est.poses);
+    if (associated.estimate_count != associated.reference_count)
+      spdlog::warn(
+          "the {} ({}) has {} poses and the ground truth {}: the {} frame indices both have are "
+          "compared, the rest left out (evo refuses files of different lengths)",
+          which.role, which.path, associated.estimate_count, associated.reference_count,
+          associated.matched());
   } else if (!gt.stamped) {
     throw InputError(a.gt_path, 0,
                      fmt::format("the {} ({}) has timestamps but the KITTI ground truth has "

@@ -1,6 +1,8 @@
 #include "eval/evaluation.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
@@ -10,6 +12,35 @@ namespace pcr::eval {
 
 bool EvalOptions::IsValid(std::string* why) const {
   return alignment.IsValid(why) && rpe.IsValid(why) && kitti.IsValid(why);
+}
+
+namespace {
+
+// The second singular value of the centred positions over sqrt(n): their spread across the main
+// direction (root mean square, metres).
+double CrossSpread(const Trajectory& reference, size_t used) {
+  used = std::min(used, reference.size());
+  if (used < 2) return 0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < used; ++i) mean += reference[i].world_from_cam.translation();
+  mean /= static_cast<double>(used);
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < used; ++i) {
+    const Eigen::Vector3d d = reference[i].world_from_cam.translation() - mean;
+    scatter += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter / static_cast<double>(used),
+                                                           Eigen::EigenvaluesOnly);
+  return std::sqrt(std::max(0.0, eig.eigenvalues()(1)));  // ascending: the middle one
+}
+
+}  // namespace
+
+bool EvalResult::RotationDetermined() const {
+  // A rotation about the main direction by an angle a moves the positions by about
+  // a * cross_spread_m; the alignment fixes it only where that stands out of the error.
+  return align_mode == AlignMode::kNone ||
+         cross_spread_m >= kCrossSpreadPerError * ape.trans_m.rmse;
 }
 
 EvalResult Evaluate(const AssociatedTrajectories& associated, const EvalOptions& options) {
@@ -37,6 +68,7 @@ EvalResult Evaluate(const AssociatedTrajectories& associated, const EvalOptions&
   r.reference = associated.reference;
   r.aligned_estimate = TransformTrajectory(associated.estimate, r.alignment);
   r.ape = ComputeApe(r.reference, r.aligned_estimate);
+  r.cross_spread_m = CrossSpread(r.reference, r.aligned_on);
   r.rpe = ComputeRpe(r.reference, r.aligned_estimate, options.rpe);
   r.kitti = ComputeKittiMetrics(r.reference, r.aligned_estimate, options.kitti);
   return r;
@@ -68,6 +100,8 @@ nlohmann::json ToJson(const EvalResult& r, const EvalOptions& options) {
        {{"mode", std::string(ToString(r.align_mode))},
         {"first_n", options.alignment.first_n},
         {"aligned_on", r.aligned_on},
+        {"cross_spread_m", r.cross_spread_m},
+        {"rotation_determined", r.RotationDetermined()},
         {"scale", r.alignment.scale},
         {"rotation", rotation},
         {"translation",

@@ -20,6 +20,10 @@ struct EvalOptions {
   bool IsValid(std::string* why) const;
 };
 
+// EvalResult::RotationDetermined: the cross spread must be this many times the APE's translation
+// RMSE.
+inline constexpr double kCrossSpreadPerError = 3.0;
+
 struct EvalResult {
   size_t reference_count = 0;   // poses in the ground-truth input
   size_t estimate_count = 0;    // poses in the estimate input
@@ -28,8 +32,14 @@ struct EvalResult {
   double reference_path_m = 0;  // path length of the matched ground truth
 
   AlignMode align_mode = AlignMode::kSe3;
-  size_t aligned_on = 0;        // poses used to estimate the alignment (0 for kNone)
-  Similarity3 alignment;        // applied to the estimate
+  size_t aligned_on = 0;  // poses used to estimate the alignment (0 for kNone)
+  Similarity3 alignment;  // applied to the estimate
+  // How far the ground-truth positions the alignment used spread across their main direction
+  // (the root mean square along the second principal axis, metres). Where it is not well above
+  // the error left after the alignment (a straight drive), the rotation about that direction is
+  // fixed by the noise, not by the path (evo's alignment alike), and so is APE's rotation.
+  double cross_spread_m = 0;
+  bool RotationDetermined() const;
   Trajectory reference;         // matched ground truth
   Trajectory aligned_estimate;  // matched estimate after the alignment
 

@@ -113,6 +113,13 @@ std::string FormatReport(const EvalResult& r, const EvalOptions& options) {
         Number(RotationAngleRad(r.alignment.rotation) * kDegPerRad, 4),
         Number(r.alignment.translation.x(), 4), Number(r.alignment.translation.y(), 4),
         Number(r.alignment.translation.z(), 4));
+    if (!r.RotationDetermined())
+      out += fmt::format(
+          "note: the ground truth's positions spread {} m across their main direction, less than "
+          "{:g} times the error left ({} m RMSE): the alignment's rotation about that direction "
+          "comes from the error, not the path (evo's too), and APE's rotation includes it (RPE's "
+          "does not; eval --align none compares the orientations as they are)\n",
+          Number(r.cross_spread_m, 4), kCrossSpreadPerError, Number(r.ape.trans_m.rmse, 4));
   }
   out += fmt::format("RPE pairs: delta {:g} {}{}, {} pairs; path length {:.2f} m\n",
                      options.rpe.delta, options.rpe.unit == DeltaUnit::kFrames ? "frames" : "m",

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "eval/evaluation.h"
 #include "eval/pose_math.h"
@@ -119,6 +120,41 @@ TEST(RealDataTest, Seq07KnownNoise) {
   EXPECT_EQ(j.at("rpe").at("pairs").size(), 159u);
   EXPECT_EQ(j.at("alignment").at("mode"), "none");
   EXPECT_TRUE(j.at("kitti").at("t_rel_percent").is_null());
+}
+
+// KITTI 06's first 51 frames drive straight: the truth spreads 4.4 cm across the road, less than
+// the 5 cm noise added here, so the alignment's roll about the road is the noise's. A path that
+// turns (07 bent into an arc here) fixes it. The estimates carry the truth's orientations.
+TEST(RealDataTest, AStraightDriveLeavesTheAlignmentsRotationAboutItUndetermined) {
+  auto noisy = [](Trajectory t) {
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0.0, 0.05);
+    for (StampedPose& p : t)
+      p.world_from_cam.translation() += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    return t;
+  };
+  EvalOptions options;  // SE(3)
+  Trajectory straight = ReadKittiTrajectory(pcr::test::SharedPath("data/kitti/poses/06.txt"));
+  straight.resize(51);
+  const EvalResult s = Evaluate(AssociateByFrameIndex(straight, noisy(straight)), options);
+  EXPECT_NEAR(s.cross_spread_m, 0.0444, 5e-4);
+  EXPECT_FALSE(s.RotationDetermined());
+  EXPECT_NE(FormatReport(s, options).find("note: the ground truth's positions spread 0.0444 m"),
+            std::string::npos);
+  EXPECT_FALSE(ToJson(s, options).at("alignment").at("rotation_determined").get<bool>());
+
+  Trajectory arc = Seq07();  // positions on a 40 m arc, the same count
+  for (size_t i = 0; i < arc.size(); ++i) {
+    const double a = static_cast<double>(i) / static_cast<double>(arc.size()) * 1.5;
+    arc[i].world_from_cam.translation() = Eigen::Vector3d(40 * std::sin(a), 0, 40 * std::cos(a));
+  }
+  const EvalResult t = Evaluate(AssociateByFrameIndex(arc, noisy(arc)), options);
+  EXPECT_GT(t.cross_spread_m, 2.0);
+  EXPECT_TRUE(t.RotationDetermined());
+  EXPECT_EQ(FormatReport(t, options).find("note:"), std::string::npos);
+  options.alignment.mode = AlignMode::kNone;  // nothing rotated: nothing to say
+  EXPECT_TRUE(
+      Evaluate(AssociateByFrameIndex(straight, noisy(straight)), options).RotationDetermined());
 }
 
 TEST(RealDataTest, Seq07MonocularScaleNeedsSim3) {
