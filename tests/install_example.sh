@@ -14,4 +14,9 @@ cmake -S "$src/examples/kitti_ate" -B "$tmp/build" -G Ninja -DCMAKE_BUILD_TYPE=R
 cmake --build "$tmp/build" >/dev/null
 # The example's include path must be the installed one, not the source tree.
 if grep -q -- "-I$src" "$tmp/build/build.ninja"; then echo "example sees the source tree"; exit 1; fi
-LD_LIBRARY_PATH="$tmp/prefix/lib" "$tmp/build/kitti_ate" "$shared/data/kitti/sequences/06" 0 21
+LD_LIBRARY_PATH="$tmp/prefix/lib" "$tmp/build/kitti_ate" "$shared/data/kitti/sequences/06" 0 21 \
+  2>&1 | tee "$tmp/out"
+# The installed library reads the vocabulary installed beside it, not the source tree's.
+if ! grep -q "loop closing: vocabulary $tmp/prefix/share/pcr_orb/pcr_orb_voc.bin" "$tmp/out"; then
+  echo "the installed library does not read its installed vocabulary"; exit 1
+fi

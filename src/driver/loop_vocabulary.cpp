@@ -1,7 +1,9 @@
 #include "driver/loop_vocabulary.h"
 
+#include <dlfcn.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 
@@ -11,7 +13,26 @@
 namespace pcr::driver {
 
 std::vector<std::string> DefaultVocabularyPaths() {
-  return {PCR_SOURCE_VOCABULARY, PCR_INSTALLED_VOCABULARY};
+  std::vector<std::string> paths;
+  auto add = [&paths](const std::string& path) {
+    if (std::find(paths.begin(), paths.end(), path) == paths.end()) paths.push_back(path);
+  };
+  // The file that holds this code: the program, or the installed libpcr_orb.so.
+  Dl_info info{};
+  if (dladdr(reinterpret_cast<const void*>(&DefaultVocabularyPaths), &info) != 0 &&
+      info.dli_fname != nullptr && info.dli_fname[0] != '\0') {
+    std::error_code ec;
+    const std::filesystem::path object = std::filesystem::canonical(info.dli_fname, ec);
+    if (!ec) {
+      const std::filesystem::path dir = object.parent_path();
+      for (const char* relative : {PCR_BINDIR_VOCABULARY, PCR_LIBDIR_VOCABULARY})
+        if (std::filesystem::is_regular_file(dir / relative, ec))
+          add((dir / relative).lexically_normal().string());
+    }
+  }
+  add(PCR_SOURCE_VOCABULARY);
+  add(PCR_INSTALLED_VOCABULARY);
+  return paths;
 }
 
 std::string FindVocabulary(const std::string& path, const std::vector<std::string>& candidates) {

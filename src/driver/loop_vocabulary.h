@@ -9,8 +9,10 @@
 
 namespace pcr::driver {
 
-// The shipped vocabulary's candidate paths, in the order they are tried: the source tree's
-// vocabulary/pcr_orb_voc.bin, then the installed share/pcr_orb/pcr_orb_voc.bin.
+// The shipped vocabulary's candidate paths, in the order they are tried: an installed
+// share/pcr_orb/pcr_orb_voc.bin beside the program or library that runs (bin/../share or
+// lib/../share, wherever the prefix is; listed only where the file is there), the source tree's
+// vocabulary/pcr_orb_voc.bin, then the configured prefix's share/pcr_orb/pcr_orb_voc.bin.
 std::vector<std::string> DefaultVocabularyPaths();
 
 // The file a run's vocabulary comes from: `path` when not empty, else the first of `candidates`
