@@ -354,6 +354,7 @@ Figures Measure(const pcr::Dataset& d, const pcr::driver::DriverResult& run, boo
   options.rpe.delta = kDriftDeltaM;
   options.rpe.unit = pcr::eval::DeltaUnit::kMeters;
   options.rpe.all_pairs = true;
+  options.rpe.pairs_from_reference = true;  // per metre of the true path
   try {
     const pcr::eval::EvalResult e =
         pcr::eval::Evaluate(pcr::eval::AssociateByFrameIndex(*d.ground_truth, tracked), options);

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "app/commands.h"
+#include "driver/run_slam.h"
 #include "eval/evaluation.h"
 #include "eval/plot.h"
 #include "eval/report.h"
@@ -39,6 +40,7 @@ struct EvalArgs {
   double delta = 1;
   std::string delta_unit = "f";
   bool all_pairs = false;
+  bool pairs_from_reference = false;
   std::vector<double> segments_m = {100, 200, 300, 400, 500, 600, 700, 800};
   double max_diff_s = 0.01;
   double t_offset_s = 0;
@@ -122,6 +124,9 @@ std::string AsOptions(const std::string& why) {
 void CheckOptionsHaveEffect(const EvalArgs& a) {
   if (a.align == "none" && a.Given("--align-first"))
     throw ConfigError("--align-first needs --align se3 or sim3 (--align none aligns nothing)");
+  if (a.Given("--pairs-from-reference") && (a.delta_unit == "f" || a.delta_unit == "frames"))
+    throw ConfigError(
+        "--pairs-from-reference needs --delta-unit m (pairs by frames are the same on both)");
   if (a.baseline_path.empty()) {
     for (const char* option : {"--baseline-times", "--names"})
       if (a.Given(option)) throw ConfigError(std::string(option) + " needs --baseline");
@@ -184,6 +189,7 @@ eval::EvalOptions ToOptions(const EvalArgs& a) {
   if (!eval::ParseDeltaUnit(a.delta_unit, &o.rpe.unit))
     throw ConfigError("--delta-unit must be f or m, got " + a.delta_unit);
   o.rpe.all_pairs = a.all_pairs;
+  o.rpe.pairs_from_reference = a.pairs_from_reference;
   o.kitti.lengths_m = a.segments_m;
   std::string why;
   if (!o.IsValid(&why)) throw ConfigError(AsOptions(why));
@@ -246,6 +252,9 @@ void RunEval(const EvalArgs& a) {
   if (!a.baseline_path.empty() && a.names.size() != 2)
     throw ConfigError("--names needs two names (baseline,estimate)");
   CheckOutputsAreNotInputs(a);
+  // Both outputs' folders, before either is written.
+  if (!a.json_path.empty()) driver::CheckOutputFile(a.json_path, "--json");
+  if (!a.plot_path.empty()) driver::CheckOutputFile(a.plot_path, "--plot");
   const LoadedTrajectory gt = Load(a.gt_path, a.format, a.gt_times_path);
   const LoadedTrajectory est = Load(a.est_path, a.format, a.est_times_path);
   const eval::EvalResult result =
@@ -360,6 +369,9 @@ void AddEvalCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--all-pairs", args->all_pairs,
                 "RPE on all pairs (i, i + delta) instead of consecutive ones (evo --all_pairs)");
+  cmd->add_flag("--pairs-from-reference", args->pairs_from_reference,
+                "--delta-unit m: RPE pairs on the ground truth's path instead of the (aligned) "
+                "estimate's (evo --pairs_from_reference)");
   cmd->add_option("--segments", args->segments_m,
                   "KITTI devkit segment lengths in metres, comma separated")
       ->delimiter(',')

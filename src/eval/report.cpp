@@ -121,10 +121,14 @@ std::string FormatReport(const EvalResult& r, const EvalOptions& options) {
           "does not; eval --align none compares the orientations as they are)\n",
           Number(r.cross_spread_m, 4), kCrossSpreadPerError, Number(r.ape.trans_m.rmse, 4));
   }
-  out += fmt::format("RPE pairs: delta {:g} {}{}, {} pairs; path length {:.2f} m\n",
+  out += fmt::format("RPE pairs: delta {:g} {}{}{}, {} pairs; path length {:.2f} m\n",
                      options.rpe.delta, options.rpe.unit == DeltaUnit::kFrames ? "frames" : "m",
-                     options.rpe.all_pairs ? " (all pairs)" : "", r.rpe.pairs.size(),
-                     r.reference_path_m);
+                     options.rpe.all_pairs ? " (all pairs)" : "",
+                     options.rpe.unit == DeltaUnit::kFrames
+                         ? ""
+                         : (options.rpe.pairs_from_reference ? " on the ground truth's path"
+                                                             : " on the estimate's path"),
+                     r.rpe.pairs.size(), r.reference_path_m);
   out += "\nTranslation (evo trans_part):\n";
   out += FormatApeRpeTable({{"", r.ape.trans_m, r.rpe.trans_m}}, "m");
   out += "\nRotation (evo angle_deg):\n";

@@ -99,12 +99,12 @@ bool RpeOptions::IsValid(std::string* why) const {
   return true;
 }
 
-IndexPairs SelectRpePairs(const Trajectory& reference, const RpeOptions& options) {
+IndexPairs SelectRpePairs(const Trajectory& trajectory, const RpeOptions& options) {
   std::string why;
   if (!options.IsValid(&why)) throw std::invalid_argument(why);
   if (options.unit == DeltaUnit::kFrames)
-    return PairsByFrames(reference.size(), static_cast<size_t>(options.delta), options.all_pairs);
-  return PairsByPath(reference, options.delta, options.all_pairs, options.rel_tol * options.delta);
+    return PairsByFrames(trajectory.size(), static_cast<size_t>(options.delta), options.all_pairs);
+  return PairsByPath(trajectory, options.delta, options.all_pairs, options.rel_tol * options.delta);
 }
 
 RpeResult ComputeRpe(const Trajectory& reference, const Trajectory& estimate,
@@ -114,7 +114,7 @@ RpeResult ComputeRpe(const Trajectory& reference, const Trajectory& estimate,
                                 " reference poses but " + std::to_string(estimate.size()) +
                                 " estimate poses");
   RpeResult r;
-  r.pairs = SelectRpePairs(reference, options);
+  r.pairs = SelectRpePairs(options.pairs_from_reference ? reference : estimate, options);
   for (const auto& [i, j] : r.pairs) {
     const SE3 reference_delta = reference[i].world_from_cam.inverse() * reference[j].world_from_cam;
     const SE3 estimate_delta = estimate[i].world_from_cam.inverse() * estimate[j].world_from_cam;

@@ -2,7 +2,9 @@
 // Relative pose error with evo's definitions (evo_rpe). For a pair (i, j) with reference poses
 // Q and estimate poses P: E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j);
 //   translation error ||t(E_ij)|| [m], rotation error angle(R(E_ij)) [deg].
-// Pairs are chosen on the REFERENCE trajectory (evo's id_pairs_from_delta):
+// Pairs are chosen on the ESTIMATE trajectory, the aligned one (evo_rpe's default), or on the
+// REFERENCE with pairs_from_reference (evo --pairs_from_reference); by frames they are the same.
+// Both with evo's id_pairs_from_delta:
 //   frames, consecutive (default, evo all_pairs=False): ids 0, d, 2d, ...; pairs (0,d), (d,2d), ...
 //   frames, all pairs  (evo --all_pairs):               (i, i + d) for every i.
 //   metres, consecutive (evo filter_pairs_by_path, all_pairs=False): the path length is
@@ -38,15 +40,16 @@ struct RpeOptions {
   DeltaUnit unit = DeltaUnit::kFrames;
   bool all_pairs = false;
   double rel_tol = 0.1;  // metres with all_pairs only: accepted |path - delta| <= rel_tol * delta
+  bool pairs_from_reference = false;  // metres: pairs on the reference's path, not the estimate's
 
   bool IsValid(std::string* why) const;
 };
 
 using IndexPairs = std::vector<std::pair<size_t, size_t>>;
 
-// Pairs (i, j), i < j, on the reference trajectory. Throws std::invalid_argument on invalid
-// options.
-IndexPairs SelectRpePairs(const Trajectory& reference, const RpeOptions& options);
+// Pairs (i, j), i < j, on `trajectory` (pairs_from_reference is not looked at). Throws
+// std::invalid_argument on invalid options.
+IndexPairs SelectRpePairs(const Trajectory& trajectory, const RpeOptions& options);
 
 struct RpeResult {
   IndexPairs pairs;

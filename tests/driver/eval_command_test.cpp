@@ -132,14 +132,21 @@ TEST(EvalCommand, AnOutputThatNamesAnInputIsRefusedBeforeAnythingIsWritten) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/x.svg"));
 }
 
-TEST(EvalCommand, AnOutputThatFailsDoesNotStopTheOther) {
+// An output whose folder is missing is refused before either output is written (nothing of the
+// other is left half done); a write that fails later still leaves the other (OutputErrors).
+TEST(EvalCommand, AnOutputThatCannotBeWrittenIsRefusedBeforeEither) {
   const std::string dir = test::MakeTempDir("eval_outputs_fail");
-  const test::CommandOutput r = test::RunPcrOrb("eval --gt " + kGt + " --est " + kGt + " --json " +
-                                                dir + "/nodir/x.json --plot " + dir + "/ok.svg");
-  EXPECT_NE(r.status, 0);
-  EXPECT_TRUE(std::filesystem::exists(dir + "/ok.svg"));
-  EXPECT_NE(r.out.find("wrote " + dir + "/ok.svg"), std::string::npos) << r.out;
-  EXPECT_NE(r.err.find(dir + "/nodir/x.json"), std::string::npos) << r.err;
+  for (const auto& [json, plot] :
+       {std::pair<std::string, std::string>{"/nodir/x.json", "/ok.svg"},
+        std::pair<std::string, std::string>{"/ok.json", "/nodir/x.svg"}}) {
+    const test::CommandOutput r = test::RunPcrOrb(
+        "eval --gt " + kGt + " --est " + kGt + " --json " + dir + json + " --plot " + dir + plot);
+    EXPECT_NE(r.status, 0);
+    EXPECT_FALSE(std::filesystem::exists(dir + "/ok.svg"));
+    EXPECT_FALSE(std::filesystem::exists(dir + "/ok.json"));
+    EXPECT_NE(r.err.find(dir + "/nodir/x."), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r.err;
+  }
 }
 
 // Runs each case and expects a non-zero exit status and its error on stderr.

@@ -159,6 +159,25 @@ TEST(RpeTest, PairsByPathLength) {
             (IndexPairs{{3, 4}, {4, 7}}));
 }
 
+// evo_rpe picks the pairs by metres on the estimate (the aligned one) unless
+// --pairs_from_reference: here the estimate travels twice as far, so 1 m of it is every step
+// (0.5 m of reference), while on the reference it is every second step.
+TEST(RpeTest, PairsByPathAreTheEstimatesUnlessFromTheReference) {
+  std::vector<Eigen::Vector3d> ref_positions, est_positions;
+  for (int i = 0; i < 9; ++i) {
+    ref_positions.emplace_back(0.5 * i, 0, 0);
+    est_positions.emplace_back(1.0 * i, 0, 0);
+  }
+  const Trajectory reference = test::FromPositions(ref_positions);
+  const Trajectory estimate = test::FromPositions(est_positions);
+  RpeOptions options{1.0, DeltaUnit::kMeters, false, 0.1};
+  EXPECT_EQ(ComputeRpe(reference, estimate, options).pairs, SelectRpePairs(estimate, options));
+  EXPECT_EQ(ComputeRpe(reference, estimate, options).pairs.size(), 7u);
+  options.pairs_from_reference = true;
+  EXPECT_EQ(ComputeRpe(reference, estimate, options).pairs, SelectRpePairs(reference, options));
+  EXPECT_EQ(ComputeRpe(reference, estimate, options).pairs.size(), 3u);
+}
+
 // A circle of radius 10 m in 36 steps; estimate = reference scaled by 2 (monocular scale).
 // RPE pair (i, i+1): ref rel = [R | c], est rel = [R | 2c], E = [I | R^T c]: ||t(E)|| = chord
 // length 2 r sin(5 deg); after a sim3 scale correction (estimate scaled by 1/2) it is 0.
