@@ -226,15 +226,28 @@ void CheckSameFileNames(const std::vector<std::string>& left, const std::string&
 void AddOtherCameras(Dataset* dataset, const std::vector<int64_t>& numbers,
                      const std::string& left_label, const std::string& right_dir,
                      const std::string& colour_dir, bool color) {
+  // Images missing between the first and the last: the frames are the images there are.
+  std::vector<int64_t> gaps;
+  for (size_t i = 1; i < numbers.size(); ++i)
+    for (int64_t n = numbers[i - 1] + 1; n < numbers[i] && gaps.size() < 5; ++n) gaps.push_back(n);
+  if (!gaps.empty()) {
+    int64_t missing = 0;
+    for (size_t i = 1; i < numbers.size(); ++i) missing += numbers[i] - numbers[i - 1] - 1;
+    spdlog::warn(
+        "{}: {} image{} missing between {} and {} (frame{} {}): the clip's frames are its {} "
+        "images, so from the first gap on a frame number of the outputs (and --frames) is not "
+        "its image's number; each image keeps its own timestamp and ground truth",
+        left_label, missing, missing > 1 ? "s" : "", numbers.front(), numbers.back(),
+        missing > 1 ? "s" : "",
+        NumberList(gaps) + (missing > 5 ? " and " + std::to_string(missing - 5) + " more" : ""),
+        numbers.size());
+  }
   std::error_code ec;
   std::vector<int64_t> other_numbers;
   dataset->right_paths.clear();
   if (fs::is_directory(right_dir, ec)) {
     dataset->right_paths = ListFrameFiles(right_dir, ".png", &other_numbers);
-    if (dataset->right_paths.size() != dataset->left_paths.size())
-      throw InputError(right_dir, 0,
-                       std::to_string(dataset->right_paths.size()) + " images but " + left_label +
-                           " has " + std::to_string(dataset->left_paths.size()));
+    // Names the first image without a pair (so also where the counts differ).
     CheckSameFileNames(dataset->left_paths, left_label, dataset->right_paths, right_dir);
   }
   dataset->left_color_paths.clear();

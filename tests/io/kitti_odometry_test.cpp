@@ -9,6 +9,7 @@
 #include "io/kitti_raw.h"
 #include "io_test_util.h"
 #include "support/data_paths.h"
+#include "support/log_capture.h"
 
 namespace pcr {
 namespace {
@@ -115,7 +116,28 @@ TEST_F(SyntheticOdometry, ImageCountMustMatchTimes) {
   ExpectInputError([&] { OpenKittiOdometry(seq_); }, "times.txt", 0, "2 timestamps but 3 images");
   WriteText(seq_ + "/times.txt", "0.0\n0.1\n0.2\n");
   fs::remove(seq_ + "/image_1/000002.png");
-  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "image_1", 0, "2 images but image_0 has 3");
+  // The missing right image is named.
+  ExpectInputError([&] { OpenKittiOdometry(seq_); }, "image_1", 0,
+                   "no 000002.png to pair with image_0/000002.png");
+}
+
+TEST_F(SyntheticOdometry, ImagesMissingInTheMiddleAreAGapWithAWarning) {
+  fs::remove(seq_ + "/image_0/000001.png");
+  fs::remove(seq_ + "/image_1/000001.png");
+  test::LogCapture log;
+  const Dataset d = OpenKittiOdometry(seq_);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_EQ(d.frame_numbers, (std::vector<int64_t>{0, 2}));
+  EXPECT_EQ(d.t_ns[1], 200000000);  // image 2's own timestamp
+  EXPECT_NE(log.Text().find("image_0: 1 image missing between 0 and 2 (frame 1)"),
+            std::string::npos)
+      << log.Text();
+  // No gap, no warning.
+  WriteImages("image_0", 3, CV_8UC1);
+  WriteImages("image_1", 3, CV_8UC1);
+  test::LogCapture quiet;
+  (void)OpenKittiOdometry(seq_);
+  EXPECT_EQ(quiet.Text().find("missing"), std::string::npos) << quiet.Text();
 }
 
 TEST_F(SyntheticOdometry, MissingPiecesAreNamed) {
