@@ -162,6 +162,8 @@ void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool mo
   if (!dataset.ground_truth || s->tracked.size() < 3) return;
   s->eval_options.alignment.mode = monocular ? eval::AlignMode::kSim3 : eval::AlignMode::kSe3;
   s->eval_options.kitti.lengths_m = {5, 10, 20, 40, 80, 100, 200, 400, 800};
+  // Frames the realtime policy dropped leave gaps: RPE over 1 frame pairs neighbouring frames.
+  s->eval_options.rpe.by_frame_index = true;
   try {
     s->evaluation = eval::Evaluate(eval::AssociateByFrameIndex(gt, s->tracked), s->eval_options);
   } catch (const std::exception& e) {

@@ -116,6 +116,7 @@ nlohmann::json ToJson(const EvalResult& r, const EvalOptions& options) {
         {"delta_unit", std::string(ToString(options.rpe.unit))},
         {"all_pairs", options.rpe.all_pairs},
         {"pairs_from_reference", options.rpe.pairs_from_reference},
+        {"by_frame_index", options.rpe.by_frame_index},
         {"trans_m", ToJson(r.rpe.trans_m)},
         {"rot_deg", ToJson(r.rpe.rot_deg)},
         {"pairs", rpe_pairs},

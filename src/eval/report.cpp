@@ -125,7 +125,7 @@ std::string FormatReport(const EvalResult& r, const EvalOptions& options) {
                      options.rpe.delta, options.rpe.unit == DeltaUnit::kFrames ? "frames" : "m",
                      options.rpe.all_pairs ? " (all pairs)" : "",
                      options.rpe.unit == DeltaUnit::kFrames
-                         ? ""
+                         ? (options.rpe.by_frame_index ? " by frame number" : "")
                          : (options.rpe.pairs_from_reference ? " on the ground truth's path"
                                                              : " on the estimate's path"),
                      r.rpe.pairs.size(), r.reference_path_m);

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <map>
 #include <stdexcept>
 
 #include "eval/pose_math.h"
@@ -30,6 +31,23 @@ IndexPairs PairsByFrames(size_t n, size_t delta, bool all_pairs) {
   std::vector<size_t> ids;
   for (size_t i = 0; i < n; i += delta) ids.push_back(i);
   return ConsecutivePairs(ids);
+}
+
+// Pairs (i, j) with frame_index[j] = frame_index[i] + delta; consecutive ones from the first
+// pose's frame on (frames first, first + delta, ...), all pairs from every pose.
+IndexPairs PairsByFrameIndex(const Trajectory& t, int64_t delta, bool all_pairs) {
+  std::map<int64_t, size_t> entry_of;
+  for (size_t i = 0; i < t.size(); ++i) entry_of.emplace(t[i].frame_index, i);
+  IndexPairs pairs;
+  if (t.empty()) return pairs;
+  const int64_t first = t.front().frame_index;
+  for (size_t i = 0; i < t.size(); ++i) {
+    const int64_t f = t[i].frame_index;
+    if (!all_pairs && (f - first) % delta != 0) continue;
+    const auto it = entry_of.find(f + delta);
+    if (it != entry_of.end() && it->second > i) pairs.emplace_back(i, it->second);
+  }
+  return pairs;
 }
 
 IndexPairs PairsByPath(const Trajectory& reference, double delta_m, bool all_pairs, double tol_m) {
@@ -102,6 +120,8 @@ bool RpeOptions::IsValid(std::string* why) const {
 IndexPairs SelectRpePairs(const Trajectory& trajectory, const RpeOptions& options) {
   std::string why;
   if (!options.IsValid(&why)) throw std::invalid_argument(why);
+  if (options.unit == DeltaUnit::kFrames && options.by_frame_index)
+    return PairsByFrameIndex(trajectory, static_cast<int64_t>(options.delta), options.all_pairs);
   if (options.unit == DeltaUnit::kFrames)
     return PairsByFrames(trajectory.size(), static_cast<size_t>(options.delta), options.all_pairs);
   return PairsByPath(trajectory, options.delta, options.all_pairs, options.rel_tol * options.delta);

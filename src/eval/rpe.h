@@ -41,6 +41,9 @@ struct RpeOptions {
   bool all_pairs = false;
   double rel_tol = 0.1;  // metres with all_pairs only: accepted |path - delta| <= rel_tol * delta
   bool pairs_from_reference = false;  // metres: pairs on the reference's path, not the estimate's
+  // frames: pair the poses whose frame_index differ by delta, not the entries delta apart (a run
+  // that dropped frames: its entries 3 and 4 may be frames 3 and 14). Not evo's.
+  bool by_frame_index = false;
 
   bool IsValid(std::string* why) const;
 };

@@ -178,6 +178,24 @@ TEST(RpeTest, PairsByPathAreTheEstimatesUnlessFromTheReference) {
   EXPECT_EQ(ComputeRpe(reference, estimate, options).pairs.size(), 3u);
 }
 
+// A run that dropped frames 4-13 (the realtime policy): its entries 3 and 4 are frames 3 and 14.
+// By frame index, delta 1 pairs neighbouring frames only.
+TEST(RpeTest, PairsByFrameIndexSkipTheDroppedFrames) {
+  std::vector<Eigen::Vector3d> positions;
+  for (int i = 0; i < 6; ++i) positions.emplace_back(i, 0, 0);
+  Trajectory t = test::FromPositions(positions);
+  const int64_t frames[] = {0, 1, 2, 3, 14, 15};
+  for (size_t i = 0; i < t.size(); ++i) t[i].frame_index = frames[i];
+  RpeOptions options;
+  EXPECT_EQ(SelectRpePairs(t, options).size(), 5u);  // evo's: entries, (3, 4) among them
+  options.by_frame_index = true;
+  EXPECT_EQ(SelectRpePairs(t, options), (IndexPairs{{0, 1}, {1, 2}, {2, 3}, {4, 5}}));
+  options.delta = 2;  // consecutive from frame 0: 0-2 only (frame 4 is gone); all pairs: 1-3 too
+  EXPECT_EQ(SelectRpePairs(t, options), (IndexPairs{{0, 2}}));
+  options.all_pairs = true;
+  EXPECT_EQ(SelectRpePairs(t, options), (IndexPairs{{0, 2}, {1, 3}}));
+}
+
 // A circle of radius 10 m in 36 steps; estimate = reference scaled by 2 (monocular scale).
 // RPE pair (i, i+1): ref rel = [R | c], est rel = [R | 2c], E = [I | R^T c]: ||t(E)|| = chord
 // length 2 r sin(5 deg); after a sim3 scale correction (estimate scaled by 1/2) it is 0.
