@@ -161,6 +161,7 @@ std::string FormatPipelineStats(const PipelineStats& s) {
         s.quality_frames[2], s.quality_frames[1], s.quality_frames[0], s.quality_changes.size(),
         s.period_ms, s.busy.p50_ms);
   }
+  o << "per node call (dropped frames' and discarded results' calls included):\n";
   o << fmt::format("{:<11} {:>6} {:>8} {:>8} {:>8} {:>8} {:>9} {:>6}\n", "stage", "calls",
                    "mean ms", "p50 ms", "p95 ms", "p99 ms", "wait p95", "queue");
   std::vector<std::string> names;
