@@ -1,5 +1,7 @@
 #include "io/kitti_odometry.h"
 
+#include <spdlog/spdlog.h>
+
 #include <filesystem>
 
 #include "io/kitti_calib.h"
@@ -37,6 +39,11 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
   AddOtherCameras(&dataset, numbers, left_dir_name, (dir / right_dir_name).string(),
                   (dir / "image_2").string(), color);
 
+  if (fs::exists(dir / kSynthOptionsName, ec) && !fs::exists(dir / kSynthCompleteName, ec))
+    spdlog::warn(
+        "{}: a synthetic sequence whose render did not finish ({} without {}): its images, "
+        "poses and options may come from two renders; render it again (pcr_orb synth)",
+        dataset.root, kSynthOptionsName, kSynthCompleteName);
   const std::string times_path = (dir / "times.txt").string();
   const std::vector<int64_t> times = ReadKittiTimes(times_path);
   RequireLines(times.size(), numbers, dataset.left_paths, times_path, "timestamps",

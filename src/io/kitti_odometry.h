@@ -7,6 +7,13 @@
 
 namespace pcr {
 
+// A synthetic sequence (pcr_orb synth) holds its options, written first, and, written last of
+// all by a render that finished, render_complete.txt. A sequence with the first and without the
+// second was left by a render that stopped: its images, poses and options may come from two
+// renders, and opening it warns.
+inline constexpr const char* kSynthOptionsName = "synth_options.txt";
+inline constexpr const char* kSynthCompleteName = "render_complete.txt";
+
 // Rig from P0/P1 (kGray) or P2/P3 (kColor) by SetRigFromCalib: fx, fy, cx, cy of the left matrix,
 // baseline (P_left[0][3] - P_right[0][3]) / fx, size from the images (DatasetImageSize). A
 // monocular sequence (no image_1 / image_3) gets baseline_m = 0 and needs no P1 / P3. image_2

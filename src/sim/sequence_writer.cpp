@@ -10,6 +10,7 @@
 #include <sstream>
 #include <thread>
 
+#include "io/kitti_odometry.h"
 #include "sim/synthetic_world.h"
 #include "slam/common/error.h"
 
@@ -69,8 +70,8 @@ std::string OptionsText(const SynthOptions& o, int precision = 10) {
   return s.str();
 }
 
-constexpr const char* kCompleteName = "render_complete.txt";
-constexpr const char* kOptionsName = "synth_options.txt";
+constexpr const char* kCompleteName = kSynthCompleteName;
+constexpr const char* kOptionsName = kSynthOptionsName;
 
 // Whether `dir` or a folder in it holds anything but folders.
 bool HoldsFiles(const fs::path& dir) {

@@ -9,10 +9,12 @@
 #include <sstream>
 #include <string>
 
+#include "io/kitti_odometry.h"
 #include "sim/instances.h"
 #include "sim/sequence_writer.h"
 #include "slam/common/error.h"
 #include "support/data_paths.h"
+#include "support/log_capture.h"
 
 // (A namespace of its own: the unity build shares sequence_writer_test.cpp's anonymous one.)
 namespace pcr::sim::guard_test {
@@ -129,6 +131,25 @@ TEST(SequenceWriterGuardTest, EmptyFoldersAndEarlierRendersAreWritten) {
   EXPECT_EQ(RenderOnce(options, out.string()), seq.string());
   EXPECT_EQ(CountFiles(seq / "image_0"), 1u);
   EXPECT_TRUE(HoldsSequence(options, out.string()));
+}
+
+// Opening a render that stopped (options without render_complete.txt) warns; a finished one does
+// not.
+TEST(SequenceWriterGuardTest, OpeningAnUnfinishedRenderWarns) {
+  const fs::path out = test::MakeTempDir("sim_guard_unfinished");
+  const fs::path seq = out / "sequences" / "00";
+  WriteSequence(Small("00"), out.string());
+  {
+    test::LogCapture log;
+    (void)OpenKittiOdometry(seq.string());
+    EXPECT_EQ(log.Text().find("did not finish"), std::string::npos) << log.Text();
+  }
+  fs::remove(seq / "render_complete.txt");
+  test::LogCapture log;
+  (void)OpenKittiOdometry(seq.string());
+  EXPECT_NE(log.Text().find("a synthetic sequence whose render did not finish"), std::string::npos)
+      << log.Text();
+  fs::remove_all(out);
 }
 
 // Before, --parked 50 on a short street placed 17 cars without a word and synth_options.txt said
