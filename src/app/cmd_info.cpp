@@ -196,8 +196,12 @@ void AddInfoCommand(CLI::App& app) {
       "Odometry sequence dir (sequences/NN) or raw drive dir (DATE/DATE_drive_NNNN_sync)");
   auto* model_option = cmd->add_option("--model", *model, "a YOLOv8(-seg) ONNX export");
   sequence->excludes(model_option);
-  cmd->add_flag("--color", *color, "Use the colour cameras (2/3) instead of the grey ones (0/1)");
+  auto* color_option = cmd->add_flag("--color", *color,
+                                     "Use the colour cameras (2/3) instead of the grey ones (0/1)");
   AddRawTruthOption(cmd, raw_truth.get());
+  // A model has no cameras nor ground truth: those options would do nothing.
+  model_option->excludes(color_option);
+  model_option->excludes(cmd->get_option("--raw-truth"));
   cmd->callback([path, model, color, raw_truth] {
     if (!model->empty()) {
       PrintModelInfo(*model);

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 #include "app/commands.h"
@@ -12,6 +13,34 @@
 #include "slam/common/validation.h"
 
 namespace pcr::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Creates dir (and its parents) as WriteSequence would, but says why it cannot: a part of the path
+// that is a file, or the system's reason. (WriteSequence says only "cannot create directory".)
+void CreateOutputFolder(const fs::path& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (!ec && fs::is_directory(dir, ec)) return;
+  for (fs::path p = dir; !p.empty(); p = p.parent_path()) {
+    std::error_code status_ec;
+    const fs::file_status status = fs::status(p, status_ec);
+    if (fs::exists(status)) {
+      if (!fs::is_directory(status))
+        throw InputError(dir.string(), 0,
+                         "cannot create directory: " + p.string() +
+                             (fs::is_regular_file(status) ? " is a file" : " exists") +
+                             ", not a directory (give --out a folder)");
+      break;
+    }
+    if (p == p.parent_path()) break;
+  }
+  throw InputError(dir.string(), 0,
+                   "cannot create directory: " + (ec ? ec.message() : std::string("not created")));
+}
+
+}  // namespace
 
 void AddSynthCommand(CLI::App& app) {
   struct Args {
@@ -58,6 +87,12 @@ void AddSynthCommand(CLI::App& app) {
     if (cmd->count("--laps") > 0 && options.route != sim::RouteKind::kLoop)
       throw ConfigError("synth: --laps applies to --route loop only, not to --route " +
                         args->route);
+    // On the loop route, the ego car drives --laps times round the streets at --speed; standing
+    // still, it drives no loop. (On the straight route, --speed 0 is a parked ego car.)
+    if (options.route == sim::RouteKind::kLoop && options.speed_mps == 0)
+      throw ConfigError(
+          "synth: --speed 0 with --route loop: the ego car would stand still and never drive the "
+          "loop (--laps); give --speed above 0, or --route straight for a parked ego car");
     std::string why;
     // SynthOptions::IsValid names its fields: the command line's options instead.
     if (!options.IsValid(&why))
@@ -72,6 +107,8 @@ void AddSynthCommand(CLI::App& app) {
     // (WriteSequence refuses too; this names the option.)
     sim::RefuseForeignData(options, args->out_dir,
                            "give another --out (or --sequence) or remove it");
+    CreateOutputFolder(fs::path(args->out_dir) / "sequences" / options.sequence);
+    CreateOutputFolder(fs::path(args->out_dir) / "poses");
     Progress progress("synth", options.frames);
     const sim::WriteSummary summary =
         sim::WriteSequence(options, args->out_dir, [&progress](int done, int total) {

@@ -2,13 +2,19 @@
 // descriptors (default OrbOptions) of PNG images and, optionally, of frames of a synthetic street
 // rendered in memory, and writes it (driver/vocabulary_file.h); --check FILE reads one back.
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <chrono>
+#include <climits>
 #include <filesystem>
 #include <memory>
+#include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "app/commands.h"
@@ -18,6 +24,7 @@
 #include "io/dataset.h"
 #include "sim/synthetic_world.h"
 #include "slam/common/error.h"
+#include "slam/common/validation.h"
 #include "slam/features/orb_extractor.h"
 #include "slam/loop/vocabulary.h"
 #include "slam/loop/vocabulary_io.h"
@@ -58,6 +65,49 @@ std::vector<std::string> ImagesOf(const std::string& dir, int stride, int max_im
   return picked;
 }
 
+// The images of all --images folders, each file once: a folder given twice, a folder and its
+// subfolder, or links (symbolic or hard) to one file would otherwise train on the same image twice.
+// The first of each is kept, in the order picked (the folders in the order given, each folder's
+// images sorted by path): that order is the training's, which scripts/train_vocabulary.sh relies
+// on to reproduce vocabulary/pcr_orb_voc.bin byte for byte. *dropped: how many were left out.
+std::vector<std::string> WithoutDuplicates(const std::vector<std::string>& paths, size_t* dropped) {
+  std::set<std::string> resolved;           // symbolic links followed
+  std::set<std::pair<dev_t, ino_t>> files;  // hard links: one file under two names
+  std::vector<std::string> kept;
+  for (const std::string& path : paths) {
+    std::error_code ec;
+    fs::path key = fs::canonical(path, ec);
+    if (ec) key = fs::absolute(path, ec).lexically_normal();
+    if (!resolved.insert(key.string()).second) continue;
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0 && !files.insert({st.st_dev, st.st_ino}).second) continue;
+    kept.push_back(path);
+  }
+  *dropped = paths.size() - kept.size();
+  return kept;
+}
+
+// A whole-number option from min to INT_MAX. (CLI::PositiveNumber refuses 0 saying "Value 0 not in
+// range 0.000000 to 1797693...".)
+CLI::Validator WholeFrom(int min) {
+  return CLI::Validator(
+      [min](const std::string& text) -> std::string {
+        int v = 0;
+        const char* end = text.data() + text.size();
+        const auto [ptr, ec] = std::from_chars(text.data(), end, v);
+        if (ec != std::errc() || ptr != end || v < min)
+          return fmt::format("{} is not a whole number from {} to {}", text, min, INT_MAX);
+        return "";
+      },
+      fmt::format("{}..{}", min, INT_MAX));
+}
+
+std::string Joined(const std::vector<std::string>& items) {
+  std::string s;
+  for (const std::string& item : items) s += (s.empty() ? "" : ", ") + item;
+  return s;
+}
+
 }  // namespace
 
 void AddVocabCommand(CLI::App& app) {
@@ -74,7 +124,8 @@ void AddVocabCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "vocab", "Train the place-recognition vocabulary (bag of binary words) on ORB descriptors");
   cmd->add_option("--images", args->image_dirs,
-                  "Directories of PNG images (their direct subdirectories too), sorted by path");
+                  "Directories of PNG images (their direct subdirectories too), read in the order "
+                  "given, each one's images sorted by path; each file once");
   cmd->add_option("--out", args->out, "Vocabulary file to write");
   CLI::Option* check =
       cmd->add_option("--check", args->check,
@@ -89,15 +140,15 @@ void AddVocabCommand(CLI::App& app) {
       ->capture_default_str()
       ->check(UnsignedWhole64());
   cmd->add_option("--stride", args->stride, "Every stride-th image of each directory")
-      ->check(CLI::PositiveNumber)
+      ->check(WholeFrom(1))
       ->capture_default_str();
   cmd->add_option("--max-images", args->max_images,
                   "At most this many images per directory (0: all)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(WholeFrom(0))
       ->capture_default_str();
   cmd->add_option("--synth-frames", args->synth_frames,
                   "Also this many left frames of the default synthetic street, rendered in memory")
-      ->check(CLI::NonNegativeNumber)
+      ->check(WholeFrom(0))
       ->capture_default_str();
   // --check trains nothing: a training option beside it is an error, not ignored.
   for (const char* name : {"--images", "--out", "--branching", "--depth", "--iterations", "--seed",
@@ -113,7 +164,12 @@ void AddVocabCommand(CLI::App& app) {
     }
     if (args->out.empty()) throw ConfigError("vocab: --out FILE is required to train");
     std::string why;
-    if (!args->options.IsValid(&why)) throw ConfigError("vocab: " + why);
+    // VocabularyOptions::IsValid names its fields: the command line's options instead.
+    if (!args->options.IsValid(&why))
+      throw ConfigError("vocab: " + NamedAsOption(why, {{"branching^depth", "--branching^--depth"},
+                                                        {"branching", "--branching"},
+                                                        {"depth", "--depth"},
+                                                        {"max_iterations", "--iterations"}}));
     // Before any image is read: the file is written after the extraction and the training.
     driver::CheckOutputFile(args->out, "--out", "", kVocabularyMagic);
     std::vector<std::string> paths;
@@ -122,17 +178,29 @@ void AddVocabCommand(CLI::App& app) {
       fmt::print("{}: {} images\n", dir, images.size());
       paths.insert(paths.end(), images.begin(), images.end());
     }
+    size_t dropped = 0;
+    paths = WithoutDuplicates(paths, &dropped);
+    if (dropped > 0)
+      spdlog::warn(
+          "vocab: --images: {} {} the same file as another one picked (a folder given twice, a "
+          "folder and its subfolder, or links to one file): each file is read once, {} images "
+          "in all",
+          dropped, dropped == 1 ? "image is" : "images are", paths.size());
     if (paths.empty() && args->synth_frames == 0)
       throw ConfigError("vocab: no images (give --images DIR... or --synth-frames N)");
 
     const OrbExtractor extractor{OrbOptions()};
     std::vector<cv::Mat> descriptors;
     size_t num_descriptors = 0;
+    std::string first_image;  // the first real image and its size, for an error
     const auto t0 = std::chrono::steady_clock::now();
     {
       Progress progress("orb", static_cast<int64_t>(paths.size()) + args->synth_frames);
       for (const std::string& path : paths) {
-        descriptors.push_back(extractor.Extract(LoadGreyImage(path)).descriptors);
+        const cv::Mat image = LoadGreyImage(path);
+        if (first_image.empty())
+          first_image = fmt::format("{}, {}x{} px", path, image.cols, image.rows);
+        descriptors.push_back(extractor.Extract(image).descriptors);
         num_descriptors += descriptors.back().rows;
         progress.Update(static_cast<int64_t>(descriptors.size()));
       }
@@ -152,6 +220,20 @@ void AddVocabCommand(CLI::App& app) {
     fmt::print("read {} images ({} real, {} synthetic): {} descriptors, {:.1f} s\n",
                descriptors.size(), paths.size(), args->synth_frames, num_descriptors,
                std::chrono::duration<double>(t1 - t0).count());
+    // (Vocabulary::Train would say only "no descriptors".)
+    if (num_descriptors == 0) {
+      std::string read;
+      if (!paths.empty())
+        read = fmt::format("{} images from --images {} (the first: {})", paths.size(),
+                           Joined(args->image_dirs), first_image);
+      if (args->synth_frames > 0)
+        read +=
+            fmt::format("{}{} synthetic frames", read.empty() ? "" : " and ", args->synth_frames);
+      throw ConfigError(
+          "vocab: no ORB descriptors in the " + read +
+          ": the images are too small or featureless (ORB finds no corners in them); give "
+          "--images folders of textured camera frames (e.g. KITTI's image_0), or --synth-frames N");
+    }
     const Vocabulary vocabulary = Vocabulary::Train(descriptors, args->options);
     const auto t2 = std::chrono::steady_clock::now();
     fmt::print("trained k={} L={} seed {}: {} words, {} nodes, {:.1f} s\n", vocabulary.branching(),
