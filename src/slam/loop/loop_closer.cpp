@@ -370,13 +370,26 @@ uint64_t LoopCloser::VocabularyFingerprint() const {
   return vocabulary_fingerprint_;
 }
 
+std::vector<std::pair<KeyframeId, KeyframeId>> LiveLoopEdges(
+    const std::vector<std::pair<KeyframeId, KeyframeId>>& edges, const Map& map) {
+  std::vector<std::pair<KeyframeId, KeyframeId>> live;
+  std::set<std::pair<KeyframeId, KeyframeId>> have;
+  for (const auto& [i, j] : edges) {
+    const KeyframeId a = map.ResolveKeyframe(i), b = map.ResolveKeyframe(j);
+    if (!a.valid() || !b.valid() || a == b) continue;
+    if (!have.insert(std::minmax(a, b)).second) continue;
+    live.emplace_back(a, b);
+  }
+  return live;
+}
+
 std::optional<PlaceArchive> LoopCloser::Archive(const Map& map) const {
   if (!HasPlaceRecognition()) {
     if (!restored_place_) return std::nullopt;
     PlaceArchive archive = *restored_place_;
     std::erase_if(archive.bows, [&](const auto& e) { return !map.keyframe(e.first); });
     std::erase_if(archive.features, [&](const auto& e) { return !map.keyframe(e.first); });
-    archive.loop_edges = loop_edges_;
+    archive.loop_edges = LiveLoopEdges(loop_edges_, map);
     return archive;
   }
   PlaceArchive archive;
@@ -388,7 +401,7 @@ std::optional<PlaceArchive> LoopCloser::Archive(const Map& map) const {
     const auto it = features_.find(id);
     if (it != features_.end()) archive.features.emplace(id, it->second);
   }
-  archive.loop_edges = loop_edges_;
+  archive.loop_edges = LiveLoopEdges(loop_edges_, map);
   return archive;
 }
 
@@ -563,6 +576,9 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
   ResetEditLog();
   edit_log_->recording = options_.incremental_snapshots;
   job->word_matches = std::move(word_matches);  // the lane does not match them again
+  // Earlier loops' edges at the keyframes that hold them now: one culled since would leave its
+  // loop out of this loop's essential graph.
+  loop_edges_ = LiveLoopEdges(loop_edges_, map);
   job->loop_edges = loop_edges_;
   job->fix_scale = fix_scale_;
   job->options = options_;
@@ -743,8 +759,10 @@ LoopOutcome LoopCloser::CloseLoop(const LoopJob& job) {
   Map work = snapshot;
   std::map<KeyframeId, Sim3> before;
   for (const auto& [id, kf] : work.keyframes()) before[id] = Sim3::FromSE3(kf.cam_from_world);
-  // 1. The query's connected group moves with the query's corrected pose; their points with the
-  //    first group keyframe that sees them.
+  // 1. The query's connected group (every keyframe sharing a point with it) moves with the
+  //    query's corrected pose; their points with the first group keyframe that sees them.
+  //    (ORB-SLAM moves the covisible group, weight >= 15, alone, and fuses the whole loop
+  //    group's points: both tried, 2026-12-07, in docs/loop-closing.md; not kept.)
   const std::vector<KeyframeId> group = ConnectedGroup(*query, work);
   const std::set<KeyframeId> in_group(group.begin(), group.end());
   std::map<KeyframeId, Sim3> initial = before;
@@ -1029,10 +1047,24 @@ MapDelta LoopCloser::CorrectionDelta(const Map& map, const MapCorrection& correc
   // through the merges, so its entry would land on the point it merges into and overwrite the
   // position the correction gave that one. (Where the point it merges into is gone, the merge
   // will not happen, and the point moves like any other.)
+  // The merges are replayed as Map::Apply makes them: sources resolved before any merge, each
+  // once, then each merge on the points the earlier ones left.
   std::unordered_set<MapPointId> merged_away;
-  for (const PointMerge& merge : correction.merges) {
-    const MapPointId from = map.Resolve(merge.from), into = map.Resolve(merge.into);
-    if (from.valid() && into.valid() && from != into) merged_away.insert(from);
+  {
+    std::unordered_map<MapPointId, MapPointId> into_of;  // the merges this replay made
+    auto resolve = [&](MapPointId id) {
+      MapPointId r = map.Resolve(id);
+      for (auto it = into_of.find(r); it != into_of.end(); it = into_of.find(r)) r = it->second;
+      return r;
+    };
+    std::unordered_set<MapPointId> sources;
+    for (const PointMerge& merge : correction.merges) {
+      if (!sources.insert(map.Resolve(merge.from)).second) continue;
+      const MapPointId from = resolve(merge.from), into = resolve(merge.into);
+      if (!from.valid() || !into.valid() || from == into) continue;
+      into_of[from] = into;
+      merged_away.insert(from);
+    }
   }
   for (const auto& [pid, mp] : map.points()) {
     if (merged_away.count(pid)) continue;

@@ -3,9 +3,10 @@
 // keyframe (bag of binary words, slam/loop/vocabulary.h, and the keyframe database), candidates
 // that stay consistent over several keyframes, geometric verification (descriptor matches through
 // the vocabulary's direct index, Sim(3) RANSAC — SE(3) for stereo —, refinement, projection
-// matching), then the correction: the query's covisible group moved by the loop transform, the
-// loop's map points fused into it, the essential graph optimised (spanning tree, covisibility
-// above a weight, loop edges; slam/optim/pose_graph.h) and a global bundle adjustment.
+// matching), then the correction: the query and every keyframe sharing a point with it moved by
+// the loop transform, the loop's map points the query matched fused into them, the essential graph
+// optimised (spanning tree, covisibility above a weight, loop edges; slam/optim/pose_graph.h) and a
+// global bundle adjustment.
 //
 // Threading and ownership: LoopCloser's state (database, consistency groups, loop edges) belongs
 // to the map's serial owner, which calls OnKeyframe, Detect, CorrectionDelta and
@@ -101,6 +102,12 @@ struct LoopClosingOptions {
 };
 
 // One geometrically verified loop.
+// The loop edges between live keyframes: an end that local mapping culled since its loop moves
+// to the live keyframe nearest to it along the spanning tree (Map::ResolveKeyframe); an edge
+// that then joins a keyframe to itself, or repeats an earlier one, is dropped. In order.
+std::vector<std::pair<KeyframeId, KeyframeId>> LiveLoopEdges(
+    const std::vector<std::pair<KeyframeId, KeyframeId>>& edges, const Map& map);
+
 struct LoopMatch {
   KeyframeId query;
   KeyframeId matched;

@@ -596,9 +596,16 @@ MapApplyResult Map::Apply(const MapDelta& delta) {
     result.new_point_ids.push_back(id);
   }
 
+  // A point merges once per delta: the merges' sources are resolved before any of them is made,
+  // so two ids that stood for one point (merged by an earlier delta) merge it once, not into two
+  // points nothing compared; a merge back onto a point merged away in this delta is none.
+  std::vector<MapPointId> merge_source;
+  merge_source.reserve(delta.merges.size());
+  for (const PointMerge& merge : delta.merges) merge_source.push_back(Resolve(merge.from));
   std::unordered_set<MapPointId> merged_from;
-  for (const PointMerge& merge : delta.merges) {
-    if (!merged_from.insert(merge.from).second) continue;  // merges once per delta
+  for (size_t m = 0; m < delta.merges.size(); ++m) {
+    const PointMerge& merge = delta.merges[m];
+    if (!merged_from.insert(merge_source[m]).second) continue;
     const MapPointId from = Resolve(merge.from), into = Resolve(merge.into);
     if (!from.valid() || !into.valid() || from == into) continue;
     MergePoint(from, into);

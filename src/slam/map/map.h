@@ -137,9 +137,10 @@ struct ObservationEdit {
 struct PointMerge {
   MapPointId from;  // erased; its observations move to `into` where the keyframe has none
   MapPointId into;
-  // A point merges once per delta: a later merge of the same `from` in the same delta is
-  // skipped (resolved, it would merge the first `into` with the second, two points nothing
-  // compared).
+  // A point merges once per delta: a later merge whose `from` stands for the same point (the
+  // same id, or an id merged into it before the delta) is skipped (resolved, it would merge the
+  // first `into` with the second, two points nothing compared). A merge whose `from` an earlier
+  // merge of the delta moved into its `into` (A->B then B->A) is none.
 };
 
 struct MapDelta {

@@ -100,6 +100,27 @@ TEST(MatchFeaturesByWords, MatchesWithinANodeByDistanceRatioAndUsability) {
       MatchFeaturesByWords(keypoints, a, fa, nullptr, keypoints, b, fb, nullptr, 256, 1.0).empty());
 }
 
+// A loop keyframe culled after its loop: the edge moves to the live keyframe nearest to it along
+// the spanning tree, and edges that come to join a keyframe to itself or repeat are dropped.
+TEST(LiveLoopEdges, ACulledEndMovesToItsNearestLiveKeyframe) {
+  Map map = ChainMap(6);
+  MapDelta erase;
+  erase.removed_keyframes = {KeyframeId(2)};
+  ASSERT_EQ(map.Apply(erase).num_keyframes_removed, 1);
+  const KeyframeId live = map.ResolveKeyframe(KeyframeId(2));
+  ASSERT_TRUE(live.valid());
+  ASSERT_NE(live, KeyframeId(2));
+  const std::vector<std::pair<KeyframeId, KeyframeId>> edges = {
+      {KeyframeId(5), KeyframeId(2)},   // moves to the live keyframe
+      {KeyframeId(0), KeyframeId(4)},   // unchanged
+      {live, KeyframeId(5)},            // now repeats the first
+      {KeyframeId(2), live},            // now joins a keyframe to itself
+      {KeyframeId(4), KeyframeId(0)}};  // repeats the second the other way round
+  const std::vector<std::pair<KeyframeId, KeyframeId>> expected = {{KeyframeId(5), live},
+                                                                   {KeyframeId(0), KeyframeId(4)}};
+  EXPECT_EQ(LiveLoopEdges(edges, map), expected);
+}
+
 TEST(LoopCloser, CorrectionDeltaCarriesTheCorrectionOverToLaterKeyframesAndPoints) {
   // The snapshot held keyframes 0..2; the live map has gained keyframe 3 (child of 2) since.
   const Map snapshot = ChainMap(3);
@@ -195,6 +216,37 @@ TEST(LoopCloser, CorrectionDeltaKeepsTheFusedLoopPointsPosition) {
   EXPECT_TRUE(live.point(loop_point)->observations.count(KeyframeId(2)));
   ASSERT_NE(live.point(other), nullptr);
   EXPECT_TRUE(live.point(other)->p_in_world.isApprox(w.Map(other_before), 1e-12));
+}
+
+TEST(LoopCloser, CorrectionDeltaPositionsThePointsTheMergesKeep) {
+  // The fusion made A -> B and B -> A (two slots' claims): Map::Apply keeps B, which must take
+  // its corrected position. And 45 merged into 44 by local mapping while the correction was in
+  // flight, the correction's 44 -> 5 and 45 -> 6 merge 44 once: 6 keeps its own position.
+  Map live = ChainMap(3);
+  MapDelta local;
+  local.merges = {{MapPointId(45), MapPointId(44)}};
+  ASSERT_EQ(live.Apply(local).num_merged, 1);
+  MapCorrection c;
+  for (const auto& [id, kf] : live.keyframes()) {
+    c.before[id] = Sim3::FromSE3(kf.cam_from_world);
+    c.after[id] = c.before[id];
+  }
+  const MapPointId a(21), b(22);
+  c.merges = {{a, b}, {b, a}, {MapPointId(44), MapPointId(5)}, {MapPointId(45), MapPointId(6)}};
+  const Eigen::Vector3d b_position(7, 7, 7), six_position(2, 2, 2);
+  for (const auto& [pid, mp] : live.points()) {
+    if (pid == a || pid == MapPointId(44)) continue;  // merged away
+    c.point_positions.emplace_back(pid, pid == b               ? b_position
+                                        : pid == MapPointId(6) ? six_position
+                                                               : mp.p_in_world);
+  }
+  live.Apply(LoopCloser::CorrectionDelta(live, c));
+  EXPECT_EQ(live.point(a), nullptr);
+  ASSERT_NE(live.point(b), nullptr);
+  EXPECT_TRUE(live.point(b)->p_in_world.isApprox(b_position, 1e-12));
+  ASSERT_NE(live.point(MapPointId(6)), nullptr);
+  ASSERT_NE(live.point(MapPointId(5)), nullptr);
+  EXPECT_TRUE(live.point(MapPointId(6))->p_in_world.isApprox(six_position, 1e-12));
 }
 
 TEST(LoopCloser, WithoutAVocabularyItIsInactiveAndBadOptionsAreRejected) {

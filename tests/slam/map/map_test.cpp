@@ -293,6 +293,28 @@ TEST_F(ThreeKeyframeMap, APointMergesOncePerDelta) {
   EXPECT_EQ(map.Resolve(MapPointId(45)), MapPointId(6));
 }
 
+TEST_F(ThreeKeyframeMap, TwoIdsOfOnePointMergeItOnceAndAMergeBackIsNone) {
+  // Point 45 merged into 44 by an earlier delta (local mapping, while a loop's correction was in
+  // flight); the correction then merges 44 into 5 and 45 into 6: 45 stands for 44, which merges
+  // into 5 once; 6 stays a point of its own, not merged into 5.
+  MapDelta local;
+  local.merges = {{MapPointId(45), MapPointId(44)}};
+  ASSERT_EQ(map.Apply(local).num_merged, 1);
+  MapDelta correction;
+  correction.merges = {{MapPointId(44), MapPointId(5)}, {MapPointId(45), MapPointId(6)}};
+  EXPECT_EQ(map.Apply(correction).num_merged, 1);
+  EXPECT_EQ(map.Resolve(MapPointId(44)), MapPointId(5));
+  ASSERT_NE(map.point(MapPointId(5)), nullptr);
+  ASSERT_NE(map.point(MapPointId(6)), nullptr);
+  // A -> B then B -> A in one delta: B is kept.
+  MapDelta cycle;
+  cycle.merges = {{MapPointId(7), MapPointId(8)}, {MapPointId(8), MapPointId(7)}};
+  EXPECT_EQ(map.Apply(cycle).num_merged, 1);
+  EXPECT_EQ(map.point(MapPointId(7)), nullptr);
+  ASSERT_NE(map.point(MapPointId(8)), nullptr);
+  EXPECT_EQ(map.Resolve(MapPointId(7)), MapPointId(8));
+}
+
 TEST_F(ThreeKeyframeMap, ErasingTheNewestKeyframeLeavesTheNewestRemainingOneLast) {
   // K3 (newest) hangs from K1; erased, the last keyframe is K2, the newest left, not K3's
   // parent. The map then saves and restores as it is.
