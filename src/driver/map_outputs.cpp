@@ -149,6 +149,18 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
                                evaluation->alignment.scale,
                                s.metres_per_unit / evaluation->alignment.scale)
                  : "");
+  // A stereo map is in metres: a road that gives it another scale by more than a factor 2 is no
+  // road (points by the camera, a wrong camera configuration), and says so.
+  if (summary.mode == SlamMode::kStereo &&
+      !(s.metres_per_unit >= 0.5 && s.metres_per_unit <= 2.0)) {
+    j["plausible"] = false;
+    spdlog::warn(
+        "the road found under {} keyframe{} is {:.4g} m below {} against the camera's {} m, on "
+        "a stereo map in metres: it is not the road (points by the camera; is the camera "
+        "configuration this sequence's?)",
+        s.estimated, s.estimated > 1 ? "s" : "", s.median_height, s.estimated > 1 ? "them" : "it",
+        kRoadCameraHeightM);
+  }
   // A monocular run in the road's metres, aligned by rotation and translation only: its error
   // without the ground truth's scale (against the Sim(3) alignment's, which takes that scale).
   if (!evaluation || evaluation->align_mode != eval::AlignMode::kSim3) return j;

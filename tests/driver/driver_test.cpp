@@ -229,6 +229,40 @@ TEST(Driver, TheRoadGivesTheMonocularMapItsScale) {
   EXPECT_FALSE(s.contains("ate_m_road_scale_se3")) << s.dump();  // a stereo run is metric
 }
 
+// On a stereo map (metres), a "road" 1 cm under the camera is none: the figures stay, marked
+// implausible, with a warning; a road 1.65 m under it is the road.
+TEST(Driver, ARoadThatDisagreesWithAStereoMapsMetresIsMarkedImplausible) {
+  auto snapshot = [](double height_m) {
+    graph::MapSnapshot map;
+    StampedPose keyframe;
+    keyframe.world_from_cam = SE3::Identity();  // x right, y down, z forward
+    map.keyframes.push_back(keyframe);
+    for (int i = 0; i < 10; ++i)
+      for (int k = 0; k < 8; ++k) {
+        graph::MapCloudPoint p;
+        const double z = height_m * (1.0 + 0.8 * i);  // 7-45 deg below the axis
+        p.p_in_world = {z * (-0.2 + 0.05 * k), height_m, z};
+        map.points.push_back(p);
+      }
+    return map;
+  };
+  RunSummary summary;
+  summary.mode = SlamMode::kStereo;
+  test::LogCapture road_log;
+  const nlohmann::json road = GroundScaleJson(snapshot(1.65), summary);
+  EXPECT_NEAR(road["metres_per_unit"].get<double>(), 1.0, 1e-6) << road.dump();
+  EXPECT_FALSE(road.contains("plausible")) << road.dump();
+  EXPECT_EQ(road_log.Text().find("it is not the road"), std::string::npos);
+  test::LogCapture log;
+  const nlohmann::json none = GroundScaleJson(snapshot(0.01), summary);
+  EXPECT_NEAR(none["metres_per_unit"].get<double>(), 165.0, 1e-3) << none.dump();
+  EXPECT_FALSE(none["plausible"].get<bool>()) << none.dump();
+  EXPECT_NE(log.Text().find("it is not the road"), std::string::npos) << log.Text();
+  // A monocular map has no metres to disagree with.
+  summary.mode = SlamMode::kMonocular;
+  EXPECT_FALSE(GroundScaleJson(snapshot(0.01), summary).contains("plausible"));
+}
+
 // The message of the ConfigError that a run with these options throws ("" when it throws none).
 std::string SetupError(const Dataset& dataset, const RunConfig& config, const DriverOptions& o) {
   try {
