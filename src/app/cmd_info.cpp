@@ -131,6 +131,7 @@ void PrintModelInfo(const std::string& path) {
     try {
       const YoloOutputLayout layout = InspectYoloOutputs(output_shapes, num_class_names, path);
       if (!layout_printed) print_layout(layout);
+      layout_printed = true;
     } catch (const InputError& e) {
       executor_why = e.what();
     }
@@ -159,6 +160,20 @@ void PrintModelInfo(const std::string& path) {
   } catch (const std::invalid_argument& e) {
     executor_why = e.what();
     fmt::print("pcr executor:  cannot run it: {}\n", executor_why);
+    fmt::print("onednn:        cannot run it (the pcr executor's reason)\n");
+  }
+  if (!layout_printed) {
+    // Neither engine ran it: the layout its declared outputs would have, or why it is none.
+    std::vector<std::vector<int>> declared;
+    for (const OnnxValueInfo& v : model.outputs) {
+      std::vector<int>& dims = declared.emplace_back();
+      for (const auto d : v.dims) dims.push_back(static_cast<int>(d));
+    }
+    try {
+      print_layout(InspectYoloOutputs(declared, num_class_names, path));
+    } catch (const std::exception& e) {
+      fmt::print("YOLO layout:   none the segmenter takes: {}\n", e.what());
+    }
   }
   std::string why;
   const int devices = gpu::CudaDeviceCount(&why);

@@ -85,7 +85,10 @@ TEST(YoloModelChecks, InfoSaysNoEngineRunsAModelOfTheWrongYoloLayout) {
   }
   EXPECT_EQ(test::LineStartingWith(r.out, "cuda:").find("--inference cuda"), std::string::npos)
       << r.out;
-  EXPECT_EQ(test::LineStartingWith(r.out, "YOLO layout:"), "") << r.out;  // there is none
+  // There is none, and the line says why.
+  const std::string layout = test::LineStartingWith(r.out, "YOLO layout:");
+  EXPECT_NE(layout.find("none the segmenter takes"), std::string::npos) << r.out;
+  EXPECT_NE(layout.find(layout_error), std::string::npos) << r.out;
 
   // The segmenter does refuse it on the executor (the twin), as info says.
   YoloOptions yolo;

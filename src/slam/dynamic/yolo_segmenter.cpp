@@ -8,6 +8,7 @@
 #include <fstream>
 #include <numeric>
 #include <opencv2/core/cuda.hpp>
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/dnn.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
@@ -395,7 +396,17 @@ class OpenCvDnnEngine final : public InferenceEngine {
  public:
   OpenCvDnnEngine(const std::vector<uint8_t>& bytes, cv::Size input_size, bool allow_cuda) {
     try {
-      net_ = cv::dnn::readNetFromONNX(bytes);
+      // OpenCV logs its own "[ERROR:0@...]" line before throwing; the exception, rethrown below
+      // with the file's name by the caller, says the same.
+      const cv::utils::logging::LogLevel level =
+          cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+      try {
+        net_ = cv::dnn::readNetFromONNX(bytes);
+      } catch (...) {
+        cv::utils::logging::setLogLevel(level);
+        throw;
+      }
+      cv::utils::logging::setLogLevel(level);
     } catch (const cv::Exception& e) {
       throw std::invalid_argument("OpenCV " CV_VERSION " DNN cannot load this ONNX model: " +
                                   OneLine(e.err));
