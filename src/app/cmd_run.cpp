@@ -91,7 +91,7 @@ void AddFrameOptions(CLI::App* cmd, FrameArgs* a, bool scheduling) {
       ->capture_default_str();
   cmd->add_option("--rate", c.rate,
                   "realtime: frame i is released at (t_i - t_0) * rate (1 = real time, 0.5 = "
-                  "twice as fast)")
+                  "twice as fast, 0 = every frame at once)")
       ->capture_default_str();
   cmd->add_option("--max-in-flight", c.max_in_flight, "frames in the graph at once")
       ->capture_default_str();
@@ -185,10 +185,10 @@ void RunFrames(const std::string& name, FrameArgs& a) {
       // Frames complete in frame order: those of the range before this one that did not
       // complete were dropped (realtime).
       const int64_t reached = f.frame_index - source.first + 1;
-      progress->Update(
-          static_cast<int64_t>(done),
-          fmt::format("tracked {} kf {} pts {}", f.tracked_points, f.map_keyframes, f.map_points),
-          reached - static_cast<int64_t>(done));
+      progress->Update(static_cast<int64_t>(done),
+                       fmt::format("points tracked {} kf {} map points {}", f.tracked_points,
+                                   f.map_keyframes, f.map_points),
+                       reached - static_cast<int64_t>(done));
     });
   }
   if (progress) {

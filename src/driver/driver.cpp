@@ -177,7 +177,33 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
           "mask), not '" +
           policy + "'");
   }
+  if (pipeline_options.policy != graph::Policy::kRealtime &&
+      pipeline_options.waiting_capacity != defaults.waiting_capacity)
+    throw ConfigError(
+        "--waiting needs --policy realtime (only realtime releases frames that wait for a "
+        "slot), not '" +
+        std::string(graph::ToString(pipeline_options.policy)) + "'");
+  if (pipeline_options.policy == graph::Policy::kSequential &&
+      pipeline_options.max_in_flight != defaults.max_in_flight)
+    throw ConfigError(
+        "--max-in-flight needs --policy pipelined or realtime (sequential runs one frame at a "
+        "time)");
+  if (dynamic.segmenter == "none") {
+    if (pipeline_options.inference_every != defaults.inference_every)
+      throw ConfigError("--inference-every needs a segmenter (--segmenter yolo or truth)");
+    if (pipeline_options.carry.propagate != defaults.carry.propagate)
+      throw ConfigError(
+          "--propagate-masks needs a segmenter (--segmenter yolo or truth): there are no masks "
+          "to carry");
+  }
   // Warnings, not errors: these still do something, or a documented command passes them.
+  // --inference auto may resolve to a device, so --device-overlap is not refused outright.
+  if (pipeline_options.device_overlap != defaults.device_overlap &&
+      (pipeline_options.policy == graph::Policy::kSequential || dynamic.segmenter != "yolo" ||
+       !(dynamic.inference == "auto" || dynamic.inference.rfind("cuda", 0) == 0)))
+    spdlog::warn(
+        "--device-overlap does nothing here: it applies to --segmenter yolo on a device "
+        "(--inference cuda) with --policy pipelined or realtime");
   if (pipeline_options.adaptive && dynamic.segmenter == "none")
     spdlog::warn(
         "--adaptive on without a segmenter: no network to choose; only the quality levels' "
@@ -223,6 +249,7 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   summary.dataset_name = dataset.name;
   summary.mode = options.mode;
   summary.range = range;
+  if (audit) summary.filter_truth = audit->Describe();
   graph::PipelineOptions pipeline = options.pipeline;
   pipeline.mode = options.mode;
   pipeline.on_frame = [&](size_t done, size_t total, const graph::FrameRecord& record) {

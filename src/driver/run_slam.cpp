@@ -391,7 +391,8 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   if (!s.filter_dump.empty()) {
     errors.Try([&] {
       io::WriteFileAtomically(out_dir + "/filter_decisions.txt", [&](std::ostream& out) {
-        out << "# frame keypoint x_px y_px excluded reason score truth(moving|parked|static|-) "
+        out << "# frame keypoint x_px y_px excluded reason score "
+               "truth(moving:ID|parked:ID|static|-) "
                "s_mask has_motion m_motion observability residual_px instance mask_depth_outlier "
                "frame_static_prob chi2 depth_m ground\n";
         for (const std::string& line : s.filter_dump) out << line << "\n";
@@ -446,11 +447,15 @@ std::string FormatRunSummary(const RunSummary& s) {
     for (const auto& [reason, n] : s.filter_reasons) o << " " << reason << " " << n;
     o << "\n";
     if (s.filter_confusion)
-      o << eval::FormatConfusionMatrix(*s.filter_confusion,
-                                       "moving-object keypoints vs rendered ground truth");
+      o << eval::FormatConfusionMatrix(
+          *s.filter_confusion,
+          "moving-object keypoints, " + s.filter_truth +
+              " (predicted dynamic: excluded as moving or by a mask; the sky, border, ground "
+              "and low-score exclusions count as kept)");
     if (s.parked_points > 0)
-      o << fmt::format("parked-object keypoints kept: {} of {} ({:.1f}%)\n", s.parked_points_kept,
-                       s.parked_points, 100.0 * s.parked_points_kept / s.parked_points);
+      o << fmt::format(
+          "parked-object keypoints kept (not excluded for any reason): {} of {} ({:.1f}%)\n",
+          s.parked_points_kept, s.parked_points, 100.0 * s.parked_points_kept / s.parked_points);
   }
   if (s.evaluation) o << eval::FormatReport(*s.evaluation, s.eval_options);
   if (!s.error.empty())

@@ -59,6 +59,8 @@ struct RunSummary {
   // Dynamic filter (when on): per-reason counts, stage times, and on synthetic sequences the
   // confusion matrix of "excluded as moving" against the rendered moving-object pixels.
   bool filtered = false;
+  // What the filter's decisions were scored against (FilterAudit::Describe), "" for nothing.
+  std::string filter_truth;
   std::map<std::string, int64_t> filter_reasons;
   std::optional<eval::ConfusionMatrix> filter_confusion;
   // The same by the mask the frames were filtered with ("fresh", "propagated", "stale",

@@ -23,7 +23,8 @@ DriverOptions WithPolicy(graph::Policy policy, SlamMode mode = SlamMode::kStereo
   DriverOptions o;
   o.mode = mode;
   o.pipeline.policy = policy;
-  o.pipeline.max_in_flight = 3;
+  // Sequential runs one frame at a time and refuses the option.
+  if (policy != graph::Policy::kSequential) o.pipeline.max_in_flight = 3;
   return o;
 }
 

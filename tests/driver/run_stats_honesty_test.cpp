@@ -113,6 +113,31 @@ TEST(RunStatsHonesty, LocalMappingCountsTheMappingCalls) {
   ExpectTotalIsTheSumOfTheStages(r.summary);
 }
 
+// Scheduling options a policy or a run without a segmenter would ignore are refused, naming the
+// option (before, `pipeline --policy sequential --max-in-flight 8 --waiting 5` ran silently).
+TEST(RunStatsHonesty, SchedulingOptionsThatWouldDoNothingAreRefused) {
+  const Dataset dataset = OpenDataset(Kitti("06"));
+  const RunConfig config;  // no segmenter
+  DriverOptions o;
+  o.pipeline.policy = graph::Policy::kSequential;
+  o.pipeline.max_in_flight = 8;
+  EXPECT_NE(RefusalOf(dataset, config, o).find("--max-in-flight needs --policy pipelined"),
+            std::string::npos);
+  o.pipeline.max_in_flight = graph::PipelineOptions{}.max_in_flight;
+  o.pipeline.policy = graph::Policy::kPipelined;
+  o.pipeline.waiting_capacity = 5;
+  EXPECT_NE(RefusalOf(dataset, config, o).find("--waiting needs --policy realtime"),
+            std::string::npos);
+  o.pipeline.waiting_capacity = graph::PipelineOptions{}.waiting_capacity;
+  o.pipeline.inference_every = 4;
+  EXPECT_NE(RefusalOf(dataset, config, o).find("--inference-every needs a segmenter"),
+            std::string::npos);
+  o.pipeline.inference_every = 1;
+  o.pipeline.carry.propagate = false;
+  EXPECT_NE(RefusalOf(dataset, config, o).find("--propagate-masks needs a segmenter"),
+            std::string::npos);
+}
+
 TEST(RunStatsHonesty, OptionsThatTheFixedSettingsIgnoreAreRefused) {
   const Dataset dataset = OpenDataset(Kitti("06"));
   RunConfig config;
