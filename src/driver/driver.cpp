@@ -247,6 +247,7 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
 
   RunSummary& summary = result.summary;
   summary.dataset_name = dataset.name;
+  summary.ground_truth_source = dataset.ground_truth_source;
   summary.mode = options.mode;
   summary.range = range;
   if (audit) summary.filter_truth = audit->Describe();
@@ -304,6 +305,8 @@ nlohmann::json DriverOptionsJson(const RunConfig& config, const DriverOptions& o
           {"propagate_masks", p.carry.propagate ? "on" : "off"},
           {"adaptive", p.adaptive ? "on" : "off"},
           {"segmenter", d.segmenter},
+          {"truth_miss_rate", d.truth_miss_rate},
+          {"truth_labels", d.truth_labels},
           {"filter", d.filter ? "on" : "off"},
           {"model", d.model_path},
           {"model_high", options.model_high},

@@ -354,6 +354,7 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   });
   nlohmann::json j;
   j["dataset"] = s.dataset_name;
+  if (!s.ground_truth_source.empty()) j["ground_truth_source"] = s.ground_truth_source;
   j["mode"] = ToString(s.mode);
   j["frames"] = {{"first", s.range.first}, {"end", s.range.end},
                  {"in", s.frames_in},      {"tracked", s.frames_tracked},

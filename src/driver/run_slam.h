@@ -34,6 +34,9 @@ inline constexpr eval::Rgb kLoopColour{40, 170, 40};  // loops on trajectory.png
 
 struct RunSummary {
   std::string dataset_name;
+  // Where the ground truth came from (Dataset::ground_truth_source: poses/NN.txt, or a raw
+  // drive's OXTS records and which of their positions); "" without ground truth.
+  std::string ground_truth_source;
   SlamMode mode = SlamMode::kStereo;
   FrameRange range;
   // frames_in = tracked + lost + not_initialized (the frames that ran; a realtime run's dropped

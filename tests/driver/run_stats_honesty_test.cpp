@@ -163,6 +163,11 @@ TEST(RunStatsHonesty, OptionsThatTheFixedSettingsIgnoreAreRefused) {
   EXPECT_FALSE(DriverOptionsJson(config, o)["inference_every"].is_number());
   o.pipeline.adaptive = false;
   EXPECT_EQ(DriverOptionsJson(config, o)["inference_every"], 1);
+  // The truth segmenter's options change the results: they are recorded too.
+  config.dynamic.truth_miss_rate = 0.25;
+  config.dynamic.truth_labels = "/labels/0000.txt";
+  EXPECT_EQ(DriverOptionsJson(config, o)["truth_miss_rate"], 0.25);
+  EXPECT_EQ(DriverOptionsJson(config, o)["truth_labels"], "/labels/0000.txt");
 }
 
 // A warning, not an error: a rerun with --config OUT/config.yaml (loop.enabled: false) keeps its
