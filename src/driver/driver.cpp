@@ -156,7 +156,7 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   if (dynamic.truth_miss_rate != 0 && dynamic.segmenter != "truth")
     throw ConfigError("--truth-miss-rate needs --segmenter truth, not '" + dynamic.segmenter + "'");
   if (!(dynamic.truth_miss_rate >= 0 && dynamic.truth_miss_rate <= 1))
-    throw ConfigError("--truth-miss-rate must be in [0, 1] (truth.miss_rate), not " +
+    throw ConfigError("--truth-miss-rate must be in [0, 1] (truth_miss_rate), not " +
                       fmt::format("{}", dynamic.truth_miss_rate));
   // The scheduling options of the realtime policy alone. The command line gives them defaults,
   // so a value other than the default is what tells that one was given.
