@@ -1,3 +1,4 @@
+#include <fmt/format.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -5,9 +6,11 @@
 #include <cstdint>
 #include <cstdio>
 #include <exception>
+#include <limits>
 #include <memory>
 #include <string>
 #include <system_error>
+#include <utility>
 
 #include "app/commands.h"
 #include "app/progress.h"
@@ -46,17 +49,33 @@ class SplitSink : public spdlog::sinks::sink {
 
 }  // namespace
 
-CLI::Validator UnsignedWhole64() {
+namespace {
+
+// A whole number of type T from min to max, parsed whole ("12x", "-1" into unsigned refused);
+// `shown` is the range --help prints.
+template <typename T>
+CLI::Validator WholeNumber(T min, T max, std::string shown) {
   return CLI::Validator(
-      [](const std::string& text) -> std::string {
-        uint64_t v = 0;
+      [min, max](const std::string& text) -> std::string {
+        T v = 0;
         const char* end = text.data() + text.size();
         const auto [ptr, ec] = std::from_chars(text.data(), end, v);
-        if (ec != std::errc() || ptr != end)
-          return text + " is not a whole number from 0 to 18446744073709551615";
+        if (ec != std::errc() || ptr != end || v < min || v > max)
+          return fmt::format("{} is not a whole number from {} to {}", text, min, max);
         return "";
       },
-      "0..2^64-1");
+      std::move(shown));
+}
+
+}  // namespace
+
+CLI::Validator UnsignedWhole64() {
+  return WholeNumber<uint64_t>(0, std::numeric_limits<uint64_t>::max(), "0..2^64-1");
+}
+
+CLI::Validator WholeFrom(int min) {
+  return WholeNumber<int>(min, std::numeric_limits<int>::max(),
+                          fmt::format("{}..{}", min, std::numeric_limits<int>::max()));
 }
 
 int Main(int argc, char** argv) {

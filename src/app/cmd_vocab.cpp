@@ -2,14 +2,13 @@
 // descriptors (default OrbOptions) of PNG images and, optionally, of frames of a synthetic street
 // rendered in memory, and writes it (driver/vocabulary_file.h); --check FILE reads one back.
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 #include <sys/stat.h>
 
 #include <algorithm>
 #include <cctype>
-#include <charconv>
 #include <chrono>
-#include <climits>
 #include <filesystem>
 #include <memory>
 #include <set>
@@ -85,27 +84,6 @@ std::vector<std::string> WithoutDuplicates(const std::vector<std::string>& paths
   }
   *dropped = paths.size() - kept.size();
   return kept;
-}
-
-// A whole-number option from min to INT_MAX. (CLI::PositiveNumber refuses 0 saying "Value 0 not in
-// range 0.000000 to 1797693...".)
-CLI::Validator WholeFrom(int min) {
-  return CLI::Validator(
-      [min](const std::string& text) -> std::string {
-        int v = 0;
-        const char* end = text.data() + text.size();
-        const auto [ptr, ec] = std::from_chars(text.data(), end, v);
-        if (ec != std::errc() || ptr != end || v < min)
-          return fmt::format("{} is not a whole number from {} to {}", text, min, INT_MAX);
-        return "";
-      },
-      fmt::format("{}..{}", min, INT_MAX));
-}
-
-std::string Joined(const std::vector<std::string>& items) {
-  std::string s;
-  for (const std::string& item : items) s += (s.empty() ? "" : ", ") + item;
-  return s;
 }
 
 }  // namespace
@@ -225,7 +203,7 @@ void AddVocabCommand(CLI::App& app) {
       std::string read;
       if (!paths.empty())
         read = fmt::format("{} images from --images {} (the first: {})", paths.size(),
-                           Joined(args->image_dirs), first_image);
+                           fmt::join(args->image_dirs, ", "), first_image);
       if (args->synth_frames > 0)
         read +=
             fmt::format("{}{} synthetic frames", read.empty() ? "" : " and ", args->synth_frames);

@@ -22,6 +22,10 @@ void AddRawTruthOption(CLI::App* cmd, std::string* raw_truth);
 // "-1" into an unsigned option as 2^64-1.
 CLI::Validator UnsignedWhole64();
 
+// A check for an int option: a whole number from min to INT_MAX. (CLI::PositiveNumber refuses 0
+// saying "Value 0 not in range 0.000000 to 1797693...".)
+CLI::Validator WholeFrom(int min);
+
 // Runs the command line; returns the process exit code.
 int Main(int argc, char** argv);
 
