@@ -36,6 +36,14 @@ std::string WhyNotWritable(const std::filesystem::path& dir) {
   return "";
 }
 
+// Whether path is folder or lies under it, compared part by part as given (callers normalise).
+bool IsAtOrUnder(std::filesystem::path path, const std::filesystem::path& folder) {
+  for (;; path = path.parent_path()) {
+    if (path == folder) return true;
+    if (path.empty() || path == path.parent_path()) return false;
+  }
+}
+
 nlohmann::json TimingJson(const TimingSummary& s) {
   return {{"count", s.count},   {"mean_ms", s.mean_ms}, {"p50_ms", s.p50_ms},
           {"p95_ms", s.p95_ms}, {"p99_ms", s.p99_ms},   {"max_ms", s.max_ms}};
@@ -203,15 +211,6 @@ void CheckOutputsOutsideImages(const Dataset& dataset, const std::string& out_di
     fs::path r = fs::weakly_canonical(fs::absolute(p, ec), ec);
     return ec ? fs::path(NormalDirectoryPath(p.string())) : r.lexically_normal();
   };
-  // Whether dir is folder or lies inside it.
-  auto within = [](const fs::path& dir, const fs::path& folder) {
-    auto d = dir.begin();
-    for (auto f = folder.begin(); f != folder.end(); ++f, ++d) {
-      if (f->empty()) continue;  // a trailing separator
-      if (d == dir.end() || *d != *f) return false;
-    }
-    return true;
-  };
   std::vector<fs::path> folders;
   for (const std::vector<std::string>* paths :
        {&dataset.left_paths, &dataset.right_paths, &dataset.left_color_paths}) {
@@ -219,7 +218,7 @@ void CheckOutputsOutsideImages(const Dataset& dataset, const std::string& out_di
   }
   auto check = [&](const std::string& path, const fs::path& dir, const std::string& what) {
     for (const fs::path& folder : folders)
-      if (within(dir, folder))
+      if (IsAtOrUnder(dir, folder))
         throw InputError(path, 0,
                          what + ": lies in the dataset's image folder " + folder.string() +
                              "; choose a place outside the dataset's image folders");
@@ -294,14 +293,10 @@ void CheckOutputFile(const std::string& path, const std::string& what,
   }
   // made_before or a directory above it: a directory once the run has made made_before.
   if (!made_before.empty()) {
-    const fs::path file(NormalDirectoryPath(path));
-    for (fs::path d(NormalDirectoryPath(made_before)); !d.empty(); d = d.parent_path()) {
-      if (d == file)
-        throw InputError(path, 0,
-                         what + ": is a directory, not a file (the output directory " +
-                             made_before + " is made there)");
-      if (d == d.parent_path()) break;
-    }
+    if (IsAtOrUnder(NormalDirectoryPath(made_before), NormalDirectoryPath(path)))
+      throw InputError(path, 0,
+                       what + ": is a directory, not a file (the output directory " + made_before +
+                           " is made there)");
   }
   const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
   if (!made_before.empty() && SameDirectory(dir.string(), made_before)) {
