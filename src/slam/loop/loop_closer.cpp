@@ -1047,25 +1047,9 @@ MapDelta LoopCloser::CorrectionDelta(const Map& map, const MapCorrection& correc
   // through the merges, so its entry would land on the point it merges into and overwrite the
   // position the correction gave that one. (Where the point it merges into is gone, the merge
   // will not happen, and the point moves like any other.)
-  // The merges are replayed as Map::Apply makes them: sources resolved before any merge, each
-  // once, then each merge on the points the earlier ones left.
+  // The merges as Map::Apply will make them.
   std::unordered_set<MapPointId> merged_away;
-  {
-    std::unordered_map<MapPointId, MapPointId> into_of;  // the merges this replay made
-    auto resolve = [&](MapPointId id) {
-      MapPointId r = map.Resolve(id);
-      for (auto it = into_of.find(r); it != into_of.end(); it = into_of.find(r)) r = it->second;
-      return r;
-    };
-    std::unordered_set<MapPointId> sources;
-    for (const PointMerge& merge : correction.merges) {
-      if (!sources.insert(map.Resolve(merge.from)).second) continue;
-      const MapPointId from = resolve(merge.from), into = resolve(merge.into);
-      if (!from.valid() || !into.valid() || from == into) continue;
-      into_of[from] = into;
-      merged_away.insert(from);
-    }
-  }
+  for (const auto& [from, into] : map.PlanMerges(correction.merges)) merged_away.insert(from);
   for (const auto& [pid, mp] : map.points()) {
     if (merged_away.count(pid)) continue;
     if (const auto it = snapshot_position.find(pid); it != snapshot_position.end()) {

@@ -127,6 +127,29 @@ MapPointId Map::Resolve(MapPointId id) const {
   return MapPointId();
 }
 
+std::vector<std::pair<MapPointId, MapPointId>> Map::PlanMerges(
+    const std::vector<PointMerge>& merges) const {
+  // A point merges once per delta: the sources are resolved before any merge is made, so two
+  // ids that stood for one point (merged by an earlier delta) merge it once, not into two points
+  // nothing compared; a merge back onto a point merged away in this delta is none.
+  std::unordered_map<MapPointId, MapPointId> into_of;  // the merges planned so far
+  auto resolve = [&](MapPointId id) {
+    MapPointId r = Resolve(id);
+    for (auto it = into_of.find(r); it != into_of.end(); it = into_of.find(r)) r = it->second;
+    return r;
+  };
+  std::vector<std::pair<MapPointId, MapPointId>> plan;
+  std::unordered_set<MapPointId> sources;
+  for (const PointMerge& merge : merges) {
+    if (!sources.insert(Resolve(merge.from)).second) continue;
+    const MapPointId from = resolve(merge.from), into = resolve(merge.into);
+    if (!from.valid() || !into.valid() || from == into) continue;
+    into_of[from] = into;
+    plan.emplace_back(from, into);
+  }
+  return plan;
+}
+
 KeyframeId Map::ResolveKeyframe(KeyframeId id) const {
   for (int hops = 0; id.valid() && hops < 100000; ++hops) {
     if (keyframes_.count(id)) return id;
@@ -596,18 +619,7 @@ MapApplyResult Map::Apply(const MapDelta& delta) {
     result.new_point_ids.push_back(id);
   }
 
-  // A point merges once per delta: the merges' sources are resolved before any of them is made,
-  // so two ids that stood for one point (merged by an earlier delta) merge it once, not into two
-  // points nothing compared; a merge back onto a point merged away in this delta is none.
-  std::vector<MapPointId> merge_source;
-  merge_source.reserve(delta.merges.size());
-  for (const PointMerge& merge : delta.merges) merge_source.push_back(Resolve(merge.from));
-  std::unordered_set<MapPointId> merged_from;
-  for (size_t m = 0; m < delta.merges.size(); ++m) {
-    const PointMerge& merge = delta.merges[m];
-    if (!merged_from.insert(merge_source[m]).second) continue;
-    const MapPointId from = Resolve(merge.from), into = Resolve(merge.into);
-    if (!from.valid() || !into.valid() || from == into) continue;
+  for (const auto& [from, into] : PlanMerges(delta.merges)) {
     MergePoint(from, into);
     ++result.num_merged;
   }

@@ -224,6 +224,11 @@ class Map {
 
   // The live point that id was merged into (id itself when live); invalid when erased.
   MapPointId Resolve(MapPointId id) const;
+  // The merges Apply makes of these, in order, as (live point merged away, live point it merges
+  // into): each source resolved before any merge and merged once (PointMerge), each merge on the
+  // points the earlier ones left; merges of a gone point, or of a point into itself, are none.
+  std::vector<std::pair<MapPointId, MapPointId>> PlanMerges(
+      const std::vector<PointMerge>& merges) const;
   // Merged point ids the map remembers for Resolve. Apply forgets those whose point is gone (they
   // resolve to invalid either way) and points the rest straight at their live point whenever the
   // count has doubled since the last time, so the memory follows the live map, not the length of
