@@ -227,12 +227,13 @@ void AddOtherCameras(Dataset* dataset, const std::vector<int64_t>& numbers,
                      const std::string& left_label, const std::string& right_dir,
                      const std::string& colour_dir, bool color) {
   // Images missing between the first and the last: the frames are the images there are.
-  std::vector<int64_t> gaps;
-  for (size_t i = 1; i < numbers.size(); ++i)
+  std::vector<int64_t> gaps;  // the first five missing numbers
+  int64_t missing = 0;
+  for (size_t i = 1; i < numbers.size(); ++i) {
+    missing += numbers[i] - numbers[i - 1] - 1;
     for (int64_t n = numbers[i - 1] + 1; n < numbers[i] && gaps.size() < 5; ++n) gaps.push_back(n);
-  if (!gaps.empty()) {
-    int64_t missing = 0;
-    for (size_t i = 1; i < numbers.size(); ++i) missing += numbers[i] - numbers[i - 1] - 1;
+  }
+  if (missing > 0) {
     spdlog::warn(
         "{}: {} image{} missing between {} and {} (frame{} {}): the clip's frames are its {} "
         "images, so from the first gap on a frame number of the outputs (and --frames) is not "
