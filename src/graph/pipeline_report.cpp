@@ -331,9 +331,36 @@ void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
                       {"tid", t},
                       {"args", {{"name", LaneName(t)}}}});
   }
-  const int lanes = std::max(1, result.stats.max_in_flight);
-  for (const FrameRecord& f : result.frames) {
-    const int64_t from = result.stats.policy == "realtime" ? f.release_ns : f.admit_ns;
+  // Frame slices: realtime from the camera's release (a frame may wait for a slot), else from
+  // the admission, to the retirement. Frames do not nest, and a lane of a Chrome trace must hold
+  // slices that nest or do not overlap: each frame goes on the first lane free at its start (the
+  // lanes are sub-lanes of the frames' process, not slots), so a lane shows frames one after the
+  // other and there are as many lanes as frames existed at once (in flight, and in realtime
+  // waiting for a slot too). Each frame's slot wait is in its args.
+  const bool realtime = result.stats.policy == "realtime";
+  std::vector<size_t> order(result.frames.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  auto from_of = [realtime](const FrameRecord& f) { return realtime ? f.release_ns : f.admit_ns; };
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return from_of(result.frames[a]) < from_of(result.frames[b]);
+  });
+  std::vector<int64_t> lane_free_at;  // per lane: the end of its last frame
+  for (const size_t i : order) {
+    const FrameRecord& f = result.frames[i];
+    const int64_t from = from_of(f);
+    const auto free = std::find_if(lane_free_at.begin(), lane_free_at.end(),
+                                   [from](int64_t end) { return end <= from; });
+    const int lane = static_cast<int>(free - lane_free_at.begin());
+    if (free == lane_free_at.end()) {
+      lane_free_at.push_back(f.done_ns);
+      events.push_back({{"name", "thread_name"},
+                        {"ph", "M"},
+                        {"pid", 2},
+                        {"tid", lane},
+                        {"args", {{"name", fmt::format("frames {}", lane)}}}});
+    } else {
+      *free = f.done_ns;
+    }
     events.push_back(
         {{"name", fmt::format("frame {}", f.frame_index)},
          {"cat", "frame"},
@@ -341,7 +368,7 @@ void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
          {"ts", Us(from)},
          {"dur", Us(f.done_ns - from)},
          {"pid", 2},
-         {"tid", static_cast<int>(f.seq % lanes)},
+         {"tid", lane},
          {"args",
           {{"seq", f.seq},
            {"quality", result.stats.adaptive ? nodes::ToString(f.quality) : "fixed"},

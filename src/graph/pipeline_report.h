@@ -27,8 +27,10 @@ nlohmann::json RelocalisationToJson(const RelocalisationStats& stats);
 std::string FormatRelocalisationSummary(const RelocalisationStats& stats);
 
 // Chrome trace: one "X" (complete) event per stage call on pid 1 with the thread as tid; one per
-// frame (release -> pose) on pid 2, lanes by seq modulo the in-flight bound; an instant event per
-// dropped frame. ts/dur in microseconds. Throws InputError when the file cannot be written.
+// frame on pid 2 (realtime: release -> retirement, else admission -> retirement), each on the
+// first lane ("frames N") free at its start, so that no two frames overlap on a lane; an instant
+// event per dropped frame. ts/dur in microseconds. Throws InputError when the file cannot be
+// written.
 void WriteChromeTrace(const std::string& path, const PipelineResult& result);
 
 // PNG: a Gantt chart of the stage calls per thread over the run (or its first `max_seconds`),
