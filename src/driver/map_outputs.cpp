@@ -4,13 +4,16 @@
 
 #include <algorithm>
 #include <bit>
+#include <cinttypes>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "eval/association.h"
-#include "io/trajectory_io.h"
+#include "io/text_parse.h"
 #include "slam/common/error.h"
 #include "slam/geometry/ground_height.h"
 
@@ -31,6 +34,27 @@ void PutVertex(std::string* body, const Eigen::Vector3d& p, uint8_t grey, Extra 
   body->append(reinterpret_cast<const char*>(&extra), sizeof(extra));
 }
 
+// The unit of the map's coordinates.
+const char* MapUnits(SlamMode mode) {
+  return mode == SlamMode::kStereo ? "m" : "map units (monocular: arbitrary scale)";
+}
+
+// t_ns in seconds with 9 decimals, exactly (as trajectory_tum.txt's times).
+std::string TumSeconds(int64_t t_ns) {
+  const bool negative = t_ns < 0;
+  const uint64_t abs_ns = negative ? 0 - static_cast<uint64_t>(t_ns) : static_cast<uint64_t>(t_ns);
+  char buffer[48];
+  std::snprintf(buffer, sizeof(buffer), "%s%" PRIu64 ".%09" PRIu64, negative ? "-" : "",
+                abs_ns / 1'000'000'000u, abs_ns % 1'000'000'000u);
+  return buffer;
+}
+
+// "keyframes A-B" (both included), "keyframe A".
+std::string KeyframeRange(size_t first, size_t end) {
+  return end - first == 1 ? fmt::format("keyframe {}", first)
+                          : fmt::format("keyframes {}-{}", first, end - 1);
+}
+
 // Coordinates in the camera frame of the map's first keyframe; metres in stereo, the map's
 // arbitrary units in monocular runs.
 void WritePly(const std::string& path, SlamMode mode, size_t count, const std::string& comments,
@@ -39,7 +63,7 @@ void WritePly(const std::string& path, SlamMode mode, size_t count, const std::s
   out << "ply\nformat binary_little_endian 1.0\n"
       << "comment PCR-ORB map, world frame = the camera of the map's first keyframe (x right, "
          "y down, z forward), "
-      << (mode == SlamMode::kStereo ? "m" : "map units (monocular: arbitrary scale)") << "\n"
+      << MapUnits(mode) << "\n"
       << comments << "element vertex " << count << "\n"
       << "property float x\nproperty float y\nproperty float z\n"
       << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
@@ -87,7 +111,10 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
     const cv::Point q = pixel(p.p_in_world.x(), p.p_in_world.z());
     if (inside(q)) cv::circle(canvas, q, 1, cv::Scalar(0, 0, 230), cv::FILLED);
   }
+  // The loaded map's keyframes and this run's are two paths: no line from the one to the other.
+  const size_t loaded = LoadedKeyframes(map, summary);
   for (size_t i = 1; i < map.keyframes.size(); ++i) {
+    if (i == loaded) continue;
     const auto& a = map.keyframes[i - 1].world_from_cam.translation();
     const auto& b = map.keyframes[i].world_from_cam.translation();
     cv::line(canvas, pixel(a.x(), a.z()), pixel(b.x(), b.z()), cv::Scalar(200, 80, 0), 2);
@@ -181,6 +208,59 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
   return j;
 }
 
+size_t LoadedKeyframes(const graph::MapSnapshot& map, const RunSummary& summary) {
+  std::multimap<int64_t, const SE3*> tracked;
+  for (const StampedPose& p : summary.tracked) tracked.emplace(p.t_ns, &p.world_from_cam);
+  for (size_t i = 0; i < map.keyframes.size(); ++i) {
+    const StampedPose& k = map.keyframes[i];
+    const auto [first, last] = tracked.equal_range(k.t_ns);
+    for (auto it = first; it != last; ++it)
+      if ((it->second->matrix() - k.world_from_cam.matrix()).cwiseAbs().maxCoeff() <= 1e-9)
+        return i;
+  }
+  return map.keyframes.size();
+}
+
+void WriteKeyframesFile(const std::string& path, const graph::MapSnapshot& map,
+                        const RunSummary& summary) {
+  const size_t count = map.keyframes.size();
+  const size_t loaded = LoadedKeyframes(map, summary);
+  io::WriteFileAtomically(path, [&](std::ostream& out) {
+    out << "# timestamp tx ty tz qx qy qz qw\n"
+        << "# PCR-ORB keyframes: the map's keyframes when the run ended, one pose line each in "
+           "the order they were made (stats.json's map.loops count these lines from 0), "
+           "world_from_cam as the map held it then (after this run's bundle adjustments and "
+           "loop corrections); world = the camera of the map's first keyframe, "
+        << MapUnits(summary.mode) << "\n";
+    if (loaded > 0)
+      out << "# " << KeyframeRange(0, loaded) << ": " << loaded
+          << " loaded with the map (--load-map), made by the runs that built it and stamped with "
+             "their frames' times; not frames of this run: where this run has a frame of the "
+             "same image (the same timestamp), trajectory.txt holds this run's own estimate of "
+             "its pose, which differs from the map's by the two estimates' errors\n";
+    char buffer[32];
+    for (size_t i = 0; i < count; ++i) {
+      if (i == loaded)
+        out << "# " << KeyframeRange(loaded, count) << ": " << count - loaded
+            << " made in this run, each one of its frames at its pose in trajectory_tum.txt"
+            << (loaded > 0 ? "; the timestamps start again here (this part is one trajectory, the "
+                             "whole file is not)"
+                           : "")
+            << "\n";
+      const StampedPose& pose = map.keyframes[i];
+      const Eigen::Quaterniond q(pose.world_from_cam.rotation());
+      const Eigen::Vector3d t = pose.world_from_cam.translation();
+      out << TumSeconds(pose.t_ns);
+      for (double value : {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()}) {
+        std::snprintf(buffer, sizeof(buffer), " %.17g", value);
+        out << buffer;
+      }
+      out << '\n';
+    }
+    if (loaded == count) out << "# no keyframe made in this run\n";
+  });
+}
+
 nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& summary) {
   nlohmann::json by_reason = nlohmann::json::object(), by_truth = nlohmann::json::object();
   for (const RunSummary::RemovedPoint& p : summary.removed_points) {
@@ -190,11 +270,10 @@ nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& s
       by_truth[kind] = by_truth.value(kind, 0) + 1;
     }
   }
-  nlohmann::json summary_json = {{"points", map.points.size()},
-                                 {"removed_points", summary.removed_points.size()},
-                                 {"removed_by_reason", by_reason},
-                                 {"removed_by_truth", by_truth},
-                                 {"keyframes", map.keyframes.size()}};
+  nlohmann::json summary_json = {
+      {"points", map.points.size()},       {"removed_points", summary.removed_points.size()},
+      {"removed_by_reason", by_reason},    {"removed_by_truth", by_truth},
+      {"keyframes", map.keyframes.size()}, {"keyframes_loaded", LoadedKeyframes(map, summary)}};
   summary_json["loops"] = map.loops;
   summary_json["ground"] = GroundScaleJson(map, summary);
   return summary_json;
@@ -222,7 +301,7 @@ void WriteMapFiles(const std::string& out_dir, const graph::MapSnapshot& map,
     WritePly(out_dir + "/map_removed.ply", summary.mode, summary.removed_points.size(), reasons,
              "property uchar reason", body);
   });
-  errors.Try([&] { WriteTumTrajectory(out_dir + "/keyframes.txt", map.keyframes); });
+  errors.Try([&] { WriteKeyframesFile(out_dir + "/keyframes.txt", map, summary); });
   errors.Try([&] { WriteMapPicture(out_dir + "/map.png", map, summary); });
   errors.Rethrow();
 }

@@ -2,9 +2,11 @@
 // The refined map as files: OUT/map.ply (every map point when the run ended: world position,
 // grey level, observation count), OUT/map_removed.ply (keypoints the dynamic filter kept out of
 // the map, placed by their stereo depth and their frame's pose, with the reason), OUT/keyframes.txt
-// (keyframe poses, TUM format) and OUT/map.png (top view: kept points grey, removed ones red, the
-// keyframe trajectory blue, loops green with a ring on the query keyframe). PLY files are
-// binary little-endian with the standard header, so CloudCompare, MeshLab or Open3D open them.
+// (the map's keyframes when the run ended, TUM format: a loaded map's first, then this run's, each
+// part under a comment saying what it holds) and OUT/map.png (top view: kept points grey, removed
+// ones red, the keyframe trajectory blue, loops green with a ring on the query keyframe). PLY
+// files are binary little-endian with the standard header, so CloudCompare, MeshLab or Open3D
+// open them.
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -29,11 +31,37 @@ MapGroundScale RoadScale(const graph::MapSnapshot& map);
 // (stats.json's "ate_m" is the Sim(3)-aligned one).
 nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& summary);
 
+// How many of the map's keyframes (map.keyframes, in the order they were made) came with a loaded
+// map (--load-map) and are still in it. graph::MapSnapshot does not say which keyframes were
+// loaded; they are those before the first one that is one of this run's tracked frames
+// (summary.tracked): a loaded map's keyframes keep their places and this run's come after them,
+// and a keyframe made in this run is a tracked frame that SlamSystem::InsertKeyframe made its own
+// reference, so that its pose in the map is its frame's refined pose to the bit (matched within
+// 1e-9, at the same t_ns). A loaded keyframe is no frame of this run: this run tracked its frame
+// of the same image on its own, to another pose (millimetres to centimetres away). 0 without a
+// loaded map.
+size_t LoadedKeyframes(const graph::MapSnapshot& map, const RunSummary& summary);
+
 // The map's summary for stats.json ("points", "removed_points", "removed_by_reason",
 // "removed_by_truth": moving / parked / static against the dataset's ground truth where it has
-// one, "keyframes", "loops": [query, match] pairs of keyframe indices, i.e. of keyframes.txt's
-// pose lines, "ground": GroundScaleJson). Writes nothing.
+// one, "keyframes", "keyframes_loaded": LoadedKeyframes, the first pose lines of keyframes.txt,
+// "loops": [query, match] pairs of keyframe indices, i.e. of keyframes.txt's pose lines, "ground":
+// GroundScaleJson). Writes nothing.
 nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& summary);
+
+// Writes OUT/keyframes.txt: TUM lines (t in s with 9 decimals, then tx ty tz qx qy qz qw of
+// world_from_cam in %.17g, as trajectory_tum.txt), one per keyframe of `map` in its order, so that
+// stats.json's loop indices count its pose lines. Comment lines say what they hold: the world
+// frame and units, that the poses are the map's when the run ended (after this run's bundle
+// adjustments and loop corrections: a loaded keyframe's pose need not be the saved one), and
+// before each part its keyframe indices and what they are: the loaded ones (made by the runs that
+// built the map, stamped with their frames' times; where this run has a frame of the same image,
+// its pose in the trajectory is this run's own estimate and differs by the two estimates' error)
+// and those made in this run (each exactly its frame's pose in trajectory_tum.txt). With a loaded
+// map the timestamps go back or repeat where this run's part starts: the whole file is then no one
+// trajectory, this run's part is. Throws InputError naming the file when it cannot be written.
+void WriteKeyframesFile(const std::string& path, const graph::MapSnapshot& map,
+                        const RunSummary& summary);
 
 // Writes the four files into out_dir (created if needed). A file that cannot be written does not
 // keep the others from being written: the first failure (InputError naming the file) is thrown

@@ -1,19 +1,24 @@
 // Saved maps through the public API (include/pcr/api.h: save_map, load_map, localize_only, the
 // options of `pcr_orb run`): the loop street's first lap is mapped and saved, then the frames
 // that drive past the start again are localised in the saved map; bad map files and misuse are
-// clear errors before any frame runs.
+// clear errors before any frame runs; keyframes.txt after a loaded map.
 #include "driver/map_file.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "driver/binary_file.h"
+#include "driver/map_outputs.h"
 #include "io/dataset.h"
 #include "io/trajectory_io.h"
 #include "loop_street.h"
@@ -33,6 +38,151 @@ std::string RunError(const api::Config& config, const api::Source& source) {
     return e.what();
   }
   return "";
+}
+
+// keyframes.txt read back: each pose line with the last comment line before it (the part it is
+// in), and the comment lines.
+struct KeyframesFile {
+  std::vector<std::string> poses, part_of_pose, comments;
+};
+
+KeyframesFile ReadKeyframesFile(const std::string& path) {
+  KeyframesFile f;
+  std::ifstream in(path);
+  std::string line, part;
+  while (std::getline(in, line)) {
+    if (line.starts_with("#")) {
+      f.comments.push_back(line);
+      part = line;
+    } else if (!line.empty()) {
+      f.poses.push_back(line);
+      f.part_of_pose.push_back(part);
+    }
+  }
+  return f;
+}
+
+// The pose lines [first, end) as a TUM file, read back (strictly increasing times).
+Trajectory ReadPart(const KeyframesFile& f, size_t first, size_t end) {
+  std::stringstream text;
+  for (size_t i = first; i < end; ++i) text << f.poses[i] << "\n";
+  return ReadTumTrajectory(text, "part");
+}
+
+// The non-comment lines of a file.
+std::set<std::string> PoseLines(const std::string& path) {
+  std::ifstream in(path);
+  std::set<std::string> lines;
+  for (std::string line; std::getline(in, line);)
+    if (!line.starts_with("#") && !line.empty()) lines.insert(line);
+  return lines;
+}
+
+SE3 PoseAtZ(double z_m) {
+  SE3 pose = SE3::Identity();
+  pose.translation() = Eigen::Vector3d(0.1, -0.02, z_m);
+  pose.linear() = Eigen::AngleAxisd(0.01 * z_m, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  return pose;
+}
+
+// A run that replays the frames of the map it loaded: its frame at 0.1 s becomes a keyframe
+// again (beside the loaded keyframe of the same image), its frame at 0.2 s is tracked 1 cm from
+// the loaded keyframe of that image, its frame at 0.3 s becomes a keyframe. keyframes.txt holds
+// the map's four keyframes in the map's order (stats.json's loop indices count its pose lines),
+// each part under a comment that says what it is, and stats.json counts the loaded ones; this
+// run's are its frames' lines of trajectory_tum.txt, character for character. The whole file is
+// no trajectory (0.1 s comes back), each part is. Without a loaded map there is no loaded part.
+TEST(MapFile, KeyframesTxtSetsTheLoadedMapsKeyframesApartFromThisRuns) {
+  const int64_t kMs = 1'000'000;
+  RunSummary summary;
+  summary.tracked = {
+      {100 * kMs, 0, PoseAtZ(1.01)}, {200 * kMs, 1, PoseAtZ(2.01)}, {300 * kMs, 2, PoseAtZ(3.0)}};
+  graph::MapSnapshot map;
+  map.keyframes = {{100 * kMs, -1, PoseAtZ(1.0)},
+                   {200 * kMs, -1, PoseAtZ(2.0)},
+                   summary.tracked[0],
+                   summary.tracked[2]};
+  for (StampedPose& k : map.keyframes) k.frame_index = -1;  // as the pipeline's snapshot has them
+  const std::string dir = test::MakeTempDir("pcr_keyframes_txt");
+  WriteTumTrajectory(dir + "/trajectory_tum.txt", summary.tracked);
+  WriteMapFiles(dir, map, summary);
+  EXPECT_EQ(MapOutputsJson(map, summary).value("keyframes_loaded", -1), 2);
+  KeyframesFile f = ReadKeyframesFile(dir + "/keyframes.txt");
+  ASSERT_EQ(f.poses.size(), 4u);
+  ASSERT_FALSE(f.comments.empty());
+  EXPECT_EQ(f.comments[0], "# timestamp tx ty tz qx qy qz qw");
+  for (size_t i : {0u, 1u}) {
+    EXPECT_TRUE(f.part_of_pose[i].starts_with("# keyframes 0-1: 2 loaded with the map")) << i;
+    EXPECT_FALSE(PoseLines(dir + "/trajectory_tum.txt").contains(f.poses[i])) << i;
+  }
+  for (size_t i : {2u, 3u}) {
+    EXPECT_TRUE(f.part_of_pose[i].starts_with("# keyframes 2-3: 2 made in this run")) << i;
+    EXPECT_TRUE(PoseLines(dir + "/trajectory_tum.txt").contains(f.poses[i])) << f.poses[i];
+  }
+  EXPECT_THROW(ReadTumTrajectory(dir + "/keyframes.txt"), InputError);
+  EXPECT_EQ(ReadPart(f, 0, 2).size(), 2u);
+  EXPECT_EQ(ReadPart(f, 2, 4).size(), 2u);
+  EXPECT_TRUE(ReadPart(f, 0, 1)[0].world_from_cam.isApprox(PoseAtZ(1.0), 1e-12));
+
+  map.keyframes.erase(map.keyframes.begin(), map.keyframes.begin() + 2);
+  WriteMapFiles(dir, map, summary);
+  EXPECT_EQ(MapOutputsJson(map, summary).value("keyframes_loaded", -1), 0);
+  f = ReadKeyframesFile(dir + "/keyframes.txt");
+  ASSERT_EQ(f.poses.size(), 2u);
+  for (const std::string& c : f.comments) EXPECT_EQ(c.find("loaded"), std::string::npos) << c;
+  EXPECT_TRUE(f.part_of_pose[0].starts_with("# keyframes 0-1: 2 made in this run"));
+  EXPECT_EQ(ReadTumTrajectory(dir + "/keyframes.txt").size(), 2u);
+}
+
+// The same on a real run over the frames that made the map it loaded (KITTI 06, frames 0-50):
+// keyframes.txt's loaded part is the loaded keyframes still in the map, at the map's poses when
+// the run ended (as the map saved after it holds them), and this run's part is the keyframes it
+// made, each its frame's line of trajectory_tum.txt.
+TEST(MapFile, AfterALoadedMapKeyframesTxtHoldsTheLoadedKeyframesThenThisRunsOwn) {
+  const std::string dir = test::MakeTempDir("pcr_map_keyframes");
+  const std::string sequence = test::SharedPath("data/kitti/sequences/06");
+  api::Config c;
+  c.threads = 2;
+  c.save_map = dir + "/06.map";
+  const api::Result mapped = api::Run(c, api::Source::Dataset(sequence, 0, 51));
+  ASSERT_TRUE(mapped.error.empty()) << mapped.error;
+  api::Config l = c;
+  l.load_map = c.save_map;
+  l.save_map = dir + "/after.map";
+  l.out_dir = dir + "/out";
+  const api::Result run = api::Run(l, api::Source::Dataset(sequence, 0, 51));
+  ASSERT_TRUE(run.error.empty()) << run.error;
+
+  const MapArchive loaded = LoadMap(l.load_map), after = LoadMap(l.save_map);
+  std::vector<const Keyframe*> old_part, new_part;  // of the map after the run, in its order
+  for (const auto& [id, kf] : after.map.keyframes())
+    (loaded.map.keyframes().contains(id) ? old_part : new_part).push_back(&kf);
+  for (auto* part : {&old_part, &new_part})
+    std::sort(part->begin(), part->end(),
+              [](const Keyframe* a, const Keyframe* b) { return a->index < b->index; });
+  ASSERT_FALSE(old_part.empty());
+  ASSERT_FALSE(new_part.empty()) << "the run adds keyframes to the loaded map";
+
+  std::ifstream stats_file(l.out_dir + "/stats.json");
+  const nlohmann::json stats = nlohmann::json::parse(stats_file);
+  EXPECT_EQ(stats["map"].value("keyframes_loaded", size_t{0}), old_part.size());
+  const KeyframesFile f = ReadKeyframesFile(l.out_dir + "/keyframes.txt");
+  ASSERT_EQ(f.poses.size(), old_part.size() + new_part.size());
+  const Trajectory old_poses = ReadPart(f, 0, old_part.size());
+  for (size_t i = 0; i < old_part.size(); ++i) {
+    EXPECT_NE(f.part_of_pose[i].find("loaded with the map"), std::string::npos) << i;
+    EXPECT_EQ(old_poses[i].t_ns, old_part[i]->frame->t_ns()) << i;
+    EXPECT_TRUE(old_poses[i].world_from_cam.isApprox(old_part[i]->cam_from_world.inverse(), 1e-12))
+        << i;
+  }
+  const std::set<std::string> trajectory = PoseLines(l.out_dir + "/trajectory_tum.txt");
+  const Trajectory new_poses = ReadPart(f, old_part.size(), f.poses.size());
+  for (size_t i = 0; i < new_part.size(); ++i) {
+    const size_t line = old_part.size() + i;
+    EXPECT_NE(f.part_of_pose[line].find("made in this run"), std::string::npos) << line;
+    EXPECT_TRUE(trajectory.contains(f.poses[line])) << f.poses[line];
+    EXPECT_EQ(new_poses[i].t_ns, new_part[i]->frame->t_ns()) << line;
+  }
 }
 
 // The first lap (frames 0-174) is mapped and saved; frames 175-199 come back past the start and
