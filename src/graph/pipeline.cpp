@@ -1010,7 +1010,13 @@ PipelineResult GraphRun::Collect() {
   s.propagate = propagate.Summarize();
   s.retire = retire.Summarize();
   s.busy = busy.Summarize();
-  s.wall_s = static_cast<double>(last_done) * 1e-9;
+  // The run ends with the last thing it waited for; a profiler's user times the run, so calls
+  // that outlast the last frame count (they are in the trace), and fps is over the same time.
+  int64_t run_end = last_done;
+  for (const StageEvent& e : out.events) run_end = std::max(run_end, e.end_ns);
+  for (const int64_t release : out.dropped_release_ns) run_end = std::max(run_end, release);
+  s.last_retire_s = static_cast<double>(last_done) * 1e-9;
+  s.wall_s = static_cast<double>(run_end) * 1e-9;
   s.fps = s.wall_s > 0 ? static_cast<double>(out.frames.size()) / s.wall_s : 0.0;
   s.quality_changes = changes_;
   s.resident_bytes = ResidentBytes();

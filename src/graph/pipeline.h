@@ -98,11 +98,15 @@ struct PipelineStats {
   size_t inferences_busy = 0;  // realtime: frame not segmented, network busy
   size_t late_results = 0;     // inference finished after its frame went on
   size_t max_in_flight_observed = 0;
-  double wall_s = 0;        // start to the last retirement
-  double fps = 0;           // completed frames / wall_s
-  TimingSummary propagate;  // moving a mask onto a frame (the propagated frames)
-  TimingSummary latency;    // to the pose
-  TimingSummary retire;     // to the frame's retirement (local mapping included)
+  // Start of the run to the end of the last work it waited for: the last frame's retirement, or
+  // later a call still running then (the realtime network on a request whose frame went on with
+  // a late mask, the loop lane) or the final global BA. The trace and timing.png end at it.
+  double wall_s = 0;
+  double last_retire_s = 0;  // start of the run to the last frame's retirement (<= wall_s)
+  double fps = 0;            // completed frames / wall_s
+  TimingSummary propagate;   // moving a mask onto a frame (the propagated frames)
+  TimingSummary latency;     // to the pose
+  TimingSummary retire;      // to the frame's retirement (local mapping included)
   TimingSummary busy;  // per frame max(T_slam, T_inference) + T_sync (Eq. 8), the controller input
   std::map<std::string, StageStats> stages;
   // Frames per adaptive level, indexed by QualityLevel (all 0 without adaptive quality).

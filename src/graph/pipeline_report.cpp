@@ -102,6 +102,7 @@ nlohmann::json StatsToJson(const PipelineStats& s) {
                 {"late", s.masks_late},           {"inference_busy", s.inferences_busy},
                 {"late_results", s.late_results}, {"propagate_ms", TimingJson(s.propagate)}};
   j["wall_s"] = s.wall_s;
+  j["last_retire_s"] = s.last_retire_s;
   j["fps"] = s.fps;
   j["latency_ms"] = TimingJson(s.latency);
   j["retire_ms"] = TimingJson(s.retire);
@@ -138,10 +139,16 @@ std::string FormatPipelineStats(const PipelineStats& s) {
   o << fmt::format("pipeline {}: {} threads, {} in flight (max seen {}){}\n", s.policy, s.threads,
                    s.max_in_flight, s.max_in_flight_observed,
                    s.policy == "realtime" ? fmt::format(", rate {:.3g}", s.rate) : std::string());
+  // The run's time includes what it waited for after its last frame (wall_s); say so when that
+  // shows.
+  const std::string tail =
+      s.wall_s - s.last_retire_s >= 0.005
+          ? fmt::format(" (the last frame retired at {:.2f} s)", s.last_retire_s)
+          : std::string();
   o << fmt::format(
-      "frames: {} of {} completed, {} dropped; {:.2f} s, {:.2f} fps; latency to pose p50 {:.1f} "
+      "frames: {} of {} completed, {} dropped; {:.2f} s{}, {:.2f} fps; latency to pose p50 {:.1f} "
       "p95 {:.1f} p99 {:.1f} ms (to retirement, mapping included: p99 {:.1f} ms)\n",
-      s.frames_completed, s.frames_total, s.frames_dropped, s.wall_s, s.fps, s.latency.p50_ms,
+      s.frames_completed, s.frames_total, s.frames_dropped, s.wall_s, tail, s.fps, s.latency.p50_ms,
       s.latency.p95_ms, s.latency.p99_ms, s.retire.p99_ms);
   o << fmt::format("masks: {} fresh, {} propagated, {} stale, {} skipped ({} late, {} busy)",
                    s.masks_fresh, s.masks_propagated, s.masks_stale, s.masks_skipped, s.masks_late,
@@ -399,7 +406,8 @@ void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
 
 void WriteTimingChart(const std::string& path, const PipelineResult& result, double max_seconds) {
   const PipelineStats& s = result.stats;
-  int64_t end_ns = 1;
+  // The chart spans the run, wall_s (which ends with the last call it waited for).
+  int64_t end_ns = std::max<int64_t>(1, std::llround(s.wall_s * 1e9));
   int num_threads = 1;
   std::vector<int> device_lanes;  // kDeviceLane first, then kFlowDeviceLane
   for (const StageEvent& e : result.events) {
@@ -431,9 +439,9 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
   cv::Mat image(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
 
   Text(image,
-       fmt::format("PCR-ORB pipeline: {}, {} threads, {} in flight | {} frames, {:.2f} fps, "
-                   "latency p50 {:.0f} / p95 {:.0f} ms, {} dropped, {} stale masks",
-                   s.policy, s.threads, s.max_in_flight, s.frames_completed, s.fps,
+       fmt::format("PCR-ORB pipeline: {}, {} threads, {} in flight | {} frames in {:.2f} s, {:.2f} "
+                   "fps, latency p50 {:.0f} / p95 {:.0f} ms, {} dropped, {} stale masks",
+                   s.policy, s.threads, s.max_in_flight, s.frames_completed, s.wall_s, s.fps,
                    s.latency.p50_ms, s.latency.p95_ms, s.frames_dropped, s.masks_stale),
        {10, 25}, 0.55, {0, 0, 0}, 1);
   Text(image, "stage calls per worker thread over time", {10, gantt_top - 10});
@@ -460,6 +468,14 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
     const int y = gantt_top + lane_of(e.thread) * lane_h;
     cv::rectangle(image, {x0, y + 1}, {std::max(x0 + 1, x1), y + lane_h - 5}, StageColour(e.stage),
                   cv::FILLED);
+  }
+  // Where the run waited after its last frame: a mark at the last retirement.
+  const int64_t last_retire_ns = std::llround(s.last_retire_s * 1e9);
+  if (last_retire_ns > 0 && last_retire_ns < end_ns && end_ns - last_retire_ns >= 5'000'000) {
+    const int x = left + static_cast<int>(
+                             std::lround(static_cast<double>(last_retire_ns) * 1e-6 * px_per_ms));
+    cv::line(image, {x, gantt_top - 4}, {x, gantt_top + gantt_h}, {0, 0, 0}, 1);
+    Text(image, "last frame retired", {std::max(left, x - 150), gantt_top - 10}, 0.4);
   }
   const double step = TickStep(span_ms, 10);
   for (double t = 0; t <= span_ms + 1e-9; t += step) {

@@ -1,22 +1,30 @@
 // A pipeline run's figures agree with each other and with what the run did: the trace's frame
 // slices never overlap on a lane (Chrome and Perfetto need the slices of one lane to nest or not
-// overlap; frames do not nest).
+// overlap; frames do not nest), and wall_s spans every call the run waited for (the trace ends at
+// it).
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "graph/pipeline.h"
 #include "graph/pipeline_report.h"
+#include "kitti_clip.h"
 #include "support/data_paths.h"
 
 namespace pcr::graph::figures_test {
 namespace {
+
+std::string Sequence06() { return test::SharedPath("data/kitti/sequences/06"); }
 
 nlohmann::json ReadTrace(const PipelineResult& r, const std::string& name) {
   const std::string dir = test::MakeTempDir("pcr_figures_" + name);
@@ -85,6 +93,88 @@ TEST(PipelineFigures, RealtimeFrameSlicesDoNotOverlapOnALane) {
   r.frames = {Frame(0, 0, 0, 100), Frame(1, 10, 10, 120), Frame(2, 20, 100, 150),
               Frame(3, 110, 120, 180)};
   ExpectFramesDoNotOverlapOnALane(ReadTrace(r, "lanes"), r.frames.size());
+}
+
+// A network busy with the run's first frame until its last frame has retired: Release() from
+// on_frame. The calls after the first return at once. Masks: the left quarter of the image.
+class HeldNetwork final : public Segmenter {
+ public:
+  Segmentation Segment(const cv::Mat& image) override {
+    if (calls_++ == 0 && released_.wait_for(std::chrono::seconds(60)) != std::future_status::ready)
+      ADD_FAILURE() << "the network was never released";
+    Segmentation s;
+    s.dynamic_confidence = cv::Mat::zeros(image.size(), CV_32FC1);
+    s.dynamic_confidence.colRange(0, image.cols / 4).setTo(1.0f);
+    s.instance_map = cv::Mat::zeros(image.size(), CV_16UC1);
+    s.backend = "test";
+    return s;
+  }
+  std::string Name() const override { return "held"; }
+  void Release() { release_.set_value(); }
+
+ private:
+  std::promise<void> release_;
+  std::shared_future<void> released_ = release_.get_future().share();
+  std::atomic<int> calls_{0};
+};
+
+// Realtime, 8 frames released at once, one slot, 4 waiting: frames 0 and 4-7 run (1-3 are
+// dropped from the waiting room). Masks are due at once (deadline 0, no wait for a first mask):
+// while the network is held on frame 0, every frame goes on with a late mask, each frame's
+// segmentation request replaces the one waiting before it, and the run waits for the network
+// after its last frame has retired.
+const PipelineResult& RunWithHeldNetwork() {
+  static const PipelineResult run = [] {
+    const nodes::FrameSource clip = test::KittiOdometryClip(Sequence06(), 0, 8);
+    HeldNetwork network;
+    nodes::SegmenterSet segmenters;
+    segmenters.fast = &network;
+    PipelineOptions o;
+    o.policy = Policy::kRealtime;
+    o.threads = 2;
+    o.max_in_flight = 1;
+    o.rate = 0;
+    o.waiting_capacity = 4;
+    o.mask_deadline_ms = 0;
+    o.wait_for_first_mask = false;
+    o.on_frame = [&network](size_t, size_t, const FrameRecord& f) {
+      if (f.frame_index == 7) network.Release();
+    };
+    return RunPipeline(clip, SlamOptions{}, o, segmenters);
+  }();
+  return run;
+}
+
+TEST(PipelineFigures, WallTimeSpansTheCallsTheRunWaitedFor) {
+  const PipelineResult& r = RunWithHeldNetwork();
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  ASSERT_EQ(r.stats.frames_completed, 5u);
+  // The run waited for the network after its last frame retired: the test means something.
+  const int64_t last_done = r.frames.back().done_ns;
+  int64_t last_segment_end = 0;
+  for (const StageEvent& e : r.events) {
+    if (std::string_view(e.stage) == kStageSegment)
+      last_segment_end = std::max(last_segment_end, e.end_ns);
+  }
+  ASSERT_GT(last_segment_end, last_done);
+
+  // wall_s ends with the last work of the run, and fps counts over it.
+  const double wall_ns = r.stats.wall_s * 1e9;
+  for (const StageEvent& e : r.events)
+    EXPECT_LE(static_cast<double>(e.end_ns), wall_ns + 1) << e.stage << " of frame " << e.seq;
+  EXPECT_NEAR(wall_ns, static_cast<double>(last_segment_end), 1);
+  EXPECT_NEAR(r.stats.fps, 5 / r.stats.wall_s, 1e-9);
+  // The last retirement is reported as such.
+  const nlohmann::json stats = StatsToJson(r.stats);
+  ASSERT_TRUE(stats.contains("last_retire_s")) << stats;
+  EXPECT_NEAR(stats["last_retire_s"].get<double>() * 1e9, static_cast<double>(last_done), 1);
+  EXPECT_NE(FormatPipelineStats(r.stats).find("last frame retired at"), std::string::npos)
+      << FormatPipelineStats(r.stats);
+  // The trace ends at wall_s: no slice or instant after it.
+  for (const nlohmann::json& e : ReadTrace(r, "wall")) {
+    if (!e.contains("ts")) continue;
+    EXPECT_LE(e["ts"].get<double>() + e.value("dur", 0.0), r.stats.wall_s * 1e6 + 1e-3) << e;
+  }
 }
 
 }  // namespace
