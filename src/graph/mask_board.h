@@ -36,7 +36,9 @@ class MaskBoard {
   void ExpireDue(int64_t now_ns);
   std::optional<int64_t> NextDeadlineNs() const;
 
-  size_t late() const;          // masks emitted as kLate
+  // Masks emitted as kLate (a frame whose request the network skipped later included, and frames
+  // that never completed: PipelineStats::masks_late counts the completed frames' outcomes).
+  size_t late() const;
   size_t late_results() const;  // fresh results that arrived after their frame went on
 
  private:

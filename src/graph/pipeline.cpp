@@ -465,7 +465,6 @@ class GraphRun {
   std::atomic<double> last_inference_ms_{0};
   FrameTicket inference_ticket_;  // of the RunInference call in progress (for the device wait)
   FrameTicket filter_ticket_;     // of the filter call in progress (for the flow's device wait)
-  std::atomic<size_t> inferences_busy_{0};
   nodes::FilterNode filter_;
   nodes::TrackingNode tracking_;
   nodes::MappingNode mapping_;
@@ -565,7 +564,6 @@ PipelineResult GraphRun::Run() {
             inference_running_ = true;
           }
           if (skipped) {
-            ++inferences_busy_;
             board_->OnSegmentation(
                 nodes::SegmentNode::NotRun(skipped->ticket, SegmentationOutcome::kBusy));
           }
@@ -977,9 +975,7 @@ PipelineResult GraphRun::Collect() {
   s.frames_admitted = static_cast<size_t>(admitted_);
   s.frames_completed = out.frames.size();
   s.frames_dropped = out.dropped_frame_indices.size();
-  s.masks_late = board_->late();
   s.late_results = board_->late_results();
-  s.inferences_busy = inferences_busy_.load();
   s.max_in_flight_observed = max_observed_in_flight_;
   s.profile_threads = profiler_.num_threads();
   TimingSeries latency, retire, busy, propagate;
@@ -1004,6 +1000,11 @@ PipelineResult GraphRun::Collect() {
         ++s.masks_skipped;
         break;
     }
+    // Late and busy by the frame's own outcome (not by the board's emissions or the network's
+    // skipped requests: a request replaced after its frame went on late is that frame's one
+    // outcome, late; frames that never completed are in no count).
+    s.masks_late += f.segmentation == SegmentationOutcome::kLate;
+    s.inferences_busy += f.segmentation == SegmentationOutcome::kBusy;
     if (options_.adaptive) ++s.quality_frames[static_cast<size_t>(f.quality)];
   }
   s.latency = latency.Summarize();

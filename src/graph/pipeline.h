@@ -94,8 +94,10 @@ struct PipelineStats {
   double period_ms = 0;  // nominal frame period used by the controller
   size_t frames_total = 0, frames_admitted = 0, frames_completed = 0, frames_dropped = 0;
   size_t masks_fresh = 0, masks_propagated = 0, masks_stale = 0, masks_skipped = 0;
-  size_t masks_late = 0;       // realtime: mask deadline passed
-  size_t inferences_busy = 0;  // realtime: frame not segmented, network busy
+  // Realtime, of the completed frames, each counted once by its own segmentation (a subset of
+  // the propagated, stale and skipped masks; dropped frames are in neither):
+  size_t masks_late = 0;       // its mask deadline passed first
+  size_t inferences_busy = 0;  // the network was busy first (its request skipped)
   size_t late_results = 0;     // inference finished after its frame went on
   size_t max_in_flight_observed = 0;
   // Start of the run to the end of the last work it waited for: the last frame's retirement, or

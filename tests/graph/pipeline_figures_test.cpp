@@ -1,7 +1,8 @@
 // A pipeline run's figures agree with each other and with what the run did: the trace's frame
 // slices never overlap on a lane (Chrome and Perfetto need the slices of one lane to nest or not
-// overlap; frames do not nest), and wall_s spans every call the run waited for (the trace ends at
-// it).
+// overlap; frames do not nest), wall_s spans every call the run waited for (the trace ends at it),
+// and the masks line's "late" and "busy" count each completed frame once.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -175,6 +176,32 @@ TEST(PipelineFigures, WallTimeSpansTheCallsTheRunWaitedFor) {
     if (!e.contains("ts")) continue;
     EXPECT_LE(e["ts"].get<double>() + e.value("dur", 0.0), r.stats.wall_s * 1e6 + 1e-3) << e;
   }
+}
+
+TEST(PipelineFigures, LateAndBusyMasksCountEachCompletedFrameOnce) {
+  const PipelineResult& r = RunWithHeldNetwork();
+  ASSERT_TRUE(r.error.empty()) << r.error;
+  ASSERT_EQ(r.stats.frames_completed, 5u);
+  ASSERT_EQ(r.stats.frames_dropped, 3u);
+  size_t late = 0, busy = 0;
+  for (const FrameRecord& f : r.frames) {
+    late += f.segmentation == nodes::SegmentationOutcome::kLate;
+    busy += f.segmentation == nodes::SegmentationOutcome::kBusy;
+  }
+  // Each frame's mask was due before the held network could answer.
+  EXPECT_EQ(late + busy, 5u);
+  EXPECT_EQ(r.stats.masks_fresh, 0u);
+  // The requests replaced while the network was held belonged to frames that had gone on with a
+  // late mask already: they are not also "busy", and the dropped frames are in neither count.
+  EXPECT_EQ(r.stats.masks_late, late);
+  EXPECT_EQ(r.stats.inferences_busy, busy);
+  EXPECT_LE(r.stats.masks_late + r.stats.inferences_busy, r.stats.frames_completed);
+  const nlohmann::json stats = StatsToJson(r.stats);
+  EXPECT_EQ(stats["masks"]["late"], late);
+  EXPECT_EQ(stats["masks"]["inference_busy"], busy);
+  EXPECT_NE(FormatPipelineStats(r.stats).find(fmt::format("({} late, {} busy)", late, busy)),
+            std::string::npos)
+      << FormatPipelineStats(r.stats);
 }
 
 }  // namespace
