@@ -160,6 +160,9 @@ struct DynamicFilter::FrameWork {
   std::vector<uint8_t> has_motion;
   std::vector<float> static_prob;
   std::vector<float> observability;
+  // ApplyInstanceMotion: non-zero where the three above are the instance's verdict, taken by a
+  // point that has no observation of its own or whose own test could not see a motion.
+  std::vector<uint8_t> from_instance;
   std::vector<TrackVote> votes;
   std::vector<TrackState> states;
 };
@@ -698,6 +701,7 @@ void DynamicFilter::VoteTemporally(FrameWork* w) {
   w->has_motion.assign(n, 0);
   w->static_prob.assign(n, 0.5f);
   w->observability.assign(n, 0.0f);
+  w->from_instance.assign(n, 0);
   w->votes.assign(n, TrackVote());
   w->states.assign(n, TrackState());
   for (size_t i = 0; i < n; ++i) {
@@ -773,6 +777,7 @@ void DynamicFilter::ApplyInstanceMotion(FrameWork* w) {
                                            : true);
     if (!has_motion[i] || own_blind) {
       has_motion[i] = 1;
+      w->from_instance[i] = 1;
       static_prob[i] = static_cast<float>(
           m.state == InstanceState::kMoving
               ? std::min<double>(m.median_static_prob, options_.instances.moving_below * 0.5)
@@ -812,6 +817,7 @@ std::vector<PointTerms> DynamicFilter::ScorePointTerms(const FrameWork& w) const
     if (w.has_motion[i]) {
       t.m_motion = GateByObservability(w.static_prob[i], w.observability[i]);
       t.own_static_prob = w.static_prob[i];
+      t.motion_from_instance = w.from_instance[i];
     }
     if (w.out.ground_plane && w.has_depth[i] &&
         IsGroundPoint(*w.out.ground_plane, w.points[i], w.bf, options_.ground)) {
@@ -850,8 +856,10 @@ void DynamicFilter::Decide(const std::vector<PointTerms>& terms, FrameWork* w) c
     d.sky = t.sky;
     d.score = static_cast<float>(score);
     d.reason = reason;
+    // An instance's motion verdict seeds clusters as the point's own motion would.
     seeds[i] = reason == FilterReason::kMaskMotion || reason == FilterReason::kMotion ||
-               reason == FilterReason::kVote;
+               reason == FilterReason::kVote ||
+               (reason == FilterReason::kCluster && t.motion_from_instance);
     // kMask points may be relabelled: cluster evidence says more than the mask alone.
     candidates[i] = (reason == FilterReason::kKept || reason == FilterReason::kMask) &&
                     !(t.has_motion && t.m_motion >= options_.cluster.protect_static_above);

@@ -291,12 +291,13 @@ class DynamicFilter {
   // (track, instance, test); updates the voting table.
   void VoteTemporally(FrameWork* w);
   // Instance-level motion (parked-car protection, remembered verdicts): w.instance,
-  // w.has_motion, w.static_prob, w.observability -> the same for the instance's points,
-  // w.states, w.out.num_recalled_instances; updates the instance memory and the voting table.
+  // w.has_motion, w.static_prob, w.observability -> the same for the instance's points (and
+  // w.from_instance where they are the instance's verdict), w.states,
+  // w.out.num_recalled_instances; updates the instance memory and the voting table.
   void ApplyInstanceMotion(FrameWork* w);
   // The Eq. 2 terms per point (mask, motion, ground, border and sky): w.confidence,
-  // w.has_motion, w.static_prob, w.observability, w.points, w.out.ground_plane, w.out.horizon
-  // -> returned, index i: keypoint i.
+  // w.has_motion, w.static_prob, w.observability, w.from_instance, w.points, w.out.ground_plane,
+  // w.out.horizon -> returned, index i: keypoint i.
   std::vector<PointTerms> ScorePointTerms(const FrameWork& w) const;
   // Combines the terms into scores, decisions (votes, clusters) and weights: terms, w.votes,
   // w.margin -> w.out.points (scores, reasons), w.out.filter, w.out.reason_counts,

@@ -292,6 +292,10 @@ FilterReason DecidePoint(const PointTerms& terms, double score, const ScoringOpt
   if (score >= options.exclude_below) return FilterReason::kKept;
   const bool motion = terms.has_motion && terms.m_motion < options.motion_evidence_below;
   const bool mask = terms.s_mask < options.mask_evidence_below;
+  // Motion that the point's own test did not see is its instance's: the reason says so rather
+  // than claim the point's own motion evidence (the score is the same either way).
+  if (motion && terms.motion_from_instance)
+    return IsRoadPoint(terms, options) ? FilterReason::kGroundMotion : FilterReason::kCluster;
   if (motion && mask) return FilterReason::kMaskMotion;
   if (motion)
     return IsRoadPoint(terms, options) ? FilterReason::kGroundMotion : FilterReason::kMotion;

@@ -30,9 +30,12 @@ enum class FilterReason : uint8_t {
   kLowScore,    // low score otherwise (e.g. ground plus border)
   kGround,      // ground point with GroundOptions::remove_ground
   kSky,
-  kEdge,     // within the outermost border pixels
-  kVote,     // temporal vote for motion (kept by this frame's score)
-  kCluster,  // same instance / 3-D cluster as a majority of motion-excluded points
+  kEdge,  // within the outermost border pixels
+  kVote,  // temporal vote for motion (kept by this frame's score)
+  // Same instance / 3-D cluster as a majority of motion-excluded points, or a point whose motion
+  // term is its moving instance's verdict (PointTerms::motion_from_instance): its own motion test
+  // saw no motion (none, or blind), so the motion is the instance's, not the point's.
+  kCluster,
   // Motion evidence (own test, vote or cluster) on a road point outside every dynamic-class mask:
   // the road does not move, so what moves there is a shadow, a reflection or a track slipping on
   // road texture. Excluded as unreliable; not a moving object and no cluster seed.
@@ -79,6 +82,9 @@ struct PointTerms {
   double m_motion = 0.5;         // static probability, gated by observability
   double own_static_prob = 0.5;  // the same before the gate (has_motion only)
   bool has_motion = false;       // m_motion comes from an observation (this frame or the window)
+  // m_motion and own_static_prob are the instance's verdict, not the point's own evidence (the
+  // point has no observation, or its own test could not have seen a motion).
+  bool motion_from_instance = false;
   double g_ground = 1.0;
   double e_edge = 1.0;     // 0 for sky points
   bool hard_edge = false;  // within EdgeOptions::exclude_within_px

@@ -228,6 +228,51 @@ TEST(FilterScene, TemporalVoteCarriesThroughAFrameWithoutMaskAndWithoutTracks) {
   EXPECT_LT(forgetful_excluded, 0.5 * moving);
 }
 
+TEST(FilterScene, PointsWithoutOwnMotionEvidenceOnAMovingInstanceSayTheMotionIsTheInstances) {
+  // Frame 3: every other point of the crossing box has lost its previous position, and without
+  // temporal memory (window 1, a vote that cannot reach its threshold) it has no motion evidence
+  // of its own; the other half see the box move. The unobserved half take the moving instance's
+  // verdict and stay excluded, but for the instance's motion (kCluster), not for a motion of
+  // their own that nothing observed (kMaskMotion).
+  auto frames = test::BuildFilterScene({});
+  test::FilterSceneFrame& f3 = frames[3];
+  std::vector<uint8_t> unobserved(f3.kinds.size(), 0);
+  int n = 0;
+  for (size_t i = 0; i < f3.kinds.size(); ++i) {
+    if (f3.kinds[i] != PointKind::kMoving || f3.prev_uv_px[i].x < 0.0f) continue;
+    if (n++ % 2 == 0) {
+      unobserved[i] = 1;
+      f3.prev_uv_px[i] = cv::Point2f(-1.0f, -1.0f);
+    }
+  }
+  DynamicFilterOptions forgetful;
+  forgetful.voting.window_frames = 1;
+  forgetful.voting.max_evidence = 0.1;
+  forgetful.voting.decay = 0.01;
+  const RunResult r = RunScene(frames, {}, forgetful);
+  const FilterOutput& out = r.outputs[3];
+  int num_unobserved = 0, unobserved_cluster = 0, num_observed = 0, observed_mask_motion = 0;
+  for (size_t i = 0; i < f3.kinds.size(); ++i) {
+    if (f3.kinds[i] != PointKind::kMoving || out.points[i].s_mask >= 0.5f) continue;
+    const KeypointDiagnostics& d = out.points[i];
+    if (unobserved[i]) {
+      ++num_unobserved;
+      EXPECT_EQ(d.test, MotionTest::kNone);
+      EXPECT_TRUE(out.filter.excluded[i]);
+      EXPECT_NE(d.reason, FilterReason::kMaskMotion)
+          << "keypoint " << i << ": " << FilterReasonName(d.reason);
+      unobserved_cluster += d.reason == FilterReason::kCluster ? 1 : 0;
+    } else if (d.test != MotionTest::kNone && d.frame_static_prob < 0.5f) {
+      ++num_observed;
+      observed_mask_motion += d.reason == FilterReason::kMaskMotion ? 1 : 0;
+    }
+  }
+  ASSERT_GT(num_unobserved, 20);
+  ASSERT_GT(num_observed, 20);
+  EXPECT_EQ(unobserved_cluster, num_unobserved);
+  EXPECT_GE(observed_mask_motion, 0.9 * num_observed);  // their own motion: mask+motion
+}
+
 TEST(FilterScene, MovingShadowOnTheRoadIsUnreliableNotAMovingObject) {
   // A cyclist's shadow slides 40 px per frame (0.5 m at 9 m) across a patch of road: the keypoints
   // there keep the road's stereo depth (the shadow lies on it) but move in the image, and no mask

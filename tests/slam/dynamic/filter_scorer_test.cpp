@@ -58,6 +58,16 @@ TEST(FilterScorer, DecisionsAndReasons) {
             FilterReason::kMask);
   mask_decides.keep_masked_static_above = 0.5;
   EXPECT_FALSE(mask_decides.IsValid(nullptr));
+  // A moving instance's verdict on a point whose own test saw nothing: excluded as before, for
+  // the instance's motion (kCluster), not for a motion of its own (kMaskMotion / kMotion).
+  PointTerms inherited = Terms(0.1, 0.25);
+  EXPECT_EQ(decide(inherited), FilterReason::kMaskMotion);  // its own evidence
+  inherited.motion_from_instance = true;
+  EXPECT_EQ(decide(inherited), FilterReason::kCluster);
+  inherited.s_mask = 0.6;  // in the instance, weak mask confidence
+  EXPECT_EQ(decide(inherited), FilterReason::kCluster);
+  inherited.ground = true;  // ... on the road plane: unreliable, as a cluster join there
+  EXPECT_EQ(decide(inherited), FilterReason::kGroundMotion);
   EXPECT_EQ(decide(Terms(1.0, 0.5, false)), FilterReason::kKept);  // unmasked, unobserved
   EXPECT_EQ(decide(Terms(0.6, 0.5, false)), FilterReason::kKept);  // medium confidence: kept
   PointTerms sky = Terms(1.0, 1.0);
