@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <string>
 
 #include "app/commands.h"
@@ -151,7 +152,8 @@ void PrintModelInfo(const std::string& path) {
       fmt::print("onednn:        cannot run it: {}\n", executor_why);
     } else {
       try {
-        gpu::MakeOneDnnConvKernels(plan);  // builds every convolution's primitive
+        // Builds every convolution's primitive.
+        gpu::MakeOneDnnConvKernels(std::make_shared<const gpu::NetPlan>(plan));
         fmt::print("onednn:        runs (--inference onednn; auto's choice without CUDA)\n");
       } catch (const std::exception& e) {
         fmt::print("onednn:        cannot run it: {}\n", e.what());

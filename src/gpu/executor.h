@@ -59,8 +59,9 @@ bool OneDnnBuilt();
 
 // oneDNN's convolutions for `plan` (fp32, the library's blocked layouts inside each call, weights
 // reordered once), the bias and the SiLU or sigmoid fused. Each call runs on cv::getNumThreads()
-// OpenMP threads of the calling thread. Throws std::runtime_error when the build has no oneDNN.
-std::unique_ptr<ConvKernels> MakeOneDnnConvKernels(const NetPlan& plan);
+// OpenMP threads of the calling thread (the primitives are made again when that count changes).
+// Throws std::runtime_error when the build has no oneDNN.
+std::unique_ptr<ConvKernels> MakeOneDnnConvKernels(std::shared_ptr<const NetPlan> plan);
 
 // The CUDA device index an engine's device string names (the engines of net_engine.h and
 // lk_flow.h): -1 for "twin" (the CPU twin), 0 for "cuda", N for "cuda:N" (1 to 3 digits). Throws

@@ -75,7 +75,7 @@ std::unique_ptr<InferenceEngine> MakeNetEngine(const std::vector<uint8_t>& model
   auto plan = std::make_shared<const NetPlan>(
       BuildNetPlan(model_bytes, input_size.height, input_size.width));
   std::unique_ptr<Executor> executor =
-      onednn      ? MakeTwinExecutor(plan, MakeOneDnnConvKernels(*plan), /*row_steps=*/true)
+      onednn      ? MakeTwinExecutor(plan, MakeOneDnnConvKernels(plan), /*row_steps=*/true)
       : index < 0 ? MakeTwinExecutor(plan)
                   : MakeCudaExecutor(plan, index);
   spdlog::info(

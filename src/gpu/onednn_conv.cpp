@@ -14,7 +14,10 @@
 
 #if defined(PCR_HAVE_ONEDNN)
 #include <omp.h>
+#include <spdlog/spdlog.h>
 
+#include <cstdlib>
+#include <mutex>
 #include <oneapi/dnnl/dnnl.hpp>
 #include <opencv2/core/utility.hpp>
 #endif
@@ -44,28 +47,36 @@ struct ConvPrimitive {
   std::unordered_map<int, memory> args;  // the primitive's arguments, set once linked
 };
 
+// The OpenMP threads of a call: the calling thread's OpenCV thread count (the run's --threads).
+int CallThreads() { return std::max(1, cv::getNumThreads()); }
+
+// libgomp's threads spin at the end of each parallel region (about 170 a YOLO forward pass)
+// unless OMP_WAIT_POLICY or GOMP_SPINCOUNT says otherwise, and libgomp reads them once, before
+// main (Ceres' CHOLMOD links it too), so a program cannot choose for itself. Where other work
+// shares the cores, a region then waits for a thread that is not running while another spins:
+// measured on 2 cores with other processes on them, a 224x640 forward pass on 2 threads took
+// 1112 ms against 90 ms with OMP_WAIT_POLICY=passive. Said once, when calls use more than one
+// thread and the machine has other work (a load average of one or more).
+void WarnOfSpinningThreads(int threads) {
+  if (threads < 2 || std::getenv("OMP_WAIT_POLICY") || std::getenv("GOMP_SPINCOUNT")) return;
+  double load = 0;
+  if (getloadavg(&load, 1) != 1 || load < 1.0) return;
+  static std::once_flag once;
+  std::call_once(once, [threads, load] {
+    spdlog::warn(
+        "inference onednn: {} OpenMP threads a convolution, which spin while they wait "
+        "(OMP_WAIT_POLICY is not set), and the machine has other work (load average {:.1f}): a "
+        "forward pass can take 10x longer. Set OMP_WAIT_POLICY=passive in the environment, or "
+        "--threads 1",
+        threads, load);
+  });
+}
+
 class OneDnnConvKernels final : public ConvKernels {
  public:
-  explicit OneDnnConvKernels(const NetPlan& plan)
-      : engine_(dnnl::engine::kind::cpu, 0), stream_(engine_) {
-    convs_.resize(plan.steps.size());
-    for (size_t s = 0; s < plan.steps.size(); ++s) {
-      const auto* step = std::get_if<ConvStep>(&plan.steps[s]);
-      if (!step) continue;
-      try {
-        convs_[s] = std::make_unique<ConvPrimitive>(Build(plan, *step));
-      } catch (const dnnl::error& e) {
-        throw std::invalid_argument("oneDNN cannot run convolution '" +
-                                    (s < plan.step_names.size() ? plan.step_names[s] : "?") +
-                                    "' (step " + std::to_string(s) + "): " + e.what());
-      }
-    }
-    LinkConvolutions(plan);
-    for (const std::unique_ptr<ConvPrimitive>& c : convs_) {
-      if (!c) continue;
-      c->args = {{DNNL_ARG_SRC, c->src}, {DNNL_ARG_WEIGHTS, c->weights}, {DNNL_ARG_DST, c->dst}};
-      if (c->bias) c->args.emplace(DNNL_ARG_BIAS, c->bias);
-    }
+  explicit OneDnnConvKernels(std::shared_ptr<const NetPlan> plan)
+      : plan_(std::move(plan)), engine_(dnnl::engine::kind::cpu, 0), stream_(engine_) {
+    Build(CallThreads());
   }
 
   void Conv(size_t step, const float* in, float* out) override {
@@ -73,8 +84,12 @@ class OneDnnConvKernels final : public ConvKernels {
       throw std::invalid_argument("OneDnnConvKernels: step " + std::to_string(step) +
                                   " is not a convolution of the plan");
     }
+    // A pass's first convolution takes the calling thread's count; the rest of the pass keeps
+    // it (a linked convolution's input is in the memory of the primitive that wrote it).
+    const int threads = CallThreads();
+    if (step == first_conv_ && threads != threads_) Build(threads);
+    omp_set_num_threads(threads_);
     ConvPrimitive& c = *convs_[step];
-    omp_set_num_threads(std::max(1, cv::getNumThreads()));
     c.user_src.set_data_handle(const_cast<float*>(in));
     c.user_dst.set_data_handle(out);
     if (c.reorder_src) c.to_src.execute(stream_, c.user_src, c.src);
@@ -86,6 +101,39 @@ class OneDnnConvKernels final : public ConvKernels {
   std::string Name() const override { return "cpu-onednn"; }
 
  private:
+  // Every convolution's primitive for `threads` OpenMP threads. oneDNN fixes a primitive's
+  // thread count when it is made (omp_get_max_threads() then) and runs every call on that many,
+  // whatever the calling thread's count is by then: made for 2 threads, a run with --threads 1
+  // ran each convolution on 2. A pass whose thread count differs makes them again.
+  void Build(int threads) {
+    WarnOfSpinningThreads(threads);
+    omp_set_num_threads(threads);
+    const NetPlan& plan = *plan_;
+    convs_.clear();
+    convs_.resize(plan.steps.size());
+    for (size_t s = 0; s < plan.steps.size(); ++s) {
+      const auto* step = std::get_if<ConvStep>(&plan.steps[s]);
+      if (!step) continue;
+      try {
+        convs_[s] = std::make_unique<ConvPrimitive>(BuildOne(plan, *step));
+      } catch (const dnnl::error& e) {
+        throw std::invalid_argument("oneDNN cannot run convolution '" +
+                                    (s < plan.step_names.size() ? plan.step_names[s] : "?") +
+                                    "' (step " + std::to_string(s) + "): " + e.what());
+      }
+    }
+    first_conv_ = static_cast<size_t>(
+        std::find_if(convs_.begin(), convs_.end(), [](const auto& c) { return c != nullptr; }) -
+        convs_.begin());
+    LinkConvolutions(plan);
+    for (const std::unique_ptr<ConvPrimitive>& c : convs_) {
+      if (!c) continue;
+      c->args = {{DNNL_ARG_SRC, c->src}, {DNNL_ARG_WEIGHTS, c->weights}, {DNNL_ARG_DST, c->dst}};
+      if (c->bias) c->args.emplace(DNNL_ARG_BIAS, c->bias);
+    }
+    threads_ = threads;
+  }
+
   // A convolution whose output only convolutions read, in the layout it writes, hands them its
   // own memory: neither the reorder to NCHW after it nor those before them run, and the plan's
   // buffer stays unwritten (nothing else reads it). A reader is a step that reads the buffer
@@ -133,7 +181,7 @@ class OneDnnConvKernels final : public ConvKernels {
     }
   }
 
-  ConvPrimitive Build(const NetPlan& plan, const ConvStep& s) {
+  ConvPrimitive BuildOne(const NetPlan& plan, const ConvStep& s) {
     const ConvGeometry& g = s.geometry;
     const memory::dims src_dims{1, g.c_in, g.h_in, g.w_in};
     const memory::dims dst_dims{1, g.c_out, g.h_out, g.w_out};
@@ -196,24 +244,27 @@ class OneDnnConvKernels final : public ConvKernels {
     return c;
   }
 
+  std::shared_ptr<const NetPlan> plan_;
   dnnl::engine engine_;
   dnnl::stream stream_;
   std::vector<std::unique_ptr<ConvPrimitive>> convs_;  // per plan step; null: not a convolution
+  int threads_ = 0;                                    // the OpenMP threads convs_ were made for
+  size_t first_conv_ = 0;                              // the plan's first convolution step
 };
 
 }  // namespace
 
 bool OneDnnBuilt() { return true; }
 
-std::unique_ptr<ConvKernels> MakeOneDnnConvKernels(const NetPlan& plan) {
-  return std::make_unique<OneDnnConvKernels>(plan);
+std::unique_ptr<ConvKernels> MakeOneDnnConvKernels(std::shared_ptr<const NetPlan> plan) {
+  return std::make_unique<OneDnnConvKernels>(std::move(plan));
 }
 
 #else
 
 bool OneDnnBuilt() { return false; }
 
-std::unique_ptr<ConvKernels> MakeOneDnnConvKernels(const NetPlan&) {
+std::unique_ptr<ConvKernels> MakeOneDnnConvKernels(std::shared_ptr<const NetPlan>) {
   throw std::runtime_error("this build has no oneDNN (install libdnnl-dev and reconfigure)");
 }
 
