@@ -90,6 +90,7 @@
 #include <vector>
 
 #include "bench_args.h"
+#include "bench_cli.h"
 #include "driver/driver.h"
 #include "driver/filter_audit.h"
 #include "driver/inference.h"
@@ -131,97 +132,110 @@ struct BenchArgs {
   double mask_threshold = pcr::YoloOptions{}.mask_threshold;  // for every network
 };
 
-BenchArgs ParseArgs(int argc, char** argv) {
-  BenchArgs a;
-  a.model = SharedDir() + "/models/yolov8n-seg_coco_224x640.onnx";
-  a.model_high = SharedDir() + "/models/yolov8n-seg_coco_384x1280.onnx";
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw std::invalid_argument(arg + " needs a value");
-      return argv[++i];
-    };
-    if (arg == "--frames") {
-      a.frames = value();
-    } else if (arg == "--threads") {
-      a.threads = std::stoi(value());
-    } else if (arg == "--max-in-flight") {
-      a.max_in_flight = std::stoi(value());
-    } else if (arg == "--rate") {
-      a.rate = std::stod(value());
-    } else if (arg == "--segmenter") {
-      a.segmenter = value();
-    } else if (arg == "--model") {
-      a.model = value();
-    } else if (arg == "--model-high") {
-      a.model_high = value();
-    } else if (arg == "--model-low") {
-      a.model_low = value();
-    } else if (arg == "--mask-deadline-ms") {
-      a.mask_deadline_ms = std::stod(value());
-    } else if (arg == "--no-first-mask-wait") {
-      a.wait_for_first_mask = false;
-    } else if (arg == "--initial-level") {
-      const std::string level = value();
-      if (!pcr::nodes::ParseQualityLevel(level, &a.initial_level))
-        throw std::invalid_argument("--initial-level: high, medium or low, not " + level);
-    } else if (arg == "--labels") {
-      a.labels = value();
-    } else if (arg == "--every") {
-      a.every = std::stoi(value());
-      if (a.every < 2 || a.every > 100) throw std::invalid_argument("--every must be in 2..100");
-    } else if (arg == "--crop-top") {
-      a.crop_top = true;
-    } else if (arg == "--mask-threshold") {
-      a.mask_threshold = std::stod(value());
-      if (!(a.mask_threshold > 0 && a.mask_threshold < 1))
-        throw std::invalid_argument("--mask-threshold must be in (0, 1)");
-    } else if (arg == "--filter") {
-      const std::string v = value();
-      if (v != "on" && v != "off") throw std::invalid_argument("--filter must be on or off");
-      a.filter = v == "on";
-    } else if (arg == "--out") {
-      a.out = value();
-    } else if (arg == "--inference") {
-      a.inference = value();
-    } else if (arg == "--repeat") {
-      a.repeat = std::stoi(value());
-      if (a.repeat < 1 || a.repeat > 50) throw std::invalid_argument("--repeat must be in 1..50");
-    } else if (arg == "--flow") {
-      a.flow = value();
-    } else if (arg == "--flow-device-ms") {
-      a.flow_device_ms = std::stod(value());
-      if (!(a.flow_device_ms > 0 && a.flow_device_ms < 10000))
-        throw std::invalid_argument("--flow-device-ms must be in (0, 10000)");
-    } else if (arg == "--device-ms") {
-      a.device_ms = std::stod(value());
-      if (!(a.device_ms > 0 && a.device_ms < 10000))
-        throw std::invalid_argument("--device-ms must be in (0, 10000)");
-    } else if (arg == "-h" || arg == "--help") {
-      std::printf(
-          "bench_pipeline [SEQUENCE_DIR] [--frames A:B] [--threads N] [--max-in-flight N] "
-          "[--rate R] [--segmenter yolo|none] [--model FILE] [--model-high FILE|none] "
-          "[--filter on|off] [--inference auto|opencv|onednn|twin|cuda[:N]] [--out DIR] "
-          "[--flow opencv|twin|cuda[:N]|auto] [--device-ms MS] [--flow-device-ms MS] "
-          "[--repeat N] [--model-low FILE|none] [--mask-deadline-ms MS] [--labels FILE|none] "
-          "[--every N] [--crop-top] [--mask-threshold T] [--no-first-mask-wait] "
-          "[--initial-level high|medium|low]\n");
-      std::exit(0);
-    } else if (!arg.empty() && arg[0] != '-') {
-      a.sequence = arg;
-    } else {
-      throw std::invalid_argument("unknown argument " + arg);
-    }
-  }
-  if (a.segmenter != "yolo" && a.segmenter != "none")
-    throw std::invalid_argument("--segmenter must be yolo or none");
-  if (a.device_ms > 0 &&
-      (a.segmenter != "yolo" || (a.inference != "opencv" && a.inference != "auto")))
+// Reads the command line into *a. Returns -1 when the benchmark is to run, else its exit status
+// (0 after --help). A bad value throws std::invalid_argument naming the option.
+int ParseArgs(int argc, char** argv, BenchArgs* a) {
+  using pcr::bench::AddInt;
+  using pcr::bench::AddNumber;
+  a->model = SharedDir() + "/models/yolov8n-seg_coco_224x640.onnx";
+  a->model_high = SharedDir() + "/models/yolov8n-seg_coco_384x1280.onnx";
+  CLI::App app{
+      "End-to-end pipeline benchmark: the same stereo input under the sequential, pipelined and "
+      "realtime policies (realtime with adaptive quality off and on) and the sequential policy on "
+      "one thread; one table of frames, fps, latency, stale masks, quality levels, ATE and CPU "
+      "use, then per-stage times and the CPU bound of the pipelined run (see the top of "
+      "bench/bench_pipeline.cpp)"};
+  app.add_option("sequence", a->sequence,
+                 "KITTI odometry or raw sequence folder with left and right images")
+      ->type_name("SEQUENCE_DIR")
+      ->capture_default_str();
+  app.add_option("--frames", a->frames, "frames A:B of the sequence (default: all)")
+      ->type_name("A:B");
+  AddInt(app, "--threads", &a->threads, 1, 256, "N",
+         "pipeline threads of every row but the 1-thread one");
+  AddInt(app, "--max-in-flight", &a->max_in_flight, 1, 1024, "N",
+         "frames admitted and not finished (pipelined, realtime)");
+  AddNumber(
+      app, "--rate", &a->rate, "at least 0", [](double v) { return v >= 0; }, "R",
+      "realtime rows: frame i is released (t_i - t_0) * R s after the start (1: real time, 0.5: "
+      "twice as fast, 0: all at once)");
+  app.add_option("--segmenter", a->segmenter, "yolo (YOLOv8n-seg masks) or none")
+      ->check(CLI::IsMember({"yolo", "none"}))
+      ->capture_default_str();
+  app.add_option("--model", a->model, "the fast network (every frame; adaptive medium and low)")
+      ->type_name("FILE")
+      ->capture_default_str();
+  app.add_option("--model-high", a->model_high,
+                 "the adaptive high level's network; none, or a missing file: no high level")
+      ->type_name("FILE|none")
+      ->capture_default_str();
+  app.add_option("--model-low", a->model_low,
+                 "the adaptive low level's light network, run on every frame (live masks)")
+      ->type_name("FILE|none")
+      ->capture_default_str();
+  pcr::bench::AddOnOff(app, "--filter", &a->filter,
+                       "the multi-stage dynamic filter scores the keypoints");
+  app.add_option("--inference", a->inference, pcr::driver::kInferenceHelp)
+      ->type_name("auto|opencv|onednn|twin|cuda[:N]")
+      ->capture_default_str();
+  app.add_option("--flow", a->flow, pcr::driver::kFlowHelp)
+      ->type_name("opencv|twin|cuda[:N]|auto")
+      ->capture_default_str();
+  app.add_option("--out", a->out, "write each row's trace.json and timing.png to DIR/<row>/")
+      ->type_name("DIR");
+  AddNumber(
+      app, "--device-ms", &a->device_ms, "in (0, 10000)",
+      [](double v) { return v > 0 && v < 10000; }, "MS",
+      "emulate a GPU host: each network forward pass takes MS ms of device time, no host CPU "
+      "(needs --segmenter yolo, --inference opencv or auto)")
+      ->default_str("off");
+  AddNumber(
+      app, "--flow-device-ms", &a->flow_device_ms, "in (0, 10000)",
+      [](double v) { return v > 0 && v < 10000; }, "MS",
+      "emulate the filter's LK passes on a device: MS ms each (needs --filter on, --flow "
+      "opencv)")
+      ->default_str("off");
+  AddInt(app, "--repeat", &a->repeat, 1, 50, "N",
+         "rounds of all rows; ratios are medians of the rounds' own");
+  AddNumber(
+      app, "--mask-deadline-ms", &a->mask_deadline_ms, "at least 0",
+      [](double v) { return v >= 0; }, "MS",
+      "realtime: how long tracking waits for a frame's late mask, ms");
+  app.add_flag_callback(
+      "--no-first-mask-wait", [a] { a->wait_for_first_mask = false; },
+      "realtime: frames before the first mask do not wait for their own");
+  app.add_option_function<std::string>(
+         "--initial-level",
+         [a](const std::string& level) {
+           if (!pcr::nodes::ParseQualityLevel(level, &a->initial_level))
+             throw std::invalid_argument("--initial-level: high, medium or low, not " + level);
+         },
+         "adaptive rows: the quality controller's first level")
+      ->type_name("high|medium|low")
+      ->default_str(pcr::nodes::ToString(a->initial_level));
+  app.add_option("--labels", a->labels,
+                 "KITTI tracking labels for the filter's precision and recall (default: drive "
+                 "0005's when it is the input; none: off)")
+      ->type_name("FILE|none");
+  AddInt(app, "--every", &a->every, 2, 100, "N",
+         "two more sequential rows segmenting every N-th frame only, the masks between "
+         "propagated or stale")
+      ->default_str("off");
+  app.add_flag("--crop-top", a->crop_top,
+               "every network fills the frame's width and cuts its top rows when its input is "
+               "wider than the frame");
+  AddNumber(
+      app, "--mask-threshold", &a->mask_threshold, "in (0, 1)",
+      [](double v) { return v > 0 && v < 1; }, "T", "every network's mask threshold");
+  const int status = pcr::bench::Parse(app, argc, argv);
+  if (status >= 0) return status;
+  if (a->device_ms > 0 &&
+      (a->segmenter != "yolo" || (a->inference != "opencv" && a->inference != "auto")))
     throw std::invalid_argument("--device-ms needs --segmenter yolo and --inference opencv");
-  if (a.device_ms > 0) a.inference = "opencv";  // the emulated device wraps OpenCV DNN
-  if (a.flow_device_ms > 0 && (!a.filter || a.flow != "opencv"))
+  if (a->device_ms > 0) a->inference = "opencv";  // the emulated device wraps OpenCV DNN
+  if (a->flow_device_ms > 0 && (!a->filter || a->flow != "opencv"))
     throw std::invalid_argument("--flow-device-ms needs --filter on and --flow opencv");
-  return a;
+  return -1;
 }
 
 // One pass of an emulated device: device_ms of wall time on a thread that only sleeps. With a
@@ -547,7 +561,8 @@ std::string Fixed(double value, int decimals, bool valid = true) {
 
 int main(int argc, char** argv) {
   try {
-    BenchArgs args = ParseArgs(argc, argv);
+    BenchArgs args;
+    if (const int status = ParseArgs(argc, argv, &args); status >= 0) return status;
     spdlog::set_level(spdlog::level::warn);
     const pcr::Dataset dataset = pcr::OpenDataset(args.sequence);
     const pcr::driver::FrameRange range =
