@@ -107,7 +107,8 @@ struct Source {
   static Source Dataset(std::string path, int64_t first = 0, int64_t end = 0) {
     return Source{std::move(path), first, end};
   }
-  // frames "A:B" (B exclusive; either side may be empty, "" = all). Throws Error when malformed.
+  // frames "A:B" (B exclusive; either side may be empty, "" = all). Throws Error when malformed
+  // or when it selects no frame (B given and not greater than A).
   static Source Dataset(std::string path, const std::string& frames);
 };
 

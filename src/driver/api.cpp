@@ -17,7 +17,6 @@
 #include "pcr/version.h"
 #include "slam/common/error.h"
 #include "slam/common/timing.h"
-#include "slam/common/validation.h"
 #include "slam/loop/vocabulary_io.h"
 #include "slam/system/map_archive.h"
 
@@ -112,16 +111,23 @@ driver::DriverOptions ToDriverOptions(const Config& c) {
   p.stop = c.stop;
   std::string why;
   if (!p.IsValid(&why)) {
-    // Named as the command line's option, the field in brackets.
-    const std::string named = NamedAsOption(why, {{"threads", "--threads"},
-                                                  {"max_in_flight", "--max-in-flight"},
-                                                  {"rate", "--rate"},
-                                                  {"waiting_capacity", "--waiting"},
-                                                  {"inference_every", "--inference-every"},
-                                                  {"mask_deadline_ms", "--mask-deadline-ms"},
-                                                  {"trim_heap_every", "--trim-every"},
-                                                  {"tracking_delay_ms", "--delay-ms"}});
-    throw ConfigError(named != why ? named : "pipeline options: " + why);
+    // Named as Config's field, the command line's option (this API's first user) in brackets.
+    struct Name {
+      std::string_view pipeline_field, config_field, option;
+    };
+    for (const Name& n :
+         {Name{"threads", "threads", "--threads"},
+          Name{"max_in_flight", "max_in_flight", "--max-in-flight"}, Name{"rate", "rate", "--rate"},
+          Name{"waiting_capacity", "waiting", "--waiting"},
+          Name{"inference_every", "inference_every", "--inference-every"},
+          Name{"mask_deadline_ms", "mask_deadline_ms", "--mask-deadline-ms"},
+          Name{"trim_heap_every", "trim_every", "--trim-every"},
+          Name{"tracking_delay_ms", "tracking_delay_ms", "--delay-ms"}}) {
+      if (why.starts_with(std::string(n.pipeline_field) + " "))
+        throw ConfigError(fmt::format("Config::{} ({}){}", n.config_field, n.option,
+                                      why.substr(n.pipeline_field.size())));
+    }
+    throw ConfigError("pipeline options: " + why);
   }
   o.model_high = c.model_high;
   o.model_low = c.model_low;
@@ -292,12 +298,21 @@ Result Run(const Config& config, const Source& source, const FrameCallback& on_f
 }
 
 Source Source::Dataset(std::string path, const std::string& frames) {
+  // Named as this function's argument, the command line's option in brackets.
+  const std::string named = "Source::Dataset frames (--frames)";
+  driver::FrameRange r;
   try {
-    const driver::FrameRange r = driver::FrameRange::ParseText(frames);
-    return Source{std::move(path), static_cast<int64_t>(r.first), static_cast<int64_t>(r.end)};
+    r = driver::FrameRange::ParseText(frames);
   } catch (const ConfigError& e) {
-    throw Error(e.what());
+    const std::string_view why = e.what();
+    constexpr std::string_view kOption = "--frames";
+    throw Error(why.starts_with(kOption) ? named + std::string(why.substr(kOption.size()))
+                                         : std::string(why));
   }
+  if (r.end != 0 && r.first >= r.end)
+    throw Error(fmt::format("{} '{}' selects no frame: B ({}) must be greater than A ({})", named,
+                            frames, r.end, r.first));
+  return Source{std::move(path), static_cast<int64_t>(r.first), static_cast<int64_t>(r.end)};
 }
 
 std::string Version() { return std::string(kVersion); }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <tuple>
 
 #include "pcr/api.h"
 #include "support/data_paths.h"
@@ -32,6 +33,35 @@ TEST(FramesRange, AFrameNumberOutOfRangeIsNamed) {
       EXPECT_NE(e.find("'" + value + "'"), std::string::npos) << frames << ": " << e;
       EXPECT_EQ(e.find("negative"), std::string::npos) << frames << ": " << e;
     }
+  }
+}
+
+// A range that selects no frame (B <= A) is refused by Source::Dataset itself, as its
+// documentation says, not by a later Run; the errors name the argument and the command line's
+// option.
+TEST(FramesRange, SourceDatasetRefusesARangeThatSelectsNoFrame) {
+  for (const std::string frames : {"5:2", "5:5"}) {
+    try {
+      const Source s = Source::Dataset("kitti/sequences/06", frames);
+      ADD_FAILURE() << frames << " gave " << s.first << ":" << s.end;
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(
+                    "Source::Dataset frames (--frames) '" + frames + "' selects no frame: B (", 0),
+                0u)
+          << e.what();
+    }
+  }
+  try {
+    (void)Source::Dataset("kitti/sequences/06", "abc");
+    ADD_FAILURE() << "accepted abc";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "Source::Dataset frames (--frames) 'abc' is not A:B");
+  }
+  for (const auto& [frames, first, end] : {std::tuple{"2:5", 2, 5}, std::tuple{"5:", 5, 0},
+                                           std::tuple{":5", 0, 5}, std::tuple{"", 0, 0}}) {
+    const Source s = Source::Dataset("kitti/sequences/06", frames);
+    EXPECT_EQ(s.first, first) << frames;
+    EXPECT_EQ(s.end, end) << frames;
   }
 }
 

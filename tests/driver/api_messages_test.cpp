@@ -1,5 +1,5 @@
-// What a run says about its own settings: a scheduling option out of range is named as the
-// command line's option, and the start line gives the camera the run uses.
+// What a run says about its own settings: a scheduling option out of range is named as Config's
+// field (and the command line's option), and the start line gives the camera the run uses.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -27,15 +27,22 @@ std::string ErrorOf(const Config& c) {
   return "";
 }
 
-TEST(ApiMessages, ASchedulingOptionOutOfRangeIsNamedAsTheOption) {
+// Named as the field of Config, the command line's option (the API's first user) in brackets.
+TEST(ApiMessages, ASchedulingOptionOutOfRangeIsNamedAsConfigsField) {
   Config c;
   c.policy = Policy::kRealtime;
   c.loop_closing = false;
   c.waiting = 0;
-  EXPECT_EQ(ErrorOf(c), "--waiting must be >= 1 (waiting_capacity)");
+  EXPECT_EQ(ErrorOf(c), "Config::waiting (--waiting) must be >= 1");
   c.waiting = 1;
   c.inference_every = 0;
-  EXPECT_EQ(ErrorOf(c), "--inference-every must be in [1, 1000] (inference_every)");
+  EXPECT_EQ(ErrorOf(c), "Config::inference_every (--inference-every) must be in [1, 1000]");
+  c.inference_every = 1;
+  c.threads = 0;
+  EXPECT_EQ(ErrorOf(c), "Config::threads (--threads) must be in [1, 256]");
+  c.threads = 2;
+  c.trim_every = -1;
+  EXPECT_EQ(ErrorOf(c).rfind("Config::trim_every (--trim-every) must be", 0), 0u) << ErrorOf(c);
 }
 
 TEST(ApiMessages, TheStartLineGivesTheConfigurationsCamera) {

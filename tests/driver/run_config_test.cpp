@@ -220,7 +220,8 @@ TEST(FrameRange, MalformedNumbersAreRejectedNamingFrames) {
     (void)api::Source::Dataset("kitti/sequences/06", "0:-1");
     FAIL() << "accepted 0:-1";
   } catch (const api::Error& e) {
-    EXPECT_NE(std::string(e.what()).find("--frames '0:-1'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("frames (--frames) '0:-1'"), std::string::npos)
+        << e.what();
   }
 }
 
