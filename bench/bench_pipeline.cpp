@@ -103,6 +103,7 @@
 #include "graph/pipeline_report.h"
 #include "io/dataset.h"
 #include "nodes/filter_node.h"
+#include "slam/common/error.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
 namespace {
@@ -565,6 +566,13 @@ int main(int argc, char** argv) {
     if (const int status = ParseArgs(argc, argv, &args); status >= 0) return status;
     spdlog::set_level(spdlog::level::warn);
     const pcr::Dataset dataset = pcr::OpenDataset(args.sequence);
+    // The rows measure the stereo pipeline: ORB on both images and stereo matching run as
+    // stages of their own (the CPU bound counts them), and the ATE is SE(3)-aligned.
+    if (!dataset.has_right())
+      throw pcr::InputError(args.sequence, 0,
+                            "no right images: bench_pipeline measures the stereo pipeline (ORB "
+                            "on both images, stereo matching); give a stereo sequence (default: "
+                            "raw drive 0005)");
     const pcr::driver::FrameRange range =
         pcr::driver::FrameRange::Parse(args.frames, dataset.size());
     const pcr::nodes::FrameSource source = pcr::driver::SourceFromDataset(
