@@ -115,6 +115,7 @@
 #include <vector>
 
 #include "bench_args.h"
+#include "build_info.h"
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
 #include "driver/map_floor.h"
@@ -195,17 +196,6 @@ void CheckArgs(Args* a) {
   if (a->place_stride < 1)
     throw std::invalid_argument("--place-stride must be at least 1, got " +
                                 std::to_string(a->place_stride));
-}
-
-// One line of a command's output ("" when it cannot run).
-std::string CommandLine(const std::string& command) {
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return "";
-  char buffer[256] = {};
-  std::string line = std::fgets(buffer, sizeof(buffer), pipe) ? buffer : "";
-  pclose(pipe);
-  while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
-  return line;
 }
 
 // The file LoadLoopVocabulary(path) reads.
@@ -1969,15 +1959,12 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
 
-  const fs::path source_dir = fs::path(__FILE__).parent_path().parent_path();
-  const std::string commit =
-      CommandLine("git -C '" + source_dir.string() + "' describe --always --dirty 2>/dev/null");
   try {
     CheckArgs(&a);
     const std::shared_ptr<const pcr::Vocabulary> vocabulary =
         pcr::driver::LoadLoopVocabulary(a.vocabulary);
-    std::printf("bench_loop: commit %s, vocabulary %s (%zu words), load average %s\n",
-                commit.empty() ? "?" : commit.c_str(), VocabularyPath(a.vocabulary).c_str(),
+    std::printf("bench_loop: built from commit %s, vocabulary %s (%zu words), load average %s\n",
+                pcr::bench::BuildDescription().c_str(), VocabularyPath(a.vocabulary).c_str(),
                 vocabulary ? vocabulary->num_words() : 0, pcr::bench::LoadAverage().c_str());
     std::fflush(stdout);
     if (!vocabulary) {
