@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
-#include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -112,7 +111,7 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
     if (inside(q)) cv::circle(canvas, q, 1, cv::Scalar(0, 0, 230), cv::FILLED);
   }
   // The loaded map's keyframes and this run's are two paths: no line from the one to the other.
-  const size_t loaded = LoadedKeyframes(map, summary);
+  const size_t loaded = LoadedKeyframes(map);
   for (size_t i = 1; i < map.keyframes.size(); ++i) {
     if (i == loaded) continue;
     const auto& a = map.keyframes[i - 1].world_from_cam.translation();
@@ -208,23 +207,17 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
   return j;
 }
 
-size_t LoadedKeyframes(const graph::MapSnapshot& map, const RunSummary& summary) {
-  std::multimap<int64_t, const SE3*> tracked;
-  for (const StampedPose& p : summary.tracked) tracked.emplace(p.t_ns, &p.world_from_cam);
-  for (size_t i = 0; i < map.keyframes.size(); ++i) {
-    const StampedPose& k = map.keyframes[i];
-    const auto [first, last] = tracked.equal_range(k.t_ns);
-    for (auto it = first; it != last; ++it)
-      if ((it->second->matrix() - k.world_from_cam.matrix()).cwiseAbs().maxCoeff() <= 1e-9)
-        return i;
-  }
-  return map.keyframes.size();
+size_t LoadedKeyframes(const graph::MapSnapshot& map) {
+  const auto first_made_here =
+      std::find_if(map.keyframes.begin(), map.keyframes.end(),
+                   [](const StampedPose& k) { return k.frame_index >= 0; });
+  return static_cast<size_t>(first_made_here - map.keyframes.begin());
 }
 
 void WriteKeyframesFile(const std::string& path, const graph::MapSnapshot& map,
                         const RunSummary& summary) {
   const size_t count = map.keyframes.size();
-  const size_t loaded = LoadedKeyframes(map, summary);
+  const size_t loaded = LoadedKeyframes(map);
   io::WriteFileAtomically(path, [&](std::ostream& out) {
     out << "# timestamp tx ty tz qx qy qz qw\n"
         << "# PCR-ORB keyframes: the map's keyframes when the run ended, one pose line each in "
@@ -273,7 +266,7 @@ nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& s
   nlohmann::json summary_json = {
       {"points", map.points.size()},       {"removed_points", summary.removed_points.size()},
       {"removed_by_reason", by_reason},    {"removed_by_truth", by_truth},
-      {"keyframes", map.keyframes.size()}, {"keyframes_loaded", LoadedKeyframes(map, summary)}};
+      {"keyframes", map.keyframes.size()}, {"keyframes_loaded", LoadedKeyframes(map)}};
   summary_json["loops"] = map.loops;
   summary_json["ground"] = GroundScaleJson(map, summary);
   return summary_json;

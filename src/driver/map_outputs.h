@@ -32,15 +32,9 @@ MapGroundScale RoadScale(const graph::MapSnapshot& map);
 nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& summary);
 
 // How many of the map's keyframes (map.keyframes, in the order they were made) came with a loaded
-// map (--load-map) and are still in it. graph::MapSnapshot does not say which keyframes were
-// loaded; they are those before the first one that is one of this run's tracked frames
-// (summary.tracked): a loaded map's keyframes keep their places and this run's come after them,
-// and a keyframe made in this run is a tracked frame that SlamSystem::InsertKeyframe made its own
-// reference, so that its pose in the map is its frame's refined pose to the bit (matched within
-// 1e-9, at the same t_ns). A loaded keyframe is no frame of this run: this run tracked its frame
-// of the same image on its own, to another pose (millimetres to centimetres away). 0 without a
-// loaded map.
-size_t LoadedKeyframes(const graph::MapSnapshot& map, const RunSummary& summary);
+// map (--load-map) and are still in it: those the snapshot marks as no frame of this run
+// (frame_index -1), which come before this run's. 0 without a loaded map.
+size_t LoadedKeyframes(const graph::MapSnapshot& map);
 
 // The map's summary for stats.json ("points", "removed_points", "removed_by_reason",
 // "removed_by_truth": moving / parked / static against the dataset's ground truth where it has

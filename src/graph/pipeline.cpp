@@ -20,6 +20,7 @@
 #include <string_view>
 #include <thread>
 #include <tuple>
+#include <unordered_map>
 #include <unordered_set>
 #include <utility>
 #include <vector>
@@ -467,6 +468,9 @@ class GraphRun {
   FrameTicket filter_ticket_;     // of the filter call in progress (for the flow's device wait)
   nodes::FilterNode filter_;
   nodes::TrackingNode tracking_;
+  // The frame index of every frame built in this run (tracking's; read by Collect), by frame id:
+  // a keyframe whose frame is not here came with a loaded map.
+  std::unordered_map<int64_t, int64_t> frame_index_of_frame_;
   nodes::MappingNode mapping_;
   // Loop lane: outcomes not yet applied (loop_mutex_), and the flag that aborts a running global
   // BA when a newer job is sent.
@@ -612,6 +616,7 @@ PipelineResult GraphRun::Run() {
               return tracking_(filtered);
             })) {
           clocks_[filtered->ticket.seq].pose_ns.store(NowNs());
+          frame_index_of_frame_.emplace((*out)->frame->id(), filtered->ticket.frame_index);
           std::get<0>(ports).try_put(*out);
         }
       });
@@ -946,7 +951,10 @@ PipelineResult GraphRun::Collect() {
   std::map<KeyframeId, size_t> position_of;
   for (const Keyframe* kf : keyframes) {
     position_of.emplace(kf->id, out.map.keyframes.size());
-    out.map.keyframes.push_back({kf->frame->t_ns(), -1, kf->cam_from_world.inverse()});
+    const auto made_here = frame_index_of_frame_.find(kf->frame->id());
+    out.map.keyframes.push_back({kf->frame->t_ns(),
+                                 made_here == frame_index_of_frame_.end() ? -1 : made_here->second,
+                                 kf->cam_from_world.inverse()});
   }
   for (const LoopEvent& e : out.loop_events) {
     if (e.outcome.kind != LoopOutcomeKind::kCorrected || !e.outcome.match) continue;

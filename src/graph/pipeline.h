@@ -129,7 +129,12 @@ struct MapCloudPoint {
 };
 struct MapSnapshot {
   std::vector<MapCloudPoint> points;
-  Trajectory keyframes;  // world_from_cam of every keyframe, by insertion order
+  // world_from_cam of every keyframe, by insertion order, stamped with its frame's t_ns.
+  // frame_index: the frame of this run the keyframe was made from (FrameSource::frame_indices,
+  // as in PipelineResult::tracked), or -1 for a keyframe that came with a loaded map
+  // (PipelineOptions::initial_map; made by the runs that built it). The loaded keyframes come
+  // first: the map numbers this run's keyframes after them.
+  Trajectory keyframes;
   // Every loop closed (a correction applied), as indices into `keyframes`: the query keyframe
   // and the earlier keyframe it was matched to (each the nearest live one along the spanning tree
   // when it was culled since).

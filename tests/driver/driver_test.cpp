@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
 
 #include "driver/map_outputs.h"
 #include "driver/traffic_street.h"
@@ -346,6 +347,24 @@ TEST(Driver, TruthLabelsOfAnotherDatasetAreRefused) {
   config.dynamic.truth_labels = other;
   EXPECT_NE(SetupError(drive, config, sequential).find("labels up to frame 500"), std::string::npos)
       << SetupError(drive, config, sequential);
+}
+
+// The map snapshot says which keyframes came with a loaded map: a run without one that stopped at
+// its first frame (after tracking made it a keyframe; its pose is not in the trajectory) loaded
+// none, and its keyframe is its frame 0 (keyframes.txt called it "loaded with the map").
+TEST(Driver, TheMapSnapshotMarksTheKeyframesMadeInThisRun) {
+  const Dataset dataset = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
+  DriverOptions o = WithPolicy(graph::Policy::kSequential);
+  o.on_frame = [](size_t, size_t, const graph::FrameRecord&) {
+    throw std::runtime_error("stop at once");
+  };
+  const DriverResult r = RunDataset(dataset, RunConfig{}, FrameRange{0, 3}, o);
+  EXPECT_EQ(r.summary.error, "frame 0, stage sink: stop at once");
+  EXPECT_TRUE(r.summary.tracked.empty());
+  const graph::MapSnapshot& map = r.pipeline.map;
+  ASSERT_EQ(map.keyframes.size(), 1u);
+  EXPECT_EQ(map.keyframes[0].frame_index, 0);
+  EXPECT_EQ(MapOutputsJson(map, r.summary).value("keyframes_loaded", -1), 0);
 }
 
 }  // namespace

@@ -87,7 +87,8 @@ SE3 PoseAtZ(double z_m) {
 
 // A run that replays the frames of the map it loaded: its frame at 0.1 s becomes a keyframe
 // again (beside the loaded keyframe of the same image), its frame at 0.2 s is tracked 1 cm from
-// the loaded keyframe of that image, its frame at 0.3 s becomes a keyframe. keyframes.txt holds
+// the loaded keyframe of that image, its frame at 0.3 s becomes a keyframe. The snapshot marks
+// the loaded keyframes (frame_index -1) and this run's (their frames' indices). keyframes.txt holds
 // the map's four keyframes in the map's order (stats.json's loop indices count its pose lines),
 // each part under a comment that says what it is, and stats.json counts the loaded ones; this
 // run's are its frames' lines of trajectory_tum.txt, character for character. The whole file is
@@ -102,7 +103,6 @@ TEST(MapFile, KeyframesTxtSetsTheLoadedMapsKeyframesApartFromThisRuns) {
                    {200 * kMs, -1, PoseAtZ(2.0)},
                    summary.tracked[0],
                    summary.tracked[2]};
-  for (StampedPose& k : map.keyframes) k.frame_index = -1;  // as the pipeline's snapshot has them
   const std::string dir = test::MakeTempDir("pcr_keyframes_txt");
   WriteTumTrajectory(dir + "/trajectory_tum.txt", summary.tracked);
   WriteMapFiles(dir, map, summary);
