@@ -253,8 +253,11 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   if (audit) summary.filter_truth = audit->Describe();
   graph::PipelineOptions pipeline = options.pipeline;
   pipeline.mode = options.mode;
+  // The caller's callback first: a frame whose callback throws fails in the sink stage and is
+  // not kept (not in the result's frames nor its trajectory), so nothing of it is counted. The
+  // frame counts are taken from the frames kept, after the run.
   pipeline.on_frame = [&](size_t done, size_t total, const graph::FrameRecord& record) {
-    AddFrameToSummary(record.output, record.preprocess_ms, record.segment_ms, stereo, &summary);
+    if (options.on_frame) options.on_frame(done, total, record);
     if (audit && record.filter_report) {
       std::vector<char> truth;
       audit->Add(record.frame_index, *record.filter_report, &summary, &truth,
@@ -272,10 +275,11 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
         record.output.num_matches_initial, record.output.num_local_matches,
         record.output.num_local_projected, record.output.keyframe_inserted,
         record.output.keyframe_reason);
-    if (options.on_frame) options.on_frame(done, total, record);
   };
   result.pipeline = graph::RunPipeline(source, config.slam, pipeline, segmenters.set, scorer.get());
   const graph::PipelineResult& p = result.pipeline;
+  for (const graph::FrameRecord& record : p.frames)
+    AddFrameToSummary(record.output, record.preprocess_ms, record.segment_ms, stereo, &summary);
   summary.error = p.error;
   summary.wall_s = p.stats.wall_s;
   summary.tracked = p.tracked;

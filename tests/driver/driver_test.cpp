@@ -349,6 +349,27 @@ TEST(Driver, TruthLabelsOfAnotherDatasetAreRefused) {
       << SetupError(drive, config, sequential);
 }
 
+// A frame whose progress callback throws fails in the sink stage, after tracking: it is not
+// kept (the run stops there, its pose is not in the trajectory), and the frame counts are those
+// of the frames kept, as trajectory.txt has them (frames 0-2 of 4 that ran; they counted 4).
+TEST(Driver, AFrameThatFailsAfterTrackingIsNotCounted) {
+  const Dataset dataset = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
+  for (const graph::Policy policy : {graph::Policy::kSequential, graph::Policy::kPipelined}) {
+    DriverOptions o = WithPolicy(policy);
+    size_t calls = 0;
+    o.on_frame = [&calls](size_t, size_t, const graph::FrameRecord&) {
+      if (++calls == 4) throw std::runtime_error("boom");
+    };
+    const DriverResult r = RunDataset(dataset, RunConfig{}, FrameRange{0, 8}, o);
+    const RunSummary& s = r.summary;
+    EXPECT_EQ(s.error, "frame 3, stage sink: boom") << graph::ToString(policy);
+    EXPECT_EQ(s.tracked.size(), 3u) << graph::ToString(policy);
+    EXPECT_EQ(s.frames_in, 3u) << graph::ToString(policy);
+    EXPECT_EQ(s.frames_tracked, 3u) << graph::ToString(policy);
+    EXPECT_EQ(r.pipeline.stats.frames_completed, 3u) << graph::ToString(policy);
+  }
+}
+
 // The map snapshot says which keyframes came with a loaded map: a run without one that stopped at
 // its first frame (after tracking made it a keyframe; its pose is not in the trajectory) loaded
 // none, and its keyframe is its frame 0 (keyframes.txt called it "loaded with the map").
