@@ -2,14 +2,17 @@
 #include "pcr/api.h"
 
 #include <fmt/format.h>
+#include <spdlog/sinks/base_sink.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <string_view>
+#include <utility>
 
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
@@ -316,5 +319,68 @@ Source Source::Dataset(std::string path, const std::string& frames) {
 }
 
 std::string Version() { return std::string(kVersion); }
+
+namespace {
+
+spdlog::level::level_enum ToSpdlog(LogLevel level) {
+  switch (level) {
+    case LogLevel::kDebug:
+      return spdlog::level::debug;
+    case LogLevel::kInfo:
+      return spdlog::level::info;
+    case LogLevel::kWarning:
+      return spdlog::level::warn;
+    case LogLevel::kError:
+      return spdlog::level::err;
+    case LogLevel::kOff:
+      return spdlog::level::off;
+  }
+  return spdlog::level::info;
+}
+
+LogLevel FromSpdlog(spdlog::level::level_enum level) {
+  if (level <= spdlog::level::debug) return LogLevel::kDebug;
+  if (level == spdlog::level::info) return LogLevel::kInfo;
+  if (level == spdlog::level::warn) return LogLevel::kWarning;
+  return LogLevel::kError;
+}
+
+// SetLogSink's sink: base_sink's mutex makes the calls one at a time.
+class CallbackSink : public spdlog::sinks::base_sink<std::mutex> {
+ public:
+  explicit CallbackSink(LogSink sink) : sink_(std::move(sink)) {}
+
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    sink_(FromSpdlog(msg.level), std::string(msg.payload.data(), msg.payload.size()));
+  }
+  void flush_() override {}
+
+ private:
+  LogSink sink_;
+};
+
+std::mutex log_sink_mutex;
+// The default logger that the first SetLogSink replaced; null while none is replaced.
+std::shared_ptr<spdlog::logger> logger_before_sink;
+
+}  // namespace
+
+void SetLogLevel(LogLevel level) { spdlog::default_logger()->set_level(ToSpdlog(level)); }
+
+void SetLogSink(LogSink sink) {
+  const std::lock_guard<std::mutex> lock(log_sink_mutex);
+  const std::shared_ptr<spdlog::logger> current = spdlog::default_logger();
+  std::shared_ptr<spdlog::logger> next;
+  if (sink) {
+    next = std::make_shared<spdlog::logger>("", std::make_shared<CallbackSink>(std::move(sink)));
+    if (!logger_before_sink) logger_before_sink = current;
+  } else {
+    if (!logger_before_sink) return;
+    next = std::exchange(logger_before_sink, nullptr);
+  }
+  next->set_level(current->level());  // the level set stays
+  spdlog::set_default_logger(next);
+}
 
 }  // namespace pcr::api
