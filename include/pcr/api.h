@@ -140,6 +140,9 @@ struct Statistics {
   size_t frames_in = 0, frames_tracked = 0, frames_lost = 0, frames_not_initialized = 0;
   size_t frames_dropped = 0;  // realtime
   size_t keyframes = 0, map_points = 0;
+  // The run's start to the end of the last work it waited for (a network call whose frame went
+  // on without it, the loop lane, the final global BA), which can be after the last frame
+  // retired; fps is frames completed over wall_s.
   double wall_s = 0, fps = 0;
   double latency_p50_ms = 0, latency_p99_ms = 0;
   // Against the sequence's ground truth, when it has one (SE(3) alignment; Sim(3) in mono).
