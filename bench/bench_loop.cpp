@@ -115,6 +115,7 @@
 #include <vector>
 
 #include "bench_args.h"
+#include "bench_cli.h"
 #include "build_info.h"
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
@@ -182,8 +183,8 @@ struct Args {
   bool floor = false;                  // loops: the measurements' own floor (FloorOf)
 };
 
-// Parses the list options into their vectors and checks what CLI11 does not; throws
-// std::invalid_argument naming the option.
+// Parses the list options into their vectors and checks what CLI11 does not, before any work (a
+// loop route takes minutes to render); throws std::invalid_argument naming the option.
 void CheckArgs(Args* a) {
   a->seed_list = pcr::bench::ParseSeeds(a->seeds, "--seeds");
   a->threshold_list = pcr::bench::ParseList(a->thresholds, "--thresholds");
@@ -191,11 +192,33 @@ void CheckArgs(Args* a) {
   if (loops && a->seed_list.empty())
     throw std::invalid_argument(std::string(a->latency ? "--latency" : "the synthetic loops") +
                                 " need at least one seed: --seeds '" + a->seeds + "'");
-  if (a->repeat < 1)
-    throw std::invalid_argument("--repeat must be at least 1, got " + std::to_string(a->repeat));
-  if (a->place_stride < 1)
-    throw std::invalid_argument("--place-stride must be at least 1, got " +
-                                std::to_string(a->place_stride));
+  if (a->sequence.min_length > a->sequence.length)
+    throw std::invalid_argument("--sequence-min " + std::to_string(a->sequence.min_length) +
+                                " is more than --sequence-length " +
+                                std::to_string(a->sequence.length));
+  std::string why;
+  if (!a->sequence.IsValid(&why))
+    throw std::invalid_argument("--sequence-length, --sequence-min: " + why);
+  // What the runs check when they start, checked here too (the ranges of the options above keep
+  // these from failing; a message naming a field names its option here).
+  pcr::sim::SynthOptions synth;
+  synth.frames = a->frames;
+  synth.speed_mps = a->speed_mps;
+  synth.num_movers = a->movers;
+  synth.laps = a->laps;
+  if (!synth.IsValid(&why))
+    throw std::invalid_argument("the synthetic loops (--frames, --speed, --movers, --laps): " +
+                                why);
+  pcr::graph::PipelineOptions pipeline;
+  pipeline.threads = a->threads;
+  if (!pipeline.IsValid(&why)) throw std::invalid_argument("--threads: " + why);
+  for (const auto& [option, clips] :
+       {std::pair{"--sequence", &a->sequences}, std::pair{"--place", &a->place},
+        std::pair{"--cross", &a->cross}})
+    for (const std::string& clip : *clips)
+      if (!fs::is_directory(clip))
+        throw std::invalid_argument(std::string(option) + ": no folder " + clip);
+  pcr::driver::LoadRunConfig("", a->settings, nullptr);  // --set: names the option and the key
 }
 
 // The file LoadLoopVocabulary(path) reads.
@@ -1900,53 +1923,57 @@ int RunCross(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
 }
 
 int main(int argc, char** argv) {
+  using pcr::bench::AddInt;
+  using pcr::bench::AddNumber;
   CLI::App app{"Loop closing: accuracy, costs, false loops and place recognition"};
   Args a;
   app.add_option("--seeds", a.seeds, "synthetic loops' seeds (--latency: the first)")
       ->capture_default_str();
-  app.add_option("--frames", a.frames, "frames of each synthetic loop")->capture_default_str();
-  app.add_option("--laps", a.laps,
-                 "times round each synthetic loop's streets (pcr_orb synth --laps)")
-      ->check(CLI::Range(1.05, 20.0))
-      ->capture_default_str();
-  app.add_option("--speed", a.speed_mps, "ego speed, m/s")->capture_default_str();
-  app.add_option("--movers", a.movers, "moving objects per loop")->capture_default_str();
+  AddInt(app, "--frames", &a.frames, 1, 1000000, "N", "frames of each synthetic loop");
+  AddNumber(
+      app, "--laps", &a.laps, "in [1.05, 20]", [](double v) { return v >= 1.05 && v <= 20; }, "X",
+      "times round each synthetic loop's streets (pcr_orb synth --laps)");
+  AddNumber(
+      app, "--speed", &a.speed_mps, "in [0, 40]", [](double v) { return v >= 0 && v <= 40; }, "M/S",
+      "ego speed of the synthetic loops, m/s");
+  AddInt(app, "--movers", &a.movers, 0, 500, "N", "moving objects per synthetic loop");
   app.add_option("--work", a.work, "where loops are found or written (WORK/loopS reused)")
       ->capture_default_str();
-  app.add_option("--policy", a.policy, "sequential or pipelined")->capture_default_str();
+  app.add_option("--policy", a.policy, "sequential or pipelined")
+      ->check(CLI::IsMember({"sequential", "pipelined"}))
+      ->capture_default_str();
   app.add_option("--mode", a.mode, "stereo or mono")
       ->check(CLI::IsMember({"stereo", "mono"}))
       ->capture_default_str();
-  app.add_option("--threads", a.threads, "pipeline threads")->capture_default_str();
+  AddInt(app, "--threads", &a.threads, 1, 256, "N", "pipeline threads");
   app.add_option("--vocabulary", a.vocabulary, "vocabulary file (default: the shipped one)");
   app.add_option("--set", a.settings,
                  "a run setting, section.key=value (pcr_orb run's --set), for every run");
   app.add_flag("--latency", a.latency, "tracking latency with loop closing on and off");
-  app.add_option("--repeat", a.repeat, "--latency: on/off rounds")->capture_default_str();
+  AddInt(app, "--repeat", &a.repeat, 1, 1000, "N", "--latency: on/off rounds");
   app.add_option("--sequence", a.sequences, "real clips without a loop: false loops");
   app.add_option("--place", a.place, "place recognition alone on these clips");
   app.add_option("--cross", a.cross,
                  "whole-system place recognition across clips: each clip mapped, every other "
                  "clip localised in its map");
-  app.add_option("--place-stride", a.place_stride, "--place: every N-th frame (at least 1)")
-      ->capture_default_str();
-  app.add_option("--window", a.window, "--place: excluded frames of the query's clip (+-)")
-      ->capture_default_str();
+  AddInt(app, "--place-stride", &a.place_stride, 1, 1000000, "N", "--place: every N-th frame");
+  AddInt(app, "--window", &a.window, 0, 1000000, "FRAMES",
+         "--place: excluded frames of the query's clip (+-)");
   app.add_option("--thresholds", a.thresholds, "--place: minimum scores")->capture_default_str();
-  app.add_option("--sequence-length", a.sequence.length, "--place: frames of a sequence (answer 4)")
-      ->capture_default_str();
-  app.add_option("--sequence-min", a.sequence.min_length,
-                 "--place: fewest frames a sequence score needs")
-      ->capture_default_str();
-  app.add_option("--uniqueness", a.uniqueness,
-                 "--place: answer 4's best over the best elsewhere, at least")
-      ->capture_default_str();
+  AddInt(app, "--sequence-length", &a.sequence.length, 1, 10000, "FRAMES",
+         "--place: frames of a sequence (answer 4)");
+  AddInt(app, "--sequence-min", &a.sequence.min_length, 1, 10000, "FRAMES",
+         "--place: fewest frames a sequence score needs (at most --sequence-length)");
+  AddNumber(
+      app, "--uniqueness", &a.uniqueness, "at least 0", [](double v) { return v >= 0; }, "RATIO",
+      "--place: answer 4's best over the best elsewhere, at least");
   app.add_flag("--road-distance", a.road_distance,
                "--place: also decline answers that the road, from the two images alone, places "
                "further than a limit from the query");
-  app.add_option("--road-limit", a.road_limit_m,
-                 "--road-distance: the limit of the per-clip figures (m; the sweep shows 7-10)")
-      ->check(CLI::Range(0.5, 40.0));
+  AddNumber(
+      app, "--road-limit", &a.road_limit_m, "in [0.5, 40]",
+      [](double v) { return v >= 0.5 && v <= 40; }, "M",
+      "--road-distance: the limit of the per-clip figures, m (the sweep shows 7-10)");
   app.add_flag("--map-distance", a.map_distance,
                "--place: also decline answers that the query's clip, mapped by the system, places "
                "further than 10 m from it");
@@ -1956,10 +1983,9 @@ int main(int argc, char** argv) {
   app.add_flag("--floor", a.floor,
                "loops (stereo): also the keyframes' ATE after a global BA to convergence from "
                "the map's estimate and from the ground truth (what the measurements allow)");
-  CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
-
   try {
+    if (const int status = pcr::bench::Parse(app, argc, argv); status >= 0) return status;
     CheckArgs(&a);
     const std::shared_ptr<const pcr::Vocabulary> vocabulary =
         pcr::driver::LoadLoopVocabulary(a.vocabulary);
