@@ -54,6 +54,11 @@ std::string KeyframeRange(size_t first, size_t end) {
                           : fmt::format("keyframes {}-{}", first, end - 1);
 }
 
+// A monocular run with the filter on: its excluded keypoints have no depth, so none is placed.
+bool RemovedPointsUnplaced(const RunSummary& summary) {
+  return summary.filtered && summary.mode != SlamMode::kStereo;
+}
+
 // Coordinates in the camera frame of the map's first keyframe; metres in stereo, the map's
 // arbitrary units in monocular runs.
 void WritePly(const std::string& path, SlamMode mode, size_t count, const std::string& comments,
@@ -126,16 +131,30 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
     cv::line(canvas, pixel(a.x(), a.z()), pixel(b.x(), b.z()), loop_bgr, 2);
     cv::circle(canvas, pixel(a.x(), a.z()), 7, loop_bgr, 2);
   }
-  cv::putText(canvas,
-              std::to_string(map.points.size()) + " map points (grey), " +
-                  std::to_string(summary.removed_points.size()) +
-                  " removed by the filter (red), keyframes (blue), loops closed (green): " +
-                  std::to_string(map.loops.size()) + "; top view, x right, z up",
-              cv::Point(10, 15), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1);
+  cv::putText(canvas, MapPictureTitle(map, summary), cv::Point(10, 15), cv::FONT_HERSHEY_SIMPLEX,
+              0.4, cv::Scalar(0, 0, 0), 1);
   if (!cv::imwrite(path, canvas)) throw InputError(path, 0, "cannot write");
 }
 
 }  // namespace
+
+size_t ExcludedKeypoints(const RunSummary& summary) {
+  size_t excluded = 0;
+  for (const auto& [reason, count] : summary.filter_reasons)
+    if (reason != FilterReasonName(FilterReason::kKept)) excluded += static_cast<size_t>(count);
+  return excluded;
+}
+
+std::string MapPictureTitle(const graph::MapSnapshot& map, const RunSummary& summary) {
+  const std::string removed =
+      RemovedPointsUnplaced(summary)
+          ? std::to_string(ExcludedKeypoints(summary)) +
+                " excluded by the filter (mono: no depth, not drawn)"
+          : std::to_string(summary.removed_points.size()) + " removed by the filter (red)";
+  return std::to_string(map.points.size()) + " map points (grey), " + removed +
+         ", keyframes (blue), loops closed (green): " + std::to_string(map.loops.size()) +
+         "; top view, x right, z up";
+}
 
 MapGroundScale RoadScale(const graph::MapSnapshot& map) {
   std::vector<Eigen::Vector3d> points;
@@ -263,10 +282,18 @@ nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& s
       by_truth[kind] = by_truth.value(kind, 0) + 1;
     }
   }
-  nlohmann::json summary_json = {
-      {"points", map.points.size()},       {"removed_points", summary.removed_points.size()},
-      {"removed_by_reason", by_reason},    {"removed_by_truth", by_truth},
-      {"keyframes", map.keyframes.size()}, {"keyframes_loaded", LoadedKeyframes(map)}};
+  nlohmann::json summary_json = {{"points", map.points.size()}};
+  if (RemovedPointsUnplaced(summary)) {
+    summary_json["removed_points"] = nullptr;
+    summary_json["removed_points_unplaced"] = kRemovedPointsUnplaced;
+  } else {
+    summary_json["removed_points"] = summary.removed_points.size();
+    summary_json["removed_by_reason"] = by_reason;
+    summary_json["removed_by_truth"] = by_truth;
+  }
+  if (summary.filtered) summary_json["excluded_keypoints"] = ExcludedKeypoints(summary);
+  summary_json["keyframes"] = map.keyframes.size();
+  summary_json["keyframes_loaded"] = LoadedKeyframes(map);
   summary_json["loops"] = map.loops;
   summary_json["ground"] = GroundScaleJson(map, summary);
   return summary_json;
@@ -289,6 +316,9 @@ void WriteMapFiles(const std::string& out_dir, const graph::MapSnapshot& map,
     for (int r = 0; r < kNumFilterReasons; ++r)
       reasons += "comment reason " + std::to_string(r) + " = " +
                  FilterReasonName(static_cast<FilterReason>(r)) + "\n";
+    if (RemovedPointsUnplaced(summary))
+      reasons += fmt::format("comment {} excluded keypoints, none here: {}\n",
+                             ExcludedKeypoints(summary), kRemovedPointsUnplaced);
     for (const RunSummary::RemovedPoint& p : summary.removed_points)
       PutVertex(&body, p.p_in_world, p.grey, static_cast<uint8_t>(p.reason));
     WritePly(out_dir + "/map_removed.ply", summary.mode, summary.removed_points.size(), reasons,

@@ -1,7 +1,8 @@
 #pragma once
 // The refined map as files: OUT/map.ply (every map point when the run ended: world position,
 // grey level, observation count), OUT/map_removed.ply (keypoints the dynamic filter kept out of
-// the map, placed by their stereo depth and their frame's pose, with the reason), OUT/keyframes.txt
+// the map, placed by their stereo depth and their frame's pose, with the reason; none in a
+// monocular run, which has no depth, as its header says), OUT/keyframes.txt
 // (the map's keyframes when the run ended, TUM format: a loaded map's first, then this run's, each
 // part under a comment saying what it holds) and OUT/map.png (top view: kept points grey, removed
 // ones red, the keyframe trajectory blue, loops green with a ring on the query keyframe). PLY
@@ -36,9 +37,24 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
 // (frame_index -1), which come before this run's. 0 without a loaded map.
 size_t LoadedKeyframes(const graph::MapSnapshot& map);
 
-// The map's summary for stats.json ("points", "removed_points", "removed_by_reason",
-// "removed_by_truth": moving / parked / static against the dataset's ground truth where it has
-// one, "keyframes", "keyframes_loaded": LoadedKeyframes, the first pose lines of keyframes.txt,
+// Why a monocular run with the filter on places none of the keypoints the filter excluded.
+inline constexpr const char* kRemovedPointsUnplaced =
+    "monocular: the keypoints the filter excluded have no depth to place them by (stereo depth "
+    "places them), so map_removed.ply holds none";
+
+// The keypoints the filter excluded over the frames that ran (summary.filter_reasons' counts
+// other than "kept"); the stereo ones with depth in tracked frames are summary.removed_points.
+size_t ExcludedKeypoints(const RunSummary& summary);
+
+// map.png's title line: the counts of what it draws.
+std::string MapPictureTitle(const graph::MapSnapshot& map, const RunSummary& summary);
+
+// The map's summary for stats.json ("points", "removed_points" (map_removed.ply's points),
+// "removed_by_reason", "removed_by_truth": moving / parked / static against the dataset's ground
+// truth where it has one; a monocular run with the filter on places none: "removed_points" null
+// and "removed_points_unplaced" says why; with the filter on, "excluded_keypoints":
+// ExcludedKeypoints; "keyframes", "keyframes_loaded": LoadedKeyframes, the first pose lines of
+// keyframes.txt,
 // "loops": [query, match] pairs of keyframe indices, i.e. of keyframes.txt's pose lines, "ground":
 // GroundScaleJson). Writes nothing.
 nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& summary);

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "driver/map_outputs.h"
 #include "eval/plot.h"
 #include "eval/report.h"
 #include "io/dataset.h"
@@ -442,6 +443,17 @@ std::string FormatRunSummary(const RunSummary& s) {
     o << "dynamic filter decisions:";
     for (const auto& [reason, n] : s.filter_reasons) o << " " << reason << " " << n;
     o << "\n";
+    const size_t excluded = ExcludedKeypoints(s);
+    if (s.mode == SlamMode::kStereo)
+      o << fmt::format(
+          "removed points placed: {} of the {} excluded keypoints (those with stereo depth in "
+          "tracked frames)\n",
+          s.removed_points.size(), excluded);
+    else
+      o << fmt::format(
+          "removed points placed: none; a monocular run has no depth to place its {} excluded "
+          "keypoints by\n",
+          excluded);
     if (s.filter_confusion)
       o << eval::FormatConfusionMatrix(
           *s.filter_confusion,
