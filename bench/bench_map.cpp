@@ -35,8 +35,10 @@
 #include <vector>
 
 #include "bench_args.h"
+#include "bench_cli.h"
 #include "driver/binary_file.h"
 #include "driver/map_file.h"
+#include "driver/slam_config.h"
 #include "eval/alignment.h"
 #include "io/dataset.h"
 #include "pcr/api.h"
@@ -190,28 +192,54 @@ bool MapAndLocalise(const Args& a, const std::string& name, const std::string& s
          frames.size() == loc_end - loc_first;
 }
 
+// The loop route of `seed`.
+pcr::sim::SynthOptions LoopOptions(const Args& a, uint64_t seed) {
+  pcr::sim::SynthOptions o;
+  o.route = pcr::sim::RouteKind::kLoop;
+  o.frames = a.frames;
+  o.speed_mps = a.speed_mps;
+  o.num_movers = a.movers;
+  o.seed = seed;
+  return o.Scaled(a.scale);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  using pcr::bench::AddInt;
+  using pcr::bench::AddNumber;
   CLI::App app{"Saved maps: size, save/load times, the byte round trip, localisation"};
   Args a;
   app.add_option("--sequence", a.sequences, "real clips: map every frame, localise every frame");
   app.add_option("--seeds", a.seeds, "synthetic loop routes' seeds (empty: none)")
       ->capture_default_str();
-  app.add_option("--frames", a.frames, "frames of each loop route")->capture_default_str();
-  app.add_option("--speed", a.speed_mps, "ego speed, m/s")->capture_default_str();
-  app.add_option("--scale", a.scale, "image scale of the loop routes")->capture_default_str();
-  app.add_option("--movers", a.movers, "moving objects per route")->capture_default_str();
-  app.add_option("--lap-extra", a.lap_extra,
-                 "loops: frames past the revisit that the first lap's mapping still holds (its "
-                 "loop can close there)")
-      ->capture_default_str();
+  AddInt(app, "--frames", &a.frames, 1, 1000000, "N", "frames of each loop route");
+  AddNumber(
+      app, "--speed", &a.speed_mps, "in [0, 40]", [](double v) { return v >= 0 && v <= 40; }, "M/S",
+      "ego speed of the loop routes, m/s");
+  AddNumber(
+      app, "--scale", &a.scale, "in (0, 4]", [](double v) { return v > 0 && v <= 4; }, "X",
+      "image scale of the loop routes (1: KITTI's 1241x376)");
+  AddInt(app, "--movers", &a.movers, 0, 500, "N", "moving objects per route");
+  AddInt(app, "--lap-extra", &a.lap_extra, 0, 1000000, "FRAMES",
+         "loops: frames past the revisit that the first lap's mapping still holds (its loop can "
+         "close there)");
   app.add_option("--work", a.work, "where routes and maps are written")->capture_default_str();
   app.add_option("--set", a.overrides, "configuration override section.key=value (repeatable)");
-  CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
   try {
+    if (const int status = pcr::bench::Parse(app, argc, argv); status >= 0) return status;
     const std::vector<uint64_t> seeds = pcr::bench::ParseSeeds(a.seeds, "--seeds");
+    if (seeds.empty() && a.sequences.empty())
+      throw std::invalid_argument("nothing to measure: no --sequence and no seed in --seeds '" +
+                                  a.seeds + "'");
+    pcr::driver::LoadRunConfig("", a.overrides, nullptr);  // --set: names the option and the key
+    for (const std::string& seq : a.sequences)
+      if (!fs::is_directory(seq)) throw std::invalid_argument("--sequence: no folder " + seq);
+    // The routes' options, checked before any work (the ranges above keep this from failing).
+    std::string why;
+    if (!LoopOptions(a, seeds.empty() ? 1 : seeds.front()).IsValid(&why))
+      throw std::invalid_argument("the loop routes (--frames, --speed, --movers, --scale): " + why);
     fs::create_directories(a.work);
     std::printf(
         "| run | mapped | tracked | keyframes | MB | save ms | load ms | same bytes | localised "
@@ -226,13 +254,7 @@ int main(int argc, char** argv) {
       ok = MapAndLocalise(a, fs::path(seq).filename().string(), seq, n, 0, n) && ok;
     }
     for (uint64_t seed : seeds) {
-      pcr::sim::SynthOptions o;
-      o.route = pcr::sim::RouteKind::kLoop;
-      o.frames = a.frames;
-      o.speed_mps = a.speed_mps;
-      o.num_movers = a.movers;
-      o.seed = seed;
-      o = o.Scaled(a.scale);
+      const pcr::sim::SynthOptions o = LoopOptions(a, seed);
       const fs::path dir = fmt::format("{}/loop_s{}_f{}_v{}_m{}_x{}", a.work, o.seed, o.frames,
                                        o.speed_mps, o.num_movers, a.scale);
       const std::string sequence = pcr::sim::RenderOnce(o, dir.string());
