@@ -62,6 +62,7 @@
 #include <vector>
 
 #include "bench_args.h"
+#include "bench_cli.h"
 #include "driver/inference.h"
 #include "driver/run_slam.h"
 #include "io/dataset.h"
@@ -118,67 +119,78 @@ class QuantizedEngine final : public pcr::InferenceEngine {
   std::vector<std::vector<int>> output_shapes_;
 };
 
-constexpr const char* kUsage =
-    "bench_masks [--models FILE,FILE,...] [--threads 1,2] [--frames A:B] [--sequence DIR] "
-    "[--labels FILE|none] [--reference FILE] [--runs N] [--detail] [--int8] [--crop-top] "
-    "[--engines opencv,onednn,twin]\n";
-
-Args ParseArgs(int argc, char** argv) {
-  Args a;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw std::invalid_argument(arg + " needs a value");
-      return argv[++i];
-    };
-    if (arg == "--models") {
-      a.models = pcr::bench::SplitList(value());
-    } else if (arg == "--reference") {
-      a.reference = value();
-    } else if (arg == "--threads") {
-      a.threads.clear();
-      for (const std::string& t : pcr::bench::SplitList(value()))
-        a.threads.push_back(pcr::bench::ParseInt(t, "--threads", 1, 256));
-      if (a.threads.empty()) throw std::invalid_argument("--threads needs a count");
-    } else if (arg == "--frames") {
-      a.frames = value();
-    } else if (arg == "--sequence") {
-      a.sequence = value();
-    } else if (arg == "--labels") {
-      a.labels = value();
-    } else if (arg == "--runs") {
-      a.runs = pcr::bench::ParseInt(value(), "--runs", 1, 1000);
-    } else if (arg == "--detail") {
-      a.detail = true;
-    } else if (arg == "--int8") {
-      a.int8 = true;
-    } else if (arg == "--crop-top") {
-      a.crop_top = true;
-    } else if (arg == "--engines") {
-      a.engines = pcr::bench::SplitList(value());
-      if (a.engines.empty()) throw std::invalid_argument("--engines needs a name");
-      for (const std::string& engine : a.engines) {
-        // The driver's check of an engine, whose message names pcr_orb's --inference.
-        try {
-          pcr::YoloOptions probe;
-          pcr::driver::ApplyInference(engine, &probe);
-        } catch (const pcr::ConfigError& e) {
-          const std::string why = e.what(), flag = "--inference";
-          throw std::invalid_argument(
-              why.rfind(flag, 0) == 0 ? "--engines" + why.substr(flag.size()) : why);
-        }
-      }
-    } else if (arg == "-h" || arg == "--help") {
-      std::printf("%s", kUsage);
-      std::exit(0);
-    } else {
-      throw std::invalid_argument("unknown argument " + arg + "\n" + kUsage);
-    }
-  }
+// Reads the command line into *a. Returns -1 when the benchmark is to run, else its exit status
+// (0 after --help). A bad value throws std::invalid_argument naming the option.
+int ParseArgs(int argc, char** argv, Args* a) {
+  CLI::App app{
+      "YOLOv8-seg models at other input sizes against the shipped 224x640 model (the "
+      "reference, always the first model): forward time per OpenCV thread count, masks against "
+      "the reference's, recall against the KITTI tracking labels (see the top of "
+      "bench/bench_masks.cpp)"};
+  app.add_option_function<std::string>(
+         "--models", [a](const std::string& text) { a->models = pcr::bench::SplitList(text); },
+         "models (ONNX) to compare with the reference, comma-separated")
+      ->type_name("FILE,FILE,...");
+  app.add_option("--reference", a->reference, "the reference model (ONNX)")
+      ->type_name("FILE")
+      ->capture_default_str();
+  app.add_option_function<std::string>(
+         "--threads",
+         [a](const std::string& text) {
+           a->threads.clear();
+           for (const std::string& t : pcr::bench::SplitList(text))
+             a->threads.push_back(pcr::bench::ParseInt(t, "--threads", 1, 256));
+           if (a->threads.empty()) throw std::invalid_argument("--threads needs a count");
+         },
+         "OpenCV thread counts of the speed table (cv::setNumThreads), each 1 to 256")
+      ->type_name("N,N,...")
+      ->default_str("1,2");
+  app.add_option("--frames", a->frames, "frames A:B of the sequence (default: all)")
+      ->type_name("A:B");
+  app.add_option("--sequence", a->sequence, "KITTI raw or odometry sequence folder")
+      ->type_name("DIR")
+      ->capture_default_str();
+  app.add_option("--labels", a->labels,
+                 "KITTI tracking labels (label_02) of the sequence, for the recall table (none: "
+                 "no recall table)")
+      ->type_name("FILE|none")
+      ->capture_default_str();
+  pcr::bench::AddInt(app, "--runs", &a->runs, 1, 1000, "N",
+                     "forward passes per model and thread count in the speed table");
+  app.add_flag("--detail", a->detail,
+               "every reference instance of the test image with its best match per model");
+  app.add_flag("--int8", a->int8,
+               "also the reference quantised to int8 by OpenCV DNN (Net::quantize)");
+  app.add_flag("--crop-top", a->crop_top,
+               "the added models fill the frame's width and cut its top rows "
+               "(YoloOptions::crop_top_to_fill_width)");
+  app.add_option_function<std::string>(
+         "--engines",
+         [a](const std::string& text) {
+           a->engines = pcr::bench::SplitList(text);
+           if (a->engines.empty()) throw std::invalid_argument("--engines needs a name");
+           for (const std::string& engine : a->engines) {
+             // The driver's check of an engine, whose message names pcr_orb's --inference.
+             try {
+               pcr::YoloOptions probe;
+               pcr::driver::ApplyInference(engine, &probe);
+             } catch (const pcr::ConfigError& e) {
+               const std::string why = e.what(), flag = "--inference";
+               throw std::invalid_argument(
+                   why.rfind(flag, 0) == 0 ? "--engines" + why.substr(flag.size()) : why);
+             }
+           }
+         },
+         "engines every model runs on, one table row each: opencv (OpenCV DNN), onednn (the "
+         "project's executor with oneDNN's convolutions), twin; the reference stays OpenCV's")
+      ->type_name("opencv,onednn,twin")
+      ->default_str("opencv");
+  const int status = pcr::bench::Parse(app, argc, argv);
+  if (status >= 0) return status;
   // The reference once, first.
-  a.models.erase(std::remove(a.models.begin(), a.models.end(), a.reference), a.models.end());
-  a.models.insert(a.models.begin(), a.reference);
-  return a;
+  a->models.erase(std::remove(a->models.begin(), a->models.end(), a->reference), a->models.end());
+  a->models.insert(a->models.begin(), a->reference);
+  return -1;
 }
 
 // Exits 1 naming the path when it is not there.
@@ -407,7 +419,8 @@ struct Model {
 
 int main(int argc, char** argv) {
   try {
-    const Args args = ParseArgs(argc, argv);
+    Args args;
+    if (const int status = ParseArgs(argc, argv, &args); status >= 0) return status;
     spdlog::set_level(spdlog::level::warn);
     for (const std::string& m : args.models) Require(m, "model");
     Require(args.image, "test image");
