@@ -1099,6 +1099,7 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
       std::min(capped.mapping.bundle_adjustment.num_threads, options.threads);
   SlamSystem slam(source.rig, capped, options.mode, options.vocabulary);
   if (options.initial_map) slam.RestoreMap(*options.initial_map);
+  const size_t database_loaded = slam.loop_closer().database().size();
   if (capped.localize_only && slam.map().empty())
     throw ConfigError("localisation only needs a map to localise in (a loaded one)");
 
@@ -1151,6 +1152,7 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
     device_wait.emplace(segmenters, run.MakeInferenceWait(), scorer, run.MakeFlowWait());
   PipelineResult result;
   arena.execute([&] { result = run.Run(); });
+  result.loop_database_keyframes_loaded = database_loaded;
   return result;
 }
 

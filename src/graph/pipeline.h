@@ -158,8 +158,11 @@ struct PipelineResult {
   std::vector<LoopEvent> loop_events;
   LoopStats loop_stats;
   // The place-recognition database's keyframes at the end: a loaded map's included, culled ones
-  // not (loop_stats.keyframes_seen counts those added in this run).
+  // not (loop_stats.keyframes_seen counts those added in this run), and at the start (a loaded
+  // map's). The database dropped loop_database_keyframes_loaded + keyframes_seen -
+  // loop_database_keyframes keyframes since, those the map culled.
   size_t loop_database_keyframes = 0;
+  size_t loop_database_keyframes_loaded = 0;
   RelocalisationStats relocalisation_stats;  // the tracker's, at the end
   std::string error;  // empty when every frame ran; else "frame N, stage S: what"
   int64_t error_frame_index = -1;

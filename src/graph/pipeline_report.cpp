@@ -80,6 +80,14 @@ std::string LaneName(int thread) {
   return fmt::format("worker {}", thread);
 }
 
+// Keyframes the place database dropped since the run started (the map culled them): it held the
+// loaded map's, added keyframes_seen, and holds loop_database_keyframes at the end.
+size_t DatabaseKeyframesCulled(const PipelineResult& result) {
+  const size_t held = result.loop_database_keyframes_loaded +
+                      static_cast<size_t>(std::max(result.loop_stats.keyframes_seen, 0));
+  return held > result.loop_database_keyframes ? held - result.loop_database_keyframes : 0;
+}
+
 }  // namespace
 
 nlohmann::json StatsToJson(const PipelineStats& s) {
@@ -235,6 +243,8 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
   }
   return {{"keyframes_seen", st.keyframes_seen},
           {"database_keyframes", result.loop_database_keyframes},
+          {"database_keyframes_loaded", result.loop_database_keyframes_loaded},
+          {"database_keyframes_culled", DatabaseKeyframesCulled(result)},
           {"detections", st.detections},
           {"candidates", st.candidates},
           {"consistent", st.consistent},
@@ -263,12 +273,19 @@ std::string FormatLoopSummary(const PipelineResult& result) {
   const LoopStats& st = result.loop_stats;
   if (st.keyframes_seen == 0 && result.loop_database_keyframes == 0) return "";
   const TimingSummary d = SummarizeTimes(st.detect_ms);
+  // What the database holds against the map's keyframes: those loaded with the map, those added
+  // in this run, less those the map culled since (forgotten by the database).
+  const size_t loaded = result.loop_database_keyframes_loaded;
+  const size_t culled = DatabaseKeyframesCulled(result);
+  std::string held = loaded > 0 ? fmt::format("{} loaded with the map, ", loaded) : "";
+  held += fmt::format("{} added in this run", st.keyframes_seen);
+  if (culled > 0) held += fmt::format(", {} {}culled since", culled, loaded > 0 ? "" : "of them ");
   std::string out = fmt::format(
-      "loop closing: {} loops closed, {} global BAs ({} aborted); {} keyframes in the database "
-      "({} added in this run), {} queries, {} candidates, {} jobs rejected ({} candidates failed "
-      "the geometry); detection {}\n",
-      st.corrections, st.global_bas, st.global_bas_aborted, result.loop_database_keyframes,
-      st.keyframes_seen, st.detections, st.candidates, st.rejected, st.candidates_rejected,
+      "loop closing: {} loops closed, {} global BAs ({} aborted); {} keyframes in the "
+      "database ({}), {} queries, {} candidates, {} jobs rejected ({} candidates failed the "
+      "geometry); detection {}\n",
+      st.corrections, st.global_bas, st.global_bas_aborted, result.loop_database_keyframes, held,
+      st.detections, st.candidates, st.rejected, st.candidates_rejected,
       // No detection timed (a localisation-only run): no time, not a measured 0.
       st.detect_ms.empty() ? std::string("not run")
                            : fmt::format("p50 {:.2f} p99 {:.2f} ms", d.p50_ms, d.p99_ms));

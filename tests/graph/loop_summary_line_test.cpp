@@ -60,5 +60,39 @@ TEST(LoopSummaryLine, NoDetectionIsNotTimedAsZero) {
   EXPECT_NE(some.find("detection p50 "), std::string::npos) << some;
 }
 
+// The database's keyframes against those added: a keyframe the map culled leaves it, so mono 07's
+// 85 added leave 68, the map's keyframes (the line said "68 keyframes in the database (85 added
+// in this run)" beside the summary's 68 keyframes).
+TEST(LoopSummaryLine, SaysHowManyOfTheKeyframesAddedWereCulledSince) {
+  PipelineResult result;
+  result.loop_stats.keyframes_seen = 85;
+  result.loop_database_keyframes = 68;
+  const std::string text = FormatLoopSummary(result);
+  EXPECT_NE(text.find("68 keyframes in the database (85 added in this run, 17 of them "
+                      "culled since)"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(LoopToJson(result).value("database_keyframes_culled", -1), 17);
+  result.loop_database_keyframes = 85;  // none culled
+  EXPECT_NE(FormatLoopSummary(result).find("85 keyframes in the database (85 added in this "
+                                           "run), "),
+            std::string::npos)
+      << FormatLoopSummary(result);
+}
+
+// With a loaded map the database started with the map's keyframes.
+TEST(LoopSummaryLine, CountsTheLoadedMapsKeyframesApart) {
+  PipelineResult result;
+  result.loop_database_keyframes_loaded = 18;
+  result.loop_stats.keyframes_seen = 5;
+  result.loop_database_keyframes = 21;
+  const std::string text = FormatLoopSummary(result);
+  EXPECT_NE(text.find("21 keyframes in the database (18 loaded with the map, 5 added in "
+                      "this run, 2 culled since)"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(LoopToJson(result).value("database_keyframes_loaded", -1), 18);
+}
+
 }  // namespace
 }  // namespace pcr::graph::loop_summary_line_test
