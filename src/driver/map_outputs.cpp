@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <bit>
-#include <cinttypes>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -13,6 +12,7 @@
 
 #include "eval/association.h"
 #include "io/text_parse.h"
+#include "io/trajectory_io.h"
 #include "slam/common/error.h"
 #include "slam/geometry/ground_height.h"
 
@@ -36,16 +36,6 @@ void PutVertex(std::string* body, const Eigen::Vector3d& p, uint8_t grey, Extra 
 // The unit of the map's coordinates.
 const char* MapUnits(SlamMode mode) {
   return mode == SlamMode::kStereo ? "m" : "map units (monocular: arbitrary scale)";
-}
-
-// t_ns in seconds with 9 decimals, exactly (as trajectory_tum.txt's times).
-std::string TumSeconds(int64_t t_ns) {
-  const bool negative = t_ns < 0;
-  const uint64_t abs_ns = negative ? 0 - static_cast<uint64_t>(t_ns) : static_cast<uint64_t>(t_ns);
-  char buffer[48];
-  std::snprintf(buffer, sizeof(buffer), "%s%" PRIu64 ".%09" PRIu64, negative ? "-" : "",
-                abs_ns / 1'000'000'000u, abs_ns % 1'000'000'000u);
-  return buffer;
 }
 
 // "keyframes A-B" (both included), "keyframe A".
@@ -250,7 +240,6 @@ void WriteKeyframesFile(const std::string& path, const graph::MapSnapshot& map,
              "their frames' times; not frames of this run: where this run has a frame of the "
              "same image (the same timestamp), trajectory.txt holds this run's own estimate of "
              "its pose, which differs from the map's by the two estimates' errors\n";
-    char buffer[32];
     for (size_t i = 0; i < count; ++i) {
       if (i == loaded)
         out << "# " << KeyframeRange(loaded, count) << ": " << count - loaded
@@ -259,15 +248,7 @@ void WriteKeyframesFile(const std::string& path, const graph::MapSnapshot& map,
                              "whole file is not)"
                            : "")
             << "\n";
-      const StampedPose& pose = map.keyframes[i];
-      const Eigen::Quaterniond q(pose.world_from_cam.rotation());
-      const Eigen::Vector3d t = pose.world_from_cam.translation();
-      out << TumSeconds(pose.t_ns);
-      for (double value : {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()}) {
-        std::snprintf(buffer, sizeof(buffer), " %.17g", value);
-        out << buffer;
-      }
-      out << '\n';
+      out << TumLine(map.keyframes[i]) << '\n';
     }
     if (loaded == count) out << "# no keyframe made in this run\n";
   });

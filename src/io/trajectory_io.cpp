@@ -126,20 +126,22 @@ void WriteKittiTrajectory(const std::string& path, const Trajectory& trajectory)
   });
 }
 
+std::string TumLine(const StampedPose& pose) {
+  const Eigen::Quaterniond q(pose.world_from_cam.rotation());
+  const Eigen::Vector3d t = pose.world_from_cam.translation();
+  std::string line = FormatTime(pose.t_ns);
+  char buffer[32];
+  for (double value : {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()}) {
+    std::snprintf(buffer, sizeof(buffer), " %.17g", value);
+    line += buffer;
+  }
+  return line;
+}
+
 void WriteTumTrajectory(const std::string& path, const Trajectory& trajectory) {
   io::WriteFileAtomically(path, [&](std::ostream& out) {
     out << "# timestamp tx ty tz qx qy qz qw\n";
-    char buffer[32];
-    for (const StampedPose& pose : trajectory) {
-      const Eigen::Quaterniond q(pose.world_from_cam.rotation());
-      const Eigen::Vector3d t = pose.world_from_cam.translation();
-      out << FormatTime(pose.t_ns);
-      for (double value : {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()}) {
-        std::snprintf(buffer, sizeof(buffer), " %.17g", value);
-        out << buffer;
-      }
-      out << '\n';
-    }
+    for (const StampedPose& pose : trajectory) out << TumLine(pose) << '\n';
   });
 }
 

@@ -27,6 +27,8 @@ Trajectory ReadTumTrajectory(std::istream& in, const std::string& name);
 void WriteKittiTrajectory(const std::string& path, const Trajectory& trajectory);
 // Time written exactly from t_ns with 9 decimals, then tx ty tz qx qy qz qw in %.17g.
 void WriteTumTrajectory(const std::string& path, const Trajectory& trajectory);
+// One of WriteTumTrajectory's lines, without its newline.
+std::string TumLine(const StampedPose& pose);
 
 // KITTI odometry times.txt: one time in seconds per line -> nanoseconds, strictly increasing.
 std::vector<int64_t> ReadKittiTimes(const std::string& path);
