@@ -93,6 +93,27 @@ SE3 PoseAtZ(double z_m) {
 // each part under a comment that says what it is, and stats.json counts the loaded ones; this
 // run's are its frames' lines of trajectory_tum.txt, character for character. The whole file is
 // no trajectory (0.1 s comes back), each part is. Without a loaded map there is no loaded part.
+// KITTI 06 (frames 0-50) mapped with 2 threads and saved (config.save_map), once a process: the
+// map that two tests load. Nothing writes to it after.
+struct SavedMap {
+  api::Config config;
+  std::string error;
+  size_t keyframes = 0;
+};
+const SavedMap& Kitti06Map() {
+  static const SavedMap saved = [] {
+    SavedMap m;
+    m.config.threads = 2;
+    m.config.save_map = test::MakeTempDir("pcr_map_06") + "/06.map";
+    const api::Result mapped = api::Run(
+        m.config, api::Source::Dataset(test::SharedPath("data/kitti/sequences/06"), 0, 51));
+    m.error = mapped.error;
+    m.keyframes = mapped.stats.keyframes;
+    return m;
+  }();
+  return saved;
+}
+
 TEST(MapFile, KeyframesTxtSetsTheLoadedMapsKeyframesApartFromThisRuns) {
   const int64_t kMs = 1'000'000;
   RunSummary summary;
@@ -141,13 +162,10 @@ TEST(MapFile, KeyframesTxtSetsTheLoadedMapsKeyframesApartFromThisRuns) {
 TEST(MapFile, AfterALoadedMapKeyframesTxtHoldsTheLoadedKeyframesThenThisRunsOwn) {
   const std::string dir = test::MakeTempDir("pcr_map_keyframes");
   const std::string sequence = test::SharedPath("data/kitti/sequences/06");
-  api::Config c;
-  c.threads = 2;
-  c.save_map = dir + "/06.map";
-  const api::Result mapped = api::Run(c, api::Source::Dataset(sequence, 0, 51));
+  const SavedMap& mapped = Kitti06Map();
   ASSERT_TRUE(mapped.error.empty()) << mapped.error;
-  api::Config l = c;
-  l.load_map = c.save_map;
+  api::Config l = mapped.config;
+  l.load_map = mapped.config.save_map;
   l.save_map = dir + "/after.map";
   l.out_dir = dir + "/out";
   const api::Result run = api::Run(l, api::Source::Dataset(sequence, 0, 51));
@@ -267,12 +285,10 @@ TEST(MapFile, TheSecondLapIsLocalisedInTheSavedMapOfTheFirst) {
 TEST(MapFile, LoopClosingOffStillRelocalisesAnywhereInTheLoadedMap) {
   const std::string dir = test::MakeTempDir("pcr_map_loop_off");
   const std::string sequence = test::SharedPath("data/kitti/sequences/06");
-  api::Config c;
-  c.threads = 2;
-  c.save_map = dir + "/06.map";
-  const api::Result mapped = api::Run(c, api::Source::Dataset(sequence, 0, 51));
+  const SavedMap& mapped = Kitti06Map();
   ASSERT_TRUE(mapped.error.empty()) << mapped.error;
-  ASSERT_GT(mapped.stats.keyframes, 12u) << "more keyframes than relocalisation's newest 10";
+  ASSERT_GT(mapped.keyframes, 12u) << "more keyframes than relocalisation's newest 10";
+  const api::Config& c = mapped.config;
 
   api::Config l = c;
   l.load_map = c.save_map;
