@@ -44,11 +44,6 @@ std::string KeyframeRange(size_t first, size_t end) {
                           : fmt::format("keyframes {}-{}", first, end - 1);
 }
 
-// A monocular run with the filter on: its excluded keypoints have no depth, so none is placed.
-bool RemovedPointsUnplaced(const RunSummary& summary) {
-  return summary.filtered && summary.mode != SlamMode::kStereo;
-}
-
 // Coordinates in the camera frame of the map's first keyframe; metres in stereo, the map's
 // arbitrary units in monocular runs.
 void WritePly(const std::string& path, SlamMode mode, size_t count, const std::string& comments,
@@ -127,6 +122,10 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
 }
 
 }  // namespace
+
+bool RemovedPointsUnplaced(const RunSummary& summary) {
+  return summary.filtered && summary.mode != SlamMode::kStereo;
+}
 
 size_t ExcludedKeypoints(const RunSummary& summary) {
   size_t excluded = 0;

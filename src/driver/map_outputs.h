@@ -37,6 +37,10 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
 // (frame_index -1), which come before this run's. 0 without a loaded map.
 size_t LoadedKeyframes(const graph::MapSnapshot& map);
 
+// A monocular run with the filter on: its excluded keypoints have no depth, so none is placed
+// (map_removed.ply, stats.json, map.png and the run's summary say so).
+bool RemovedPointsUnplaced(const RunSummary& summary);
+
 // Why a monocular run with the filter on places none of the keypoints the filter excluded.
 inline constexpr const char* kRemovedPointsUnplaced =
     "monocular: the keypoints the filter excluded have no depth to place them by (stereo depth "

@@ -444,16 +444,16 @@ std::string FormatRunSummary(const RunSummary& s) {
     for (const auto& [reason, n] : s.filter_reasons) o << " " << reason << " " << n;
     o << "\n";
     const size_t excluded = ExcludedKeypoints(s);
-    if (s.mode == SlamMode::kStereo)
-      o << fmt::format(
-          "removed points placed: {} of the {} excluded keypoints (those with stereo depth in "
-          "tracked frames)\n",
-          s.removed_points.size(), excluded);
-    else
+    if (RemovedPointsUnplaced(s))
       o << fmt::format(
           "removed points placed: none; a monocular run has no depth to place its {} excluded "
           "keypoints by\n",
           excluded);
+    else
+      o << fmt::format(
+          "removed points placed: {} of the {} excluded keypoints (those with stereo depth in "
+          "tracked frames)\n",
+          s.removed_points.size(), excluded);
     if (s.filter_confusion)
       o << eval::FormatConfusionMatrix(
           *s.filter_confusion,
