@@ -18,8 +18,9 @@
 // Thread-safety: Run() may be called from any thread; concurrent runs share no SLAM state, and
 // each uses `threads` cores. One setting is process-wide: OpenCV's thread count, which a run sets
 // to `threads` and puts back when it ends, so overlapping runs can leave it at another run's value.
-// Logging: the library reports on a run as text lines to stdout at info level (spdlog's default
-// logger); SetLogLevel and SetLogSink below quieten them or send them elsewhere.
+// Logging: the library reports on a run as text lines through a spdlog logger of its own, handed
+// on to spdlog's default logger (stdout unless the application set another); SetLogLevel and
+// SetLogSink below quieten them or send them elsewhere, leaving the default logger as it is.
 #include <Eigen/Core>
 #include <atomic>
 #include <cstdint>
@@ -191,23 +192,23 @@ std::string Version();
 
 // The library's log: text lines on what a run does (info: its setup, the vocabulary loop closing
 // uses, the map loaded or saved), on what it works around (warning) and failures (error; a
-// failure that ends a run is also thrown or returned in Result::error), and details (debug). They
-// go through spdlog's default logger: unless set otherwise, to stdout at info level as
-// "[time] [level] message". The settings are process-wide and hold for all runs. spdlog's
-// default logger belongs to the process: an application that logs through it too (with the same
-// libspdlog) shares these settings, and one that logs through a named logger of its own keeps
-// its lines apart.
+// failure that ends a run is also thrown or returned in Result::error), and details (debug). The
+// library logs through a spdlog logger of its own (not in spdlog's registry), which by default
+// hands each line on to spdlog's default logger of the moment: unless the application set
+// another, to stdout as "[time] [level] message"; that logger's level, pattern and sinks apply
+// too, as to the application's own lines. The library never replaces spdlog's default logger
+// nor changes its level. The settings below are process-wide and hold for all runs.
 enum class LogLevel { kDebug, kInfo, kWarning, kError, kOff };
 
-// Lines below `level` are not logged (kOff: none). Default kInfo. May be called at any time.
+// The library's lines below `level` are not logged (kOff: none); spdlog's default logger and
+// the application's lines keep their level. Default kInfo. May be called at any time.
 void SetLogLevel(LogLevel level);
 
-// Each line (at or above the level) is given to `sink` instead of being printed: its level and
-// its message, without time or level prefix. The sink is called from the thread that logs the
-// line, one call at a time (a run's own threads too); it must neither call Run nor log through
-// spdlog's default logger. An empty sink puts back the logger that the first SetLogSink replaced
-// (spdlog's default: stdout). SetLogSink replaces spdlog's default logger: call it while nothing
-// logs through it, no run included (spdlog's own rule for set_default_logger).
+// Each of the library's lines (at or above SetLogLevel's level) is given to `sink` instead of
+// spdlog's default logger: its level and its message, without time or level prefix. The sink is
+// called from the thread that logs the line, one call at a time (a run's own threads too); it
+// must not call Run. An empty sink hands the lines on to spdlog's default logger again. May be
+// called at any time, during a run too (a line being logged goes to one sink or the other).
 using LogSink = std::function<void(LogLevel level, const std::string& message)>;
 void SetLogSink(LogSink sink);
 

@@ -16,6 +16,7 @@
 #include "app/progress.h"
 #include "graph/heap.h"
 #include "pcr/version.h"
+#include "slam/common/log.h"
 
 namespace pcr::app {
 namespace {
@@ -110,7 +111,10 @@ int Main(int argc, char** argv) {
           },
           "0..33554432"));
   app.parse_complete_callback([&] {
-    spdlog::set_level(spdlog::level::from_str(log_level));
+    // The app's lines and the library's (which its logger hands on to the default logger).
+    const spdlog::level::level_enum level = spdlog::level::from_str(log_level);
+    spdlog::set_level(level);
+    Logger().set_level(level);
     if (!graph::ConfigureHeap(heap) && heap.mmap_threshold_bytes > 0) {
       spdlog::warn("--mmap-threshold {} has no effect: the process allocator is {}",
                    heap.mmap_threshold_bytes, graph::AllocatorName());

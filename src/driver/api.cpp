@@ -3,7 +3,6 @@
 
 #include <fmt/format.h>
 #include <spdlog/sinks/base_sink.h>
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
@@ -19,6 +18,7 @@
 #include "driver/map_file.h"
 #include "pcr/version.h"
 #include "slam/common/error.h"
+#include "slam/common/log.h"
 #include "slam/common/timing.h"
 #include "slam/loop/vocabulary_io.h"
 #include "slam/system/map_archive.h"
@@ -171,10 +171,10 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   if (!config.load_map.empty()) {
     const auto start = std::chrono::steady_clock::now();
     auto archive = std::make_shared<const MapArchive>(driver::LoadMap(config.load_map));
-    spdlog::info("loaded map {}: {} keyframes, {} map points{} ({:.0f} ms){}", config.load_map,
-                 archive->map.num_keyframes(), archive->map.num_points(),
-                 archive->place ? ", place-recognition database" : "", MsSince(start),
-                 config.localize_only ? "; localisation only" : "");
+    Logger().info("loaded map {}: {} keyframes, {} map points{} ({:.0f} ms){}", config.load_map,
+                  archive->map.num_keyframes(), archive->map.num_points(),
+                  archive->place ? ", place-recognition database" : "", MsSince(start),
+                  config.localize_only ? "; localisation only" : "");
     options.pipeline.initial_map = std::move(archive);
   }
   options.pipeline.keep_final_map = !config.save_map.empty();
@@ -192,14 +192,14 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
           "Source frames " + std::to_string(source.first) + ":" + std::to_string(source.end));
   // The camera the run uses: the configuration's camera section overrides the calibration file's.
   const StereoRig rig = driver::EffectiveRig(dataset, run_config.camera);
-  spdlog::info("{} {} {}: {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m{}{}",
-               graph::ToString(options.pipeline.policy), ToString(options.mode),
-               config.filter ? "filter on" : "filter off", dataset.name, range.end - range.first,
-               range.first, range.end - 1, dataset.rig.left.width_px, dataset.rig.left.height_px,
-               rig.left.fx, rig.baseline_m,
-               run_config.camera.Active() ? " (the configuration's camera)" : "",
-               config.out_dir.empty() ? "" : ", out " + config.out_dir);
-  spdlog::debug("effective configuration:\n{}", config_yaml);
+  Logger().info("{} {} {}: {} ({} frames {}..{}), {} x {}, fx {:.3f}, baseline {:.4f} m{}{}",
+                graph::ToString(options.pipeline.policy), ToString(options.mode),
+                config.filter ? "filter on" : "filter off", dataset.name, range.end - range.first,
+                range.first, range.end - 1, dataset.rig.left.width_px, dataset.rig.left.height_px,
+                rig.left.fx, rig.baseline_m,
+                run_config.camera.Active() ? " (the configuration's camera)" : "",
+                config.out_dir.empty() ? "" : ", out " + config.out_dir);
+  Logger().debug("effective configuration:\n{}", config_yaml);
   if (on_frame)
     options.on_frame = [&on_frame](size_t done, size_t total, const graph::FrameRecord& r) {
       on_frame(ToFrameResult(r), done, total);
@@ -236,9 +236,9 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
     output_errors.Try([&] {
       const MapArchive& map = *run.pipeline.final_map;
       const size_t bytes = driver::SaveMap(config.save_map, map);
-      spdlog::info("saved map {}: {} keyframes, {} map points{}, {:.1f} MB", config.save_map,
-                   map.map.num_keyframes(), map.map.num_points(),
-                   map.place ? ", place-recognition database" : "", bytes / 1e6);
+      Logger().info("saved map {}: {} keyframes, {} map points{}, {:.1f} MB", config.save_map,
+                    map.map.num_keyframes(), map.map.num_points(),
+                    map.place ? ", place-recognition database" : "", bytes / 1e6);
     });
   }
   std::string output_error;
@@ -360,27 +360,12 @@ class CallbackSink : public spdlog::sinks::base_sink<std::mutex> {
   LogSink sink_;
 };
 
-std::mutex log_sink_mutex;
-// The default logger that the first SetLogSink replaced; null while none is replaced.
-std::shared_ptr<spdlog::logger> logger_before_sink;
-
 }  // namespace
 
-void SetLogLevel(LogLevel level) { spdlog::default_logger()->set_level(ToSpdlog(level)); }
+void SetLogLevel(LogLevel level) { Logger().set_level(ToSpdlog(level)); }
 
 void SetLogSink(LogSink sink) {
-  const std::lock_guard<std::mutex> lock(log_sink_mutex);
-  const std::shared_ptr<spdlog::logger> current = spdlog::default_logger();
-  std::shared_ptr<spdlog::logger> next;
-  if (sink) {
-    next = std::make_shared<spdlog::logger>("", std::make_shared<CallbackSink>(std::move(sink)));
-    if (!logger_before_sink) logger_before_sink = current;
-  } else {
-    if (!logger_before_sink) return;
-    next = std::exchange(logger_before_sink, nullptr);
-  }
-  next->set_level(current->level());  // the level set stays
-  spdlog::set_default_logger(next);
+  SetLogTarget(sink ? std::make_shared<CallbackSink>(std::move(sink)) : nullptr);
 }
 
 }  // namespace pcr::api

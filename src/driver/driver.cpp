@@ -1,7 +1,6 @@
 #include "driver/driver.h"
 
 #include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 #include <memory>
 #include <optional>
@@ -15,6 +14,7 @@
 #include "io/kitti_tracking.h"
 #include "nodes/filter_node.h"
 #include "slam/common/error.h"
+#include "slam/common/log.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
 namespace pcr::driver {
@@ -59,8 +59,8 @@ Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
         source.load_left_color ? source.load_left_color(first) : source.load_left(first);
     for (const auto& n : s.owned) {
       const auto* y = static_cast<const YoloSegmenter*>(n.get());
-      spdlog::info("segmenter: {} ({}x{}, {})", y->Name(), y->input_size().width,
-                   y->input_size().height, y->backend());
+      Logger().info("segmenter: {} ({}x{}, {})", y->Name(), y->input_size().width,
+                    y->input_size().height, y->backend());
       n->Segment(image);
     }
   } else if (o.segmenter == "truth") {
@@ -201,17 +201,17 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   if (pipeline_options.device_overlap != defaults.device_overlap &&
       (pipeline_options.policy == graph::Policy::kSequential || dynamic.segmenter != "yolo" ||
        !(dynamic.inference == "auto" || dynamic.inference.rfind("cuda", 0) == 0)))
-    spdlog::warn(
+    Logger().warn(
         "--device-overlap does nothing here: it applies to --segmenter yolo on a device "
         "(--inference cuda) with --policy pipelined or realtime");
   if (pipeline_options.adaptive && dynamic.segmenter == "none")
-    spdlog::warn(
+    Logger().warn(
         "--adaptive on without a segmenter: no network to choose; only the quality levels' "
         "keypoint counts, BA iterations and keyframe intervals adapt");
   // scripts/tsan.sh passes --inference with --segmenter none (PCR_TSAN_SEQUENCE), as --flow
   // without --filter on.
   if (dynamic.inference != DynamicRunOptions{}.inference && dynamic.segmenter != "yolo")
-    spdlog::warn("--inference {} without --segmenter yolo: no network runs", dynamic.inference);
+    Logger().warn("--inference {} without --segmenter yolo: no network runs", dynamic.inference);
   if (!dynamic.truth_labels.empty()) CheckTruthLabels(dataset, dynamic.truth_labels);
 
   // One camera for the tracker and the filter.
@@ -236,14 +236,14 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
     scorer = std::make_unique<nodes::DynamicFilterScorer>(rig, config.slam.orb.scale_factor,
                                                           filter_options);
     audit.emplace(dataset, dynamic.truth_labels, dynamic.dump);
-    spdlog::info("dynamic points: filter on, segmenter {}{}{}", dynamic.segmenter,
-                 audit->Describe().empty() ? "" : ", ", audit->Describe());
+    Logger().info("dynamic points: filter on, segmenter {}{}{}", dynamic.segmenter,
+                  audit->Describe().empty() ? "" : ", ", audit->Describe());
   } else if (dynamic.flow != "opencv") {
-    spdlog::warn("--flow {} without --filter on: no LK flow runs", dynamic.flow);
+    Logger().warn("--flow {} without --filter on: no LK flow runs", dynamic.flow);
   }
   if (!segmenters.set.empty() && !dynamic.filter)
-    spdlog::info("segmenter {} without --filter on: its masks alone exclude keypoints",
-                 dynamic.segmenter);
+    Logger().info("segmenter {} without --filter on: its masks alone exclude keypoints",
+                  dynamic.segmenter);
 
   RunSummary& summary = result.summary;
   summary.dataset_name = dataset.name;
@@ -266,7 +266,7 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
         AddRemovedPoints(*record.filter_report, truth, rig.left, record.output.world_from_cam,
                          &summary);
     }
-    spdlog::debug(
+    Logger().debug(
         "frame {}: status {} method {} keypoints {} stereo {} tracked {} (initial {}/{}, local "
         "{}/{}) keyframe {} {}",
         record.frame_index, static_cast<int>(record.output.status),

@@ -1,7 +1,6 @@
 #include "driver/filter_audit.h"
 
 #include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -9,6 +8,7 @@
 #include "driver/truth_segmenter.h"
 #include "slam/common/error.h"
 #include "slam/common/image.h"
+#include "slam/common/log.h"
 
 namespace pcr::driver {
 namespace {
@@ -29,8 +29,8 @@ FilterAudit::FilterAudit(const Dataset& dataset, const std::string& truth_labels
     instances_ = sim::InstanceTable::Read(table);
   if (!truth_labels.empty()) {
     labels_.emplace(dataset, truth_labels);
-    spdlog::info("truth labels {}: {} tracks, {} moving", truth_labels, labels_->num_tracks(),
-                 labels_->num_moving_tracks());
+    Logger().info("truth labels {}: {} tracks, {} moving", truth_labels, labels_->num_tracks(),
+                  labels_->num_moving_tracks());
   }
 }
 

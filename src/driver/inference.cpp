@@ -1,11 +1,10 @@
 #include "driver/inference.h"
 
-#include <spdlog/spdlog.h>
-
 #include "gpu/executor.h"
 #include "gpu/lk_flow.h"
 #include "gpu/net_engine.h"
 #include "slam/common/error.h"
+#include "slam/common/log.h"
 
 namespace pcr::driver {
 namespace {
@@ -28,7 +27,7 @@ std::string EngineDevice(const char* flag, const std::string& value,
   std::string why;
   if (value == "auto") {
     if (gpu::CudaDeviceCount(&why) > 0) return "cuda";
-    spdlog::info("{} auto: {} ({})", flag, cpu.name, why);
+    Logger().info("{} auto: {} ({})", flag, cpu.name, why);
     return cpu.device;
   }
   if (!is_device(value)) {

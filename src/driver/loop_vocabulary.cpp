@@ -1,13 +1,13 @@
 #include "driver/loop_vocabulary.h"
 
 #include <dlfcn.h>
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
 
 #include "driver/vocabulary_file.h"
+#include "slam/common/log.h"
 #include "slam/common/timing.h"
 
 namespace pcr::driver {
@@ -61,15 +61,15 @@ std::shared_ptr<const Vocabulary> LoadLoopVocabulary(const std::string& path,
   const std::string chosen = FindVocabulary(path, candidates);
   if (file) file->clear();
   if (chosen.empty()) {
-    spdlog::warn("loop closing off: no vocabulary at {} (train one with pcr_orb vocab)",
-                 Listed(candidates));
+    Logger().warn("loop closing off: no vocabulary at {} (train one with pcr_orb vocab)",
+                  Listed(candidates));
     return nullptr;
   }
   const auto start = std::chrono::steady_clock::now();
   auto vocabulary = std::make_shared<const Vocabulary>(LoadVocabulary(chosen));
-  spdlog::info("loop closing: vocabulary {} ({} words, k={} L={}, read in {:.0f} ms)", chosen,
-               vocabulary->num_words(), vocabulary->branching(), vocabulary->depth(),
-               MsSince(start));
+  Logger().info("loop closing: vocabulary {} ({} words, k={} L={}, read in {:.0f} ms)", chosen,
+                vocabulary->num_words(), vocabulary->branching(), vocabulary->depth(),
+                MsSince(start));
   if (file) *file = chosen;
   return vocabulary;
 }
@@ -88,14 +88,14 @@ std::shared_ptr<const Vocabulary> ChooseLoopClosing(bool loop_flag, bool loaded_
   // A vocabulary for loop closing that does not run is not read: a warning, not an error, as a
   // rerun with --config OUT/config.yaml (loop.enabled: false) keeps its --vocabulary.
   if (!vocabulary_path.empty() && !loaded_map && (!loop_flag || !configured))
-    spdlog::warn("vocabulary (--vocabulary {}) is not used: loop closing is off ({})",
-                 vocabulary_path, off_by);
+    Logger().warn("vocabulary (--vocabulary {}) is not used: loop closing is off ({})",
+                  vocabulary_path, off_by);
   if (!configured && loop_flag)
-    spdlog::info(
+    Logger().info(
         "loop closing off: the configuration's loop.enabled: false (--config or --set) over "
         "loop_closing (--loop on)");
   if (configured && !loop_flag)
-    spdlog::info(
+    Logger().info(
         "loop closing off: loop_closing (--loop off) over the configuration's loop.enabled: true "
         "(config.yaml records false)");
   const bool loop_closing = loop_flag && configured;
@@ -104,8 +104,8 @@ std::shared_ptr<const Vocabulary> ChooseLoopClosing(bool loop_flag, bool loaded_
     // Warns when there is none.
     vocabulary = LoadLoopVocabulary(vocabulary_path, candidates, vocabulary_file);
     if (!loop_closing && vocabulary)
-      spdlog::info("loop closing off ({}); the vocabulary serves relocalisation in the loaded map",
-                   off_by);
+      Logger().info("loop closing off ({}); the vocabulary serves relocalisation in the loaded map",
+                    off_by);
   }
   if (configured && !(loop_closing && vocabulary)) {
     std::vector<std::string> off = overrides;

@@ -1,7 +1,5 @@
 #include "driver/map_floor.h"
 
-#include <spdlog/spdlog.h>
-
 #include <chrono>
 #include <map>
 #include <stdexcept>
@@ -9,6 +7,7 @@
 #include "eval/association.h"
 #include "eval/evaluation.h"
 #include "slam/common/error.h"
+#include "slam/common/log.h"
 #include "slam/optim/bundle_adjustment.h"
 
 namespace pcr::driver {
@@ -31,7 +30,7 @@ double AteOf(const KeyframePoses& poses, const Trajectory& truth) {
   try {
     return eval::Evaluate(eval::AssociateByFrameIndex(truth, t), eval).ape.trans_m.rmse;
   } catch (const std::exception& e) {
-    spdlog::warn("keyframe ATE: {}", e.what());
+    Logger().warn("keyframe ATE: {}", e.what());
     return MapFloor::kNaN;
   }
 }

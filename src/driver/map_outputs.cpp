@@ -1,7 +1,5 @@
 #include "driver/map_outputs.h"
 
-#include <spdlog/spdlog.h>
-
 #include <algorithm>
 #include <bit>
 #include <cstdio>
@@ -14,6 +12,7 @@
 #include "io/text_parse.h"
 #include "io/trajectory_io.h"
 #include "slam/common/error.h"
+#include "slam/common/log.h"
 #include "slam/geometry/ground_height.h"
 
 namespace pcr::driver {
@@ -163,7 +162,7 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
                       {"keyframes", keyframes},
                       {"estimated", s.estimated}};
   if (s.estimated == 0) {
-    spdlog::info("no road found under the {} keyframes", keyframes);
+    Logger().info("no road found under the {} keyframes", keyframes);
     return j;
   }
   j["median_height"] = s.median_height;
@@ -175,7 +174,7 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
     j["truth_metres_per_unit"] = evaluation->alignment.scale;
     j["ratio_to_truth"] = s.metres_per_unit / evaluation->alignment.scale;
   }
-  spdlog::info(
+  Logger().info(
       "the road under {} of {} keyframes: {:.4g} m per map unit (keyframes' p10-p90 "
       "{:.4g}-{:.4g}){}",
       s.estimated, keyframes, s.metres_per_unit, s.p10, s.p90,
@@ -188,7 +187,7 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
   if (summary.mode == SlamMode::kStereo &&
       !(s.metres_per_unit >= 0.5 && s.metres_per_unit <= 2.0)) {
     j["plausible"] = false;
-    spdlog::warn(
+    Logger().warn(
         "the road found under {} keyframe{} is {:.4g} m below {} against the camera's {} m, on "
         "a stereo map in metres: it is not the road (points by the camera; is the camera "
         "configuration this sequence's?)",
@@ -207,10 +206,10 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
         eval::Evaluate(eval::AssociateByFrameIndex(summary.ground_truth, metric), se3)
             .ape.trans_m.rmse;
     j["ate_m_road_scale_se3"] = ate_m;
-    spdlog::info("ATE in the road's metres, SE(3)-aligned: {:.4f} m (Sim(3)-aligned: {:.4f} m)",
-                 ate_m, evaluation->ape.trans_m.rmse);
+    Logger().info("ATE in the road's metres, SE(3)-aligned: {:.4f} m (Sim(3)-aligned: {:.4f} m)",
+                  ate_m, evaluation->ape.trans_m.rmse);
   } catch (const std::exception& e) {
-    spdlog::warn("evaluation in the road's scale skipped: {}", e.what());
+    Logger().warn("evaluation in the road's scale skipped: {}", e.what());
   }
   return j;
 }

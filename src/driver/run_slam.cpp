@@ -1,6 +1,5 @@
 #include "driver/run_slam.h"
 
-#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -21,6 +20,7 @@
 #include "io/text_parse.h"
 #include "io/trajectory_io.h"
 #include "slam/common/error.h"
+#include "slam/common/log.h"
 
 namespace pcr::driver {
 namespace {
@@ -58,7 +58,7 @@ void WarnIfCameraOverrideDiffers(const Dataset& dataset, const CameraOverride& c
   auto differs = [](double a, double b) { return std::abs(a - b) > 0.01 * std::abs(b); };
   if (differs(camera.fx, rig.left.fx) || differs(camera.cx, rig.left.cx) ||
       (camera.baseline_m > 0 && differs(camera.baseline_m, rig.baseline_m)))
-    spdlog::warn("camera override differs from the dataset calibration by more than 1%");
+    Logger().warn("camera override differs from the dataset calibration by more than 1%");
 }
 
 StereoRig EffectiveRig(const Dataset& dataset, const CameraOverride& camera) {
@@ -176,7 +176,7 @@ void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool mo
   try {
     s->evaluation = eval::Evaluate(eval::AssociateByFrameIndex(gt, s->tracked), s->eval_options);
   } catch (const std::exception& e) {
-    spdlog::warn("evaluation skipped: {}", e.what());
+    Logger().warn("evaluation skipped: {}", e.what());
   }
 }
 
@@ -324,7 +324,7 @@ void OutputErrors::Try(const std::function<void()>& write) {
     if (!first_) {
       first_ = std::current_exception();
     } else {
-      spdlog::error("{}", e.what());  // the first is thrown by Rethrow
+      Logger().error("{}", e.what());  // the first is thrown by Rethrow
     }
   }
 }

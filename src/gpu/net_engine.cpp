@@ -1,12 +1,11 @@
 #include "gpu/net_engine.h"
 
-#include <spdlog/spdlog.h>
-
 #include <stdexcept>
 #include <utility>
 #include <vector>
 
 #include "gpu/executor.h"
+#include "slam/common/log.h"
 
 namespace pcr::gpu {
 namespace {
@@ -78,7 +77,7 @@ std::unique_ptr<InferenceEngine> MakeNetEngine(const std::vector<uint8_t>& model
       onednn      ? MakeTwinExecutor(plan, MakeOneDnnConvKernels(plan), /*row_steps=*/true)
       : index < 0 ? MakeTwinExecutor(plan)
                   : MakeCudaExecutor(plan, index);
-  spdlog::info(
+  Logger().info(
       "NetEngine: {} steps ({} fused activations), {:.1f} MiB weights, {:.1f} MiB "
       "activations, on {}",
       plan->steps.size(), plan->fused_activations, ConstantFloats(*plan) * 4.0 / (1 << 20),

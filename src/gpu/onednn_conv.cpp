@@ -14,12 +14,13 @@
 
 #if defined(PCR_HAVE_ONEDNN)
 #include <omp.h>
-#include <spdlog/spdlog.h>
 
 #include <cstdlib>
 #include <mutex>
 #include <oneapi/dnnl/dnnl.hpp>
 #include <opencv2/core/utility.hpp>
+
+#include "slam/common/log.h"
 #endif
 
 namespace pcr::gpu {
@@ -63,7 +64,7 @@ void WarnOfSpinningThreads(int threads) {
   if (getloadavg(&load, 1) != 1 || load < 1.0) return;
   static std::once_flag once;
   std::call_once(once, [threads, load] {
-    spdlog::warn(
+    Logger().warn(
         "inference onednn: {} OpenMP threads a convolution, which spin while they wait "
         "(OMP_WAIT_POLICY is not set), and the machine has other work (load average {:.1f}): a "
         "forward pass can take 10x longer. Set OMP_WAIT_POLICY=passive in the environment, or "

@@ -1,12 +1,13 @@
 #include "graph/loop_lane.h"
 
-#include <spdlog/spdlog.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
+
+#include "slam/common/log.h"
 
 namespace pcr::graph {
 
@@ -34,7 +35,7 @@ void LoopLane::Loop(int nice) {
     // Per-thread on Linux: the nice value of this thread only.
     const auto tid = static_cast<id_t>(syscall(SYS_gettid));
     if (setpriority(PRIO_PROCESS, tid, nice) != 0)
-      spdlog::debug("loop lane: cannot set nice {}: {}", nice, std::strerror(errno));
+      Logger().debug("loop lane: cannot set nice {}: {}", nice, std::strerror(errno));
   }
   while (true) {
     std::pair<std::function<void()>, std::function<void()>> item;
@@ -48,7 +49,7 @@ void LoopLane::Loop(int nice) {
     try {
       item.first();
     } catch (const std::exception& e) {
-      spdlog::error("loop lane: {}", e.what());
+      Logger().error("loop lane: {}", e.what());
     }
     item.second();
   }

@@ -4,7 +4,6 @@
 #include <oneapi/tbb/global_control.h>
 #include <oneapi/tbb/task.h>
 #include <oneapi/tbb/task_arena.h>
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <atomic>
@@ -33,6 +32,7 @@
 #include "nodes/slam_nodes.h"
 #include "nodes/source_node.h"
 #include "slam/common/error.h"
+#include "slam/common/log.h"
 #include "slam/system/map_archive.h"
 
 namespace pcr::graph {
@@ -370,7 +370,7 @@ class GraphRun {
         error_ = FrameError{ticket.seq, ticket.frame_index, stage, what};
     }
     // Debug only: the run's error (PipelineResult::error) says it, once, to whoever reports it.
-    spdlog::debug("pipeline: frame {} stage {}: {}", ticket.frame_index, stage, what);
+    Logger().debug("pipeline: frame {} stage {}: {}", ticket.frame_index, stage, what);
     Wake();
   }
 
@@ -761,8 +761,8 @@ void GraphRun::ClockLoop() {
       if (next < source_.size()) {
         error_ = FrameError{admitted_, source_.frame_indices[next], kStopStage,
                             "stopped on request before this frame"};
-        spdlog::warn("pipeline: stop requested; frames from {} on are not run",
-                     source_.frame_indices[next]);
+        Logger().warn("pipeline: stop requested; frames from {} on are not run",
+                      source_.frame_indices[next]);
       }
     }
     if (error_ && completed_ >= error_->seq) {
@@ -867,7 +867,7 @@ void GraphRun::Complete(const FrameResultPtr& result) {
       if (after != before) {
         changes_.push_back(
             {t.seq, before, after, controller_.available_ms(), controller_.threshold_ms()});
-        spdlog::info(
+        Logger().info(
             "pipeline: quality {} -> {} after frame {} (available {:.1f} ms, threshold "
             "{:.1f} ms)",
             nodes::ToString(before), nodes::ToString(after), t.frame_index,
@@ -1137,9 +1137,9 @@ PipelineResult RunPipeline(const nodes::FrameSource& source, const SlamOptions& 
   // 2 cores, bench_pipeline): stages there run OpenCV on their own thread.
   CvThreadsScope cv_threads(options.policy == Policy::kSequential ? options.threads : 1);
   oneapi::tbb::task_arena arena(arena_threads);
-  spdlog::debug("pipeline: {} on {} ({} frames), {} threads, {} in flight",
-                ToString(options.policy), source.name, source.size(), options.threads,
-                max_in_flight);
+  Logger().debug("pipeline: {} on {} ({} frames), {} threads, {} in flight",
+                 ToString(options.policy), source.name, source.size(), options.threads,
+                 max_in_flight);
   // With a light network the low level can afford inference on every frame.
   PipelineOptions run_options = options;
   if (segmenters.light) run_options.levels.low.inference_every = 1;

@@ -1,7 +1,6 @@
 #include "io/dataset.h"
 
 #include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <array>
@@ -19,6 +18,7 @@
 #include "io/kitti_raw.h"
 #include "slam/common/error.h"
 #include "slam/common/image.h"
+#include "slam/common/log.h"
 
 namespace pcr {
 namespace {
@@ -234,7 +234,7 @@ void AddOtherCameras(Dataset* dataset, const std::vector<int64_t>& numbers,
     for (int64_t n = numbers[i - 1] + 1; n < numbers[i] && gaps.size() < 5; ++n) gaps.push_back(n);
   }
   if (missing > 0) {
-    spdlog::warn(
+    Logger().warn(
         "{}: {} image{} missing between {} and {} (frame{} {}): the clip's frames are its {} "
         "images, so from the first gap on a frame number of the outputs (and --frames) is not "
         "its image's number; each image keeps its own timestamp and ground truth",
@@ -275,8 +275,8 @@ void AddOtherCameras(Dataset* dataset, const std::vector<int64_t>& numbers,
     }
     if (!why.empty()) {
       dataset->left_color_paths.clear();
-      spdlog::warn("{}: colour images not used (the segmenter gets grey ones): {}", colour_dir,
-                   why);
+      Logger().warn("{}: colour images not used (the segmenter gets grey ones): {}", colour_dir,
+                    why);
     }
   }
 }
@@ -381,7 +381,7 @@ void SetRigFromCalib(const CalibFile& calib, const std::string& left_key,
                             "', the camera of the right images (" +
                             fs::path(dataset->right_paths.front()).parent_path().string() + ")";
     dataset->right_paths.clear();
-    spdlog::warn("{}: right images not used, monocular only", dataset->right_unused);
+    Logger().warn("{}: right images not used, monocular only", dataset->right_unused);
   }
   if (dataset->has_right()) {
     const Eigen::Matrix<double, 3, 4> p_right = calib.Matrix3x4(right_key);

@@ -1,12 +1,11 @@
 #include "io/kitti_odometry.h"
 
-#include <spdlog/spdlog.h>
-
 #include <filesystem>
 
 #include "io/kitti_calib.h"
 #include "io/trajectory_io.h"
 #include "slam/common/error.h"
+#include "slam/common/log.h"
 
 namespace pcr {
 namespace {
@@ -40,7 +39,7 @@ Dataset OpenKittiOdometry(const std::string& sequence_dir, KittiCameras cams) {
                   (dir / "image_2").string(), color);
 
   if (fs::exists(dir / kSynthOptionsName, ec) && !fs::exists(dir / kSynthCompleteName, ec))
-    spdlog::warn(
+    Logger().warn(
         "{}: a synthetic sequence whose render did not finish ({} without {}): its images, "
         "poses and options may come from two renders; render it again (pcr_orb synth)",
         dataset.root, kSynthOptionsName, kSynthCompleteName);

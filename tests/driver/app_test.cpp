@@ -54,5 +54,24 @@ TEST(CommandLine, MmapThresholdOutOfRangeIsRefused) {
   }
 }
 
+// --log-level applies to the library's lines as to the command line's own: the library logs
+// through a logger of its own, which hands its lines on to the command line's default logger.
+TEST(CommandLine, LogLevelAppliesToTheLibrarysLines) {
+  const std::string dir = test::MakeTempDir("pcr_cli_log_level");
+  const std::string run = " run --sequence " + test::SharedPath("data/kitti/sequences/06") +
+                          " --frames 0:2 --loop off --out " + dir;
+  test::CommandOutput r = test::RunPcrOrb("--log-level debug" + run + "/debug");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("] [info] sequential stereo"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("] [debug] effective configuration:"), std::string::npos) << r.out;
+  r = test::RunPcrOrb("--log-level info" + run + "/info");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("] [info] sequential stereo"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("[debug]"), std::string::npos) << r.out;
+  r = test::RunPcrOrb("--log-level warn" + run + "/warn");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.out.find("[info]"), std::string::npos) << r.out;
+}
+
 }  // namespace
 }  // namespace pcr::app

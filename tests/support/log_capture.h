@@ -1,11 +1,14 @@
 #pragma once
-// Captures the default logger's lines (at info level and above) while it lives.
+// Captures the log's lines (at info level and above) while it lives: the default logger's, the
+// library's among them (its logger hands them on to the default logger while no sink is set).
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/spdlog.h>
 
 #include <memory>
 #include <sstream>
 #include <string>
+
+#include "slam/common/log.h"
 
 namespace pcr::test {
 
@@ -15,12 +18,15 @@ class LogCapture {
   LogCapture() : sink_(std::make_shared<spdlog::sinks::ostream_sink_mt>(text_)) {
     spdlog::default_logger()->sinks().push_back(sink_);
     level_ = spdlog::get_level();
+    library_level_ = Logger().level();
     spdlog::set_level(spdlog::level::info);
+    Logger().set_level(spdlog::level::info);
   }
   ~LogCapture() {
     auto& sinks = spdlog::default_logger()->sinks();
     std::erase(sinks, sink_);
     spdlog::set_level(level_);
+    Logger().set_level(library_level_);
   }
   std::string Text() const { return text_.str(); }
 
@@ -28,6 +34,7 @@ class LogCapture {
   std::ostringstream text_;
   std::shared_ptr<spdlog::sinks::ostream_sink_mt> sink_;
   spdlog::level::level_enum level_;
+  spdlog::level::level_enum library_level_;
 };
 
 }  // namespace pcr::test

@@ -1,7 +1,5 @@
 #include "slam/dynamic/yolo_segmenter.h"
 
-#include <spdlog/spdlog.h>
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -16,6 +14,7 @@
 #include <stdexcept>
 
 #include "slam/common/error.h"
+#include "slam/common/log.h"
 #include "slam/common/timing.h"
 
 namespace pcr {
@@ -493,8 +492,8 @@ YoloSegmenter::YoloSegmenter(const YoloOptions& options) : options_(options) {
     input_size_ = cv::Size(static_cast<int>(dims[3]), static_cast<int>(dims[2]));
   } else {
     input_size_ = options_.dynamic_input_size;
-    spdlog::warn("YoloSegmenter: {} has a symbolic input size ({}), using {}x{}", path, dims_text,
-                 input_size_.width, input_size_.height);
+    Logger().warn("YoloSegmenter: {} has a symbolic input size ({}), using {}x{}", path, dims_text,
+                  input_size_.width, input_size_.height);
   }
 
   try {
@@ -515,20 +514,20 @@ YoloSegmenter::YoloSegmenter(const YoloOptions& options) : options_(options) {
   layout_ = InspectYoloOutputs(output_shapes, static_cast<int>(class_names_.size()), path);
   output_shapes_count_ = output_shapes.size();
   if (!layout_.has_prototypes()) {
-    spdlog::warn(
+    Logger().warn(
         "YoloSegmenter: {} is a detection-only model (outputs {}); masks fall back to "
         "the detection boxes",
         path, ShapesString(output_shapes));
   }
   for (const DynamicClass& c : options_.classes.classes) {
     if (std::find(class_names_.begin(), class_names_.end(), c.name) == class_names_.end()) {
-      spdlog::warn("YoloSegmenter: dynamic class '{}' is not among the model's classes", c.name);
+      Logger().warn("YoloSegmenter: dynamic class '{}' is not among the model's classes", c.name);
     }
   }
 
-  spdlog::info("YoloSegmenter: {} input {}x{}, outputs {}, {} classes, {} on {}", path,
-               input_size_.width, input_size_.height, ShapesString(output_shapes),
-               layout_.num_classes, layout_.has_prototypes() ? "masks" : "box masks", backend_);
+  Logger().info("YoloSegmenter: {} input {}x{}, outputs {}, {} classes, {} on {}", path,
+                input_size_.width, input_size_.height, ShapesString(output_shapes),
+                layout_.num_classes, layout_.has_prototypes() ? "masks" : "box masks", backend_);
 }
 
 std::string YoloSegmenter::Name() const {

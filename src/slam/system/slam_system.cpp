@@ -1,7 +1,6 @@
 #include "slam/system/slam_system.h"
 
 #include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
@@ -11,6 +10,7 @@
 
 #include "slam/common/error.h"
 #include "slam/common/image.h"
+#include "slam/common/log.h"
 #include "slam/common/timing.h"
 #include "slam/system/map_archive.h"
 
@@ -182,13 +182,13 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
 void SlamSystem::NoteLoadedMapStart(const TrackingResult& result, int64_t frame_index) {
   if (result.status == TrackingStatus::kOk) {
     if (frames_before_loaded_map_ >= kLostInLoadedMapWarnFrames)
-      spdlog::info("frame {} relocalised in the loaded map after {} frames that were not",
-                   frame_index, frames_before_loaded_map_);
+      Logger().info("frame {} relocalised in the loaded map after {} frames that were not",
+                    frame_index, frames_before_loaded_map_);
     loaded_map_keyframes_ = 0;  // started: nothing more to say
     return;
   }
   if (++frames_before_loaded_map_ != kLostInLoadedMapWarnFrames) return;
-  spdlog::warn(
+  Logger().warn(
       "the first {} frames of this run were not relocalised in the loaded map ({} keyframes{}): "
       "a run on a loaded map starts at the first frame found in it; until then no frame is "
       "tracked{}",
@@ -304,10 +304,10 @@ void SlamSystem::RestoreMap(const MapArchive& archive) {
   loop_closer_.ResetEditLog();
   const int computed = loop_closer_.Restore(archive.place, map_);
   if (computed > 0)
-    spdlog::info("loaded map: {} keyframes' bags of words computed with this run's vocabulary",
-                 computed);
+    Logger().info("loaded map: {} keyframes' bags of words computed with this run's vocabulary",
+                  computed);
   if (!loop_closer_.HasPlaceRecognition() && !map_.empty())
-    spdlog::warn(
+    Logger().warn(
         "loaded map without a vocabulary: a frame is relocalised only against the map's {} newest "
         "keyframes (tracking.relocalisation_keyframes) and their covisible ones, not in the whole "
         "map{}",
@@ -337,7 +337,7 @@ bool SlamSystem::ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_inde
   }
   loop_closer_.OnOutcome(outcome, map_);
   if (outcome.kind == LoopOutcomeKind::kCorrected && outcome.match) {
-    spdlog::info(
+    Logger().info(
         "loop closed at frame {}: keyframe {} -> {} ({} matches, scale {:.4f}), moved {:.3f} {} / "
         "{:.2f} deg, {} points fused",
         frame_index, outcome.query.value, outcome.match->matched.value,
@@ -345,12 +345,12 @@ bool SlamSystem::ApplyLoopOutcome(const LoopOutcome& outcome, int64_t frame_inde
         outcome.correction_m, mode_ == SlamMode::kStereo ? "m" : "map units",
         outcome.correction_deg, outcome.fused_points);
   } else if (outcome.kind == LoopOutcomeKind::kGlobalBundleAdjustment) {
-    spdlog::info("global BA at frame {}: {} keyframes, {} points, {:.0f} ms{}", frame_index,
-                 outcome.ba_keyframes, outcome.ba_points, outcome.ba_ms,
-                 outcome.ba_aborted ? " (aborted by a newer loop)" : "");
+    Logger().info("global BA at frame {}: {} keyframes, {} points, {:.0f} ms{}", frame_index,
+                  outcome.ba_keyframes, outcome.ba_points, outcome.ba_ms,
+                  outcome.ba_aborted ? " (aborted by a newer loop)" : "");
   } else {
-    spdlog::debug("loop candidate of keyframe {} rejected: {}", outcome.query.value,
-                  outcome.rejection);
+    Logger().debug("loop candidate of keyframe {} rejected: {}", outcome.query.value,
+                   outcome.rejection);
   }
   LoopEvent event;
   event.frame_index = frame_index;
@@ -386,8 +386,8 @@ int SlamSystem::KeyframesAfterLastGlobalBundleAdjustment() const {
 
 bool SlamSystem::FinalGlobalBundleAdjustment() {
   if (!NeedsFinalGlobalBundleAdjustment()) return false;
-  spdlog::info("final global BA: {} of the map's {} keyframes came after the last global BA",
-               KeyframesAfterLastGlobalBundleAdjustment(), map_.keyframes().size());
+  Logger().info("final global BA: {} of the map's {} keyframes came after the last global BA",
+                KeyframesAfterLastGlobalBundleAdjustment(), map_.keyframes().size());
   LoopOutcome outcome = LoopCloser::GlobalBundleAdjustmentOfMap(map_, options_.loop);
   outcome.query = map_.keyframes().rbegin()->first;
   return ApplyLoopOutcome(outcome, -1);
