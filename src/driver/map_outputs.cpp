@@ -122,11 +122,17 @@ void WriteMapPicture(const std::string& path, const graph::MapSnapshot& map,
 
 }  // namespace
 
+const char* RemovedPointsUnplacedWhy(const RunSummary& summary) {
+  if (summary.filtered) return summary.mode != SlamMode::kStereo ? kRemovedPointsUnplaced : nullptr;
+  return summary.keypoints_excluded > 0 ? kMaskExclusionsUnplaced : nullptr;
+}
+
 bool RemovedPointsUnplaced(const RunSummary& summary) {
-  return summary.filtered && summary.mode != SlamMode::kStereo;
+  return RemovedPointsUnplacedWhy(summary) != nullptr;
 }
 
 size_t ExcludedKeypoints(const RunSummary& summary) {
+  if (!summary.filtered) return static_cast<size_t>(summary.keypoints_excluded);
   size_t excluded = 0;
   for (const auto& [reason, count] : summary.filter_reasons)
     if (reason != FilterReasonName(FilterReason::kKept)) excluded += static_cast<size_t>(count);
@@ -135,10 +141,12 @@ size_t ExcludedKeypoints(const RunSummary& summary) {
 
 std::string MapPictureTitle(const graph::MapSnapshot& map, const RunSummary& summary) {
   const std::string removed =
-      RemovedPointsUnplaced(summary)
-          ? std::to_string(ExcludedKeypoints(summary)) +
-                " excluded by the filter (mono: no depth, not drawn)"
-          : std::to_string(summary.removed_points.size()) + " removed by the filter (red)";
+      !RemovedPointsUnplaced(summary)
+          ? std::to_string(summary.removed_points.size()) + " removed by the filter (red)"
+      : summary.filtered ? std::to_string(ExcludedKeypoints(summary)) +
+                               " excluded by the filter (mono: no depth, not drawn)"
+                         : std::to_string(ExcludedKeypoints(summary)) +
+                               " excluded by the masks (filter off: not drawn)";
   return std::to_string(map.points.size()) + " map points (grey), " + removed +
          ", keyframes (blue), loops closed (green): " + std::to_string(map.loops.size()) +
          "; top view, x right, z up";
@@ -264,13 +272,14 @@ nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& s
   nlohmann::json summary_json = {{"points", map.points.size()}};
   if (RemovedPointsUnplaced(summary)) {
     summary_json["removed_points"] = nullptr;
-    summary_json["removed_points_unplaced"] = kRemovedPointsUnplaced;
+    summary_json["removed_points_unplaced"] = RemovedPointsUnplacedWhy(summary);
   } else {
     summary_json["removed_points"] = summary.removed_points.size();
     summary_json["removed_by_reason"] = by_reason;
     summary_json["removed_by_truth"] = by_truth;
   }
-  if (summary.filtered) summary_json["excluded_keypoints"] = ExcludedKeypoints(summary);
+  if (summary.filtered || summary.keypoints_excluded > 0)
+    summary_json["excluded_keypoints"] = ExcludedKeypoints(summary);
   summary_json["keyframes"] = map.keyframes.size();
   summary_json["keyframes_loaded"] = LoadedKeyframes(map);
   summary_json["loops"] = map.loops;
@@ -297,7 +306,7 @@ void WriteMapFiles(const std::string& out_dir, const graph::MapSnapshot& map,
                  FilterReasonName(static_cast<FilterReason>(r)) + "\n";
     if (RemovedPointsUnplaced(summary))
       reasons += fmt::format("comment {} excluded keypoints, none here: {}\n",
-                             ExcludedKeypoints(summary), kRemovedPointsUnplaced);
+                             ExcludedKeypoints(summary), RemovedPointsUnplacedWhy(summary));
     for (const RunSummary::RemovedPoint& p : summary.removed_points)
       PutVertex(&body, p.p_in_world, p.grey, static_cast<uint8_t>(p.reason));
     WritePly(out_dir + "/map_removed.ply", summary.mode, summary.removed_points.size(), reasons,

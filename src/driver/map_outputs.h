@@ -37,17 +37,24 @@ nlohmann::json GroundScaleJson(const graph::MapSnapshot& map, const RunSummary& 
 // (frame_index -1), which come before this run's. 0 without a loaded map.
 size_t LoadedKeyframes(const graph::MapSnapshot& map);
 
-// A monocular run with the filter on: its excluded keypoints have no depth, so none is placed
-// (map_removed.ply, stats.json, map.png and the run's summary say so).
+// Why none of the excluded keypoints is placed (map_removed.ply, stats.json, map.png and the
+// run's summary say so), null where they are: a monocular run with the filter on (no depth), or
+// a run with the filter off whose segmenter's masks alone excluded keypoints (only the filter's
+// decisions, with its depths, are placed).
+const char* RemovedPointsUnplacedWhy(const RunSummary& summary);
 bool RemovedPointsUnplaced(const RunSummary& summary);
 
-// Why a monocular run with the filter on places none of the keypoints the filter excluded.
 inline constexpr const char* kRemovedPointsUnplaced =
     "monocular: the keypoints the filter excluded have no depth to place them by (stereo depth "
     "places them), so map_removed.ply holds none";
+inline constexpr const char* kMaskExclusionsUnplaced =
+    "the filter is off: the segmenter's masks alone excluded these keypoints, and map_removed.ply "
+    "places only the filter's decisions (--filter on), so it holds none";
 
-// The keypoints the filter excluded over the frames that ran (summary.filter_reasons' counts
-// other than "kept"); the stereo ones with depth in tracked frames are summary.removed_points.
+// The keypoints kept out of tracking and the map over the frames that ran: with the filter on,
+// summary.filter_reasons' counts other than "kept" (the stereo ones with depth in tracked frames
+// are summary.removed_points); with it off, those a segmenter's masks excluded
+// (summary.keypoints_excluded).
 size_t ExcludedKeypoints(const RunSummary& summary);
 
 // map.png's title line: the counts of what it draws.

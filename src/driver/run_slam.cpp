@@ -142,6 +142,8 @@ void AddFrameToSummary(const FrameOutput& out, double preprocess_ms, double segm
   s->stages["total"].Add(out.times_ms.total + preprocess_ms + segment_ms);
   s->keyframes = out.num_keyframes;
   s->map_points = out.num_map_points;
+  s->keypoints += out.num_keypoints;
+  s->keypoints_excluded += out.num_excluded;
 }
 
 void CompleteSummary(const Dataset& dataset, int64_t first, int64_t end, bool monocular,
@@ -362,6 +364,7 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   for (const auto& [name, series] : s.stages) j["stages"][name] = TimingJson(series.Summarize());
   if (!s.error.empty()) j["error"] = s.error;
   if (s.interrupted) j["interrupted"] = true;
+  j["keypoints"] = {{"total", s.keypoints}, {"excluded", s.keypoints_excluded}};
   if (s.filtered) {
     j["filter"]["reasons"] = s.filter_reasons;
     if (s.filter_confusion) j["filter"]["confusion"] = eval::ToJson(*s.filter_confusion);
@@ -464,6 +467,13 @@ std::string FormatRunSummary(const RunSummary& s) {
       o << fmt::format(
           "parked-object keypoints kept (not excluded for any reason): {} of {} ({:.1f}%)\n",
           s.parked_points_kept, s.parked_points, 100.0 * s.parked_points_kept / s.parked_points);
+  } else if (s.keypoints_excluded > 0) {
+    o << fmt::format(
+        "segmentation masks (filter off) excluded {} of {} keypoints ({:.1f}%) from tracking and "
+        "the map; removed points placed: none ({})\n",
+        s.keypoints_excluded, s.keypoints,
+        100.0 * s.keypoints_excluded / std::max<int64_t>(1, s.keypoints),
+        "map_removed.ply places the filter's decisions only");
   }
   if (s.evaluation) o << eval::FormatReport(*s.evaluation, s.eval_options);
   if (!s.error.empty())

@@ -80,6 +80,9 @@ struct RunSummary {
     char truth = '-';  // 'm' moving object, 'p' parked object, 's' static, '-' unknown
   };
   std::vector<RemovedPoint> removed_points;
+  // Over the frames that ran: their keypoints, and those kept out of tracking and the map (by
+  // the filter, or with it off by a segmenter's masks alone; FrameOutput::num_excluded).
+  int64_t keypoints = 0, keypoints_excluded = 0;
   // The query keyframes' timestamps of the loops closed (ringed on trajectory.png in
   // kLoopColour).
   std::vector<int64_t> loops_closed_t_ns;

@@ -24,6 +24,7 @@ TrackedPtr TrackingNode::operator()(const FilteredPtr& filtered) {
   out.t_ns = filtered->ticket.t_ns;
   out.num_keypoints = msg->frame->size();
   out.num_stereo = msg->frame->num_stereo();
+  out.num_excluded = msg->frame->num_excluded();
   FillTrackingOutput(tracking, &out);
   out.times_ms.orb_left = stereo.left->extract_ms;
   out.times_ms.orb_right = stereo.orb_right_ms;

@@ -1,5 +1,6 @@
 #include "driver/filter_audit.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -9,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "driver/driver.h"
+#include "driver/map_outputs.h"
 #include "driver/traffic_street.h"
 #include "sim/sequence_writer.h"
 #include "slam/common/error.h"
@@ -147,6 +149,47 @@ TEST(FilterAudit, AClipThatStartsAfterFrameZeroReadsItsOwnInstanceImages) {
 }
 
 // Options that would do nothing are refused rather than ignored.
+// With the filter off, a segmenter's masks alone keep keypoints out of tracking and the map; the
+// run counts them (each frame's excluded keypoints) and says that none is placed in
+// map_removed.ply. Before, nothing counted them: the summary had no line for them, stats.json no
+// count and map.png "0 removed by the filter".
+TEST(FilterAudit, MasksAloneExcludeKeypointsThatTheRunCounts) {
+  const Dataset dataset = OpenDataset(SmallStreet("pcr_masks_alone"));
+  RunConfig config;
+  config.dynamic.segmenter = "truth";
+  config.dynamic.filter = false;
+  const DriverResult run = RunDataset(dataset, config, FrameRange{0, dataset.size()}, Sequential());
+  const RunSummary& s = run.summary;
+  int64_t excluded = 0;
+  for (const graph::FrameRecord& r : run.pipeline.frames) excluded += r.num_excluded;
+  ASSERT_GT(excluded, 0) << "the movers' and parked cars' masks exclude keypoints";
+  EXPECT_FALSE(s.filtered);
+  EXPECT_EQ(s.keypoints_excluded, excluded);
+  EXPECT_GT(s.keypoints, s.keypoints_excluded);
+  EXPECT_EQ(ExcludedKeypoints(s), static_cast<size_t>(excluded));
+  EXPECT_NE(
+      FormatRunSummary(s).find(fmt::format(
+          "segmentation masks (filter off) excluded {} of {} keypoints", excluded, s.keypoints)),
+      std::string::npos)
+      << FormatRunSummary(s);
+  const nlohmann::json map = MapOutputsJson(run.pipeline.map, s);
+  EXPECT_EQ(map.value("excluded_keypoints", int64_t{-1}), excluded) << map.dump();
+  EXPECT_TRUE(map["removed_points"].is_null()) << map.dump();
+  EXPECT_NE(map.value("removed_points_unplaced", "").find("the filter is off"), std::string::npos)
+      << map.dump();
+  EXPECT_NE(MapPictureTitle(run.pipeline.map, s)
+                .find(std::to_string(excluded) + " excluded by the masks"),
+            std::string::npos)
+      << MapPictureTitle(run.pipeline.map, s);
+
+  config.dynamic.segmenter = "none";  // nothing excludes: nothing to place, nothing said
+  const RunSummary none =
+      RunDataset(dataset, config, FrameRange{0, dataset.size()}, Sequential()).summary;
+  EXPECT_EQ(none.keypoints_excluded, 0);
+  EXPECT_FALSE(RemovedPointsUnplaced(none));
+  EXPECT_EQ(FormatRunSummary(none).find("segmentation masks"), std::string::npos);
+}
+
 TEST(FilterAudit, OptionsThatWouldDoNothingAreRefused) {
   const Dataset dataset = OpenDataset(test_street::TrafficStreet());
   const FrameRange range{0, 2};

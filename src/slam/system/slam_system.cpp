@@ -433,6 +433,7 @@ FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv
   const FramePtr frame = BuildFrame(t_ns, left_features, stereo, keypoint_filter);
   out.num_keypoints = frame->size();
   out.num_stereo = frame->num_stereo();
+  out.num_excluded = frame->num_excluded();
 
   t = std::chrono::steady_clock::now();
   const TrackingResult tracking = Track(frame, frame_index);

@@ -70,7 +70,8 @@ struct FrameOutput {
   TrackingMethod method = TrackingMethod::kNone;
   int num_keypoints = 0;
   int num_stereo = 0;
-  int num_tracked = 0;  // inlier map points
+  int num_excluded = 0;  // keypoints the frame's filter (or masks alone) kept out of tracking
+  int num_tracked = 0;   // inlier map points
   // Tracking diagnostics (see TrackingResult).
   int num_matches_initial = 0, num_inliers_initial = 0;
   int num_local_projected = 0, num_local_matches = 0;
