@@ -18,6 +18,7 @@
 
 #include "app/commands.h"
 #include "app/progress.h"
+#include "driver/api_run.h"
 #include "driver/inference.h"
 #include "pcr/api.h"
 
@@ -180,7 +181,7 @@ void RunFrames(const std::string& name, FrameArgs& a) {
   api::Result result;
   {
     const StopSignals signals;
-    result = api::Run(c, source, [&](const api::FrameResult& f, size_t done, size_t total) {
+    const api::FrameCallback on_frame = [&](const api::FrameResult& f, size_t done, size_t total) {
       if (!progress) progress = std::make_unique<Progress>(name, static_cast<int64_t>(total));
       // Frames complete in frame order: those of the range before this one that did not
       // complete were dropped (realtime).
@@ -189,7 +190,9 @@ void RunFrames(const std::string& name, FrameArgs& a) {
                        fmt::format("points tracked {} kf {} map points {}", f.tracked_points,
                                    f.map_keyframes, f.map_points),
                        reached - static_cast<int64_t>(done));
-    });
+    };
+    // api::Run, its errors and warnings naming the command line's options, not Config's fields.
+    result = driver::RunNamingOptions(c, source, on_frame, {});
   }
   if (progress) {
     if (result.error.empty())

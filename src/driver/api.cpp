@@ -13,6 +13,7 @@
 #include <string_view>
 #include <utility>
 
+#include "driver/api_run.h"
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
 #include "driver/map_file.h"
@@ -94,7 +95,55 @@ nlohmann::json LoadedMapJson(const std::string& file,
           {"localize_only", localize_only}};
 }
 
-driver::DriverOptions ToDriverOptions(const Config& c) {
+// The command line's options (this API's first user) and the fields of Config they set.
+struct ConfigField {
+  std::string_view option, field;
+};
+constexpr ConfigField kConfigFields[] = {
+    {"--mode", "mode"},
+    {"--policy", "policy"},
+    {"--threads", "threads"},
+    {"--max-in-flight", "max_in_flight"},
+    {"--rate", "rate"},
+    {"--waiting", "waiting"},
+    {"--mask-deadline-ms", "mask_deadline_ms"},
+    {"--inference-every", "inference_every"},
+    {"--propagate-masks", "propagate_masks"},
+    {"--adaptive", "adaptive"},
+    {"--config", "config_file"},
+    {"--set", "overrides"},
+    {"--filter", "filter"},
+    {"--segmenter", "segmenter"},
+    {"--model", "model"},
+    {"--model-high", "model_high"},
+    {"--model-low", "model_low"},
+    {"--inference", "inference"},
+    {"--flow", "flow"},
+    {"--truth-miss-rate", "truth_miss_rate"},
+    {"--truth-labels", "truth_labels"},
+    {"--dump-filter", "dump_filter"},
+    {"--loop", "loop_closing"},
+    {"--vocabulary", "vocabulary"},
+    {"--load-map", "load_map"},
+    {"--save-map", "save_map"},
+    {"--localize-only", "localize_only"},
+    {"--trim-every", "trim_every"},
+    {"--trim-after-keyframe", "trim_after_keyframe"},
+    {"--device-overlap", "device_overlap"},
+    {"--delay-ms", "tracking_delay_ms"},
+    {"--out", "out_dir"},
+};
+
+// A command-line option as errors name it to this API's users: Config's field, the option in
+// brackets ("Config::threads (--threads)"); an option without a field as itself.
+std::string ConfigFieldName(std::string_view option) {
+  for (const ConfigField& f : kConfigFields)
+    if (f.option == option) return fmt::format("Config::{} ({})", f.field, f.option);
+  return std::string(option);
+}
+
+// The driver's messages name the options as `names` says; PipelineOptions' as Config's fields.
+driver::DriverOptions ToDriverOptions(const Config& c, const driver::OptionNames& names) {
   driver::DriverOptions o;
   o.mode = c.mode == Mode::kMono ? SlamMode::kMonocular : SlamMode::kStereo;
   graph::PipelineOptions& p = o.pipeline;
@@ -114,30 +163,29 @@ driver::DriverOptions ToDriverOptions(const Config& c) {
   p.stop = c.stop;
   std::string why;
   if (!p.IsValid(&why)) {
-    // Named as Config's field, the command line's option (this API's first user) in brackets.
+    // PipelineOptions' field that IsValid names, and the option that sets it.
     struct Name {
-      std::string_view pipeline_field, config_field, option;
+      std::string_view pipeline_field, option;
     };
     for (const Name& n :
-         {Name{"threads", "threads", "--threads"},
-          Name{"max_in_flight", "max_in_flight", "--max-in-flight"}, Name{"rate", "rate", "--rate"},
-          Name{"waiting_capacity", "waiting", "--waiting"},
-          Name{"inference_every", "inference_every", "--inference-every"},
-          Name{"mask_deadline_ms", "mask_deadline_ms", "--mask-deadline-ms"},
-          Name{"trim_heap_every", "trim_every", "--trim-every"},
-          Name{"tracking_delay_ms", "tracking_delay_ms", "--delay-ms"}}) {
+         {Name{"threads", "--threads"}, Name{"max_in_flight", "--max-in-flight"},
+          Name{"rate", "--rate"}, Name{"waiting_capacity", "--waiting"},
+          Name{"inference_every", "--inference-every"},
+          Name{"mask_deadline_ms", "--mask-deadline-ms"}, Name{"trim_heap_every", "--trim-every"},
+          Name{"tracking_delay_ms", "--delay-ms"}}) {
       if (why.starts_with(std::string(n.pipeline_field) + " "))
-        throw ConfigError(fmt::format("Config::{} ({}){}", n.config_field, n.option,
-                                      why.substr(n.pipeline_field.size())));
+        throw ConfigError(ConfigFieldName(n.option) + why.substr(n.pipeline_field.size()));
     }
     throw ConfigError("pipeline options: " + why);
   }
   o.model_high = c.model_high;
   o.model_low = c.model_low;
+  o.option_names = names;
   return o;
 }
 
-Result RunChecked(const Config& config, const Source& source, const FrameCallback& on_frame) {
+Result RunChecked(const Config& config, const Source& source, const FrameCallback& on_frame,
+                  const driver::OptionNames& names) {
   RawTruth raw_truth = RawTruth::kIns;
   try {
     raw_truth = ParseRawTruth(source.raw_truth);
@@ -148,7 +196,7 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   std::string config_yaml;
   driver::RunConfig run_config =
       driver::LoadRunConfig(config.config_file, config.overrides, &config_yaml);
-  driver::DriverOptions options = ToDriverOptions(config);
+  driver::DriverOptions options = ToDriverOptions(config, names);
   // Loop closing runs when loop_closing (--loop), the configuration's loop.enabled and a
   // vocabulary all allow it; config.yaml records the setting the run has.
   std::string vocabulary_file;
@@ -291,13 +339,7 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
 }  // namespace
 
 Result Run(const Config& config, const Source& source, const FrameCallback& on_frame) {
-  try {
-    return RunChecked(config, source, on_frame);
-  } catch (const InputError& e) {
-    throw Error(e.what());
-  } catch (const ConfigError& e) {
-    throw Error(e.what());
-  }
+  return driver::RunNamingOptions(config, source, on_frame, ConfigFieldName);
 }
 
 Source Source::Dataset(std::string path, const std::string& frames) {
@@ -369,3 +411,18 @@ void SetLogSink(LogSink sink) {
 }
 
 }  // namespace pcr::api
+
+namespace pcr::driver {
+
+api::Result RunNamingOptions(const api::Config& config, const api::Source& source,
+                             const api::FrameCallback& on_frame, const OptionNames& names) {
+  try {
+    return api::RunChecked(config, source, on_frame, names);
+  } catch (const InputError& e) {
+    throw api::Error(e.what());
+  } catch (const ConfigError& e) {
+    throw api::Error(e.what());
+  }
+}
+
+}  // namespace pcr::driver

@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <optional>
+#include <string_view>
 #include <vector>
 
 #include "driver/filter_audit.h"
@@ -28,17 +29,18 @@ struct Segmenters {
 
 Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
                           const std::string& model_high, const std::string& model_low,
-                          const nodes::FrameSource& source) {
+                          const nodes::FrameSource& source, const OptionNames& names) {
   Segmenters s;
   if (o.segmenter == "yolo") {
     if (o.model_path.empty())
-      throw ConfigError("--segmenter yolo needs --model FILE (a YOLOv8-seg ONNX export)");
+      throw ConfigError(Named(names, "--segmenter") + " yolo needs " + Named(names, "--model") +
+                        " FILE (a YOLOv8-seg ONNX export)");
     YoloOptions yolo;
     yolo.model_path = o.model_path;
     yolo.crop_top_to_fill_width = o.crop_top_to_fill_width;
     yolo.conf_threshold = static_cast<float>(o.conf_threshold);
     yolo.mask_threshold = static_cast<float>(o.mask_threshold);
-    ApplyInference(o.inference, &yolo);
+    ApplyInference(o.inference, &yolo, names);
     s.owned.push_back(std::make_unique<YoloSegmenter>(yolo));
     s.set.fast = s.owned.back().get();
     if (!model_high.empty()) {
@@ -70,7 +72,8 @@ Segmenters MakeSegmenters(const Dataset& dataset, const DynamicRunOptions& o,
                                                        dataset.frame_numbers));
     s.set.fast = s.owned.back().get();
   } else if (o.segmenter != "none") {
-    throw ConfigError("--segmenter must be yolo, truth or none, not '" + o.segmenter + "'");
+    throw ConfigError(Named(names, "--segmenter") + " must be yolo, truth or none, not '" +
+                      o.segmenter + "'");
   }
   return s;
 }
@@ -94,16 +97,18 @@ void AddRemovedPoints(const nodes::FilterReport& report, const std::vector<char>
 // KITTI tracking labels belong to a raw drive (the odometry sequences have none), and a drive's
 // labels number its images: labels of a frame beyond the dataset's last image number are
 // another drive's. Throws ConfigError saying which.
-void CheckTruthLabels(const Dataset& dataset, const std::string& labels_path) {
+void CheckTruthLabels(const Dataset& dataset, const std::string& labels_path,
+                      const OptionNames& names) {
+  const std::string option = Named(names, "--truth-labels");
   if (!IsKittiRawDrive(dataset.root))
-    throw ConfigError("--truth-labels " + labels_path + ": " + dataset.name +
+    throw ConfigError(option + " " + labels_path + ": " + dataset.name +
                       " is not a KITTI raw drive (image_00/data); tracking labels only describe "
                       "raw drives");
   const TrackingLabels labels = ReadTrackingLabels(labels_path);
   const int64_t last_label = static_cast<int64_t>(labels.frames.size()) - 1;
   const int64_t last_image = dataset.frame_numbers.empty() ? -1 : dataset.frame_numbers.back();
   if (last_label > last_image)
-    throw ConfigError("--truth-labels " + labels_path + ": labels up to frame " +
+    throw ConfigError(option + " " + labels_path + ": labels up to frame " +
                       std::to_string(last_label) + ", but the last image of " + dataset.name +
                       " is number " + std::to_string(last_image) +
                       " (the labels of another drive?)");
@@ -135,66 +140,71 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   range = range.Within(dataset.size(),
                        "frames " + std::to_string(range.first) + ":" + std::to_string(range.end));
   const bool stereo = options.mode == SlamMode::kStereo;
+  // Options named as the caller names them (the command line: as themselves).
+  const OptionNames& names = options.option_names;
+  const auto name = [&names](std::string_view option) { return Named(names, option); };
   if (stereo && !dataset.has_right())
     throw ConfigError(dataset.root + ": stereo mode needs a right image stream (image_1)" +
-                      (dataset.right_unused.empty() ? "" : ": " + dataset.right_unused) +
-                      "; --mode mono runs the left images alone");
+                      (dataset.right_unused.empty() ? "" : ": " + dataset.right_unused) + "; " +
+                      name("--mode") + " mono runs the left images alone");
   const DynamicRunOptions& dynamic = config.dynamic;
   if (!dynamic.truth_labels.empty() && !dynamic.filter)
-    throw ConfigError("--truth-labels needs --filter on");
+    throw ConfigError(name("--truth-labels") + " needs " + name("--filter") + " on");
   // Options that would otherwise do nothing, silently.
   if (dynamic.dump && !dynamic.filter)
-    throw ConfigError("--dump-filter needs --filter on (it writes the filter's decisions)");
+    throw ConfigError(name("--dump-filter") + " needs " + name("--filter") +
+                      " on (it writes the filter's decisions)");
+  const std::string high_and_low = name("--model-high") + " and " + name("--model-low");
   if ((!options.model_high.empty() || !options.model_low.empty()) && dynamic.segmenter != "yolo")
-    throw ConfigError("--model-high and --model-low need --segmenter yolo, not '" +
+    throw ConfigError(high_and_low + " need " + name("--segmenter") + " yolo, not '" +
                       dynamic.segmenter + "'");
   // The fixed settings (without --adaptive) run --model alone.
   if ((!options.model_high.empty() || !options.model_low.empty()) && !options.pipeline.adaptive)
-    throw ConfigError(
-        "--model-high and --model-low need --adaptive on (only the adaptive quality levels run "
-        "them; without it every frame is segmented with --model)");
+    throw ConfigError(high_and_low + " need " + name("--adaptive") +
+                      " on (only the adaptive quality levels run them; without it every frame is "
+                      "segmented with " +
+                      name("--model") + ")");
   if (dynamic.truth_miss_rate != 0 && dynamic.segmenter != "truth")
-    throw ConfigError("--truth-miss-rate needs --segmenter truth, not '" + dynamic.segmenter + "'");
+    throw ConfigError(name("--truth-miss-rate") + " needs " + name("--segmenter") +
+                      " truth, not '" + dynamic.segmenter + "'");
+  // The command line's message adds the name stats.json gives the setting.
   if (!(dynamic.truth_miss_rate >= 0 && dynamic.truth_miss_rate <= 1))
-    throw ConfigError("--truth-miss-rate must be in [0, 1] (truth_miss_rate), not " +
+    throw ConfigError(name("--truth-miss-rate") + " must be in [0, 1]" +
+                      (names ? "" : " (truth_miss_rate)") + ", not " +
                       fmt::format("{}", dynamic.truth_miss_rate));
   // The scheduling options of the realtime policy alone. The command line gives them defaults,
   // so a value other than the default is what tells that one was given.
   const graph::PipelineOptions defaults;
   const graph::PipelineOptions& pipeline_options = options.pipeline;
   if (pipeline_options.adaptive && pipeline_options.inference_every != defaults.inference_every)
-    throw ConfigError(
-        "--inference-every needs --adaptive off (the adaptive quality levels set their own "
-        "inference cadence)");
+    throw ConfigError(name("--inference-every") + " needs " + name("--adaptive") +
+                      " off (the adaptive quality levels set their own inference cadence)");
   if (pipeline_options.policy != graph::Policy::kRealtime) {
     const std::string policy = graph::ToString(pipeline_options.policy);
     if (pipeline_options.rate != defaults.rate)
-      throw ConfigError("--rate needs --policy realtime (it paces the frames' release), not '" +
-                        policy + "'");
+      throw ConfigError(name("--rate") + " needs " + name("--policy") +
+                        " realtime (it paces the frames' release), not '" + policy + "'");
     if (pipeline_options.mask_deadline_ms != defaults.mask_deadline_ms)
-      throw ConfigError(
-          "--mask-deadline-ms needs --policy realtime (only realtime tracking waits for a late "
-          "mask), not '" +
-          policy + "'");
+      throw ConfigError(name("--mask-deadline-ms") + " needs " + name("--policy") +
+                        " realtime (only realtime tracking waits for a late mask), not '" + policy +
+                        "'");
   }
   if (pipeline_options.policy != graph::Policy::kRealtime &&
       pipeline_options.waiting_capacity != defaults.waiting_capacity)
-    throw ConfigError(
-        "--waiting needs --policy realtime (only realtime releases frames that wait for a "
-        "slot), not '" +
-        std::string(graph::ToString(pipeline_options.policy)) + "'");
+    throw ConfigError(name("--waiting") + " needs " + name("--policy") +
+                      " realtime (only realtime releases frames that wait for a slot), not '" +
+                      std::string(graph::ToString(pipeline_options.policy)) + "'");
   if (pipeline_options.policy == graph::Policy::kSequential &&
       pipeline_options.max_in_flight != defaults.max_in_flight)
-    throw ConfigError(
-        "--max-in-flight needs --policy pipelined or realtime (sequential runs one frame at a "
-        "time)");
+    throw ConfigError(name("--max-in-flight") + " needs " + name("--policy") +
+                      " pipelined or realtime (sequential runs one frame at a time)");
   if (dynamic.segmenter == "none") {
     if (pipeline_options.inference_every != defaults.inference_every)
-      throw ConfigError("--inference-every needs a segmenter (--segmenter yolo or truth)");
+      throw ConfigError(name("--inference-every") + " needs a segmenter (" + name("--segmenter") +
+                        " yolo or truth)");
     if (pipeline_options.carry.propagate != defaults.carry.propagate)
-      throw ConfigError(
-          "--propagate-masks needs a segmenter (--segmenter yolo or truth): there are no masks "
-          "to carry");
+      throw ConfigError(name("--propagate-masks") + " needs a segmenter (" + name("--segmenter") +
+                        " yolo or truth): there are no masks to carry");
   }
   // Warnings, not errors: these still do something, or a documented command passes them.
   // --inference auto may resolve to a device, so --device-overlap is not refused outright.
@@ -202,17 +212,20 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
       (pipeline_options.policy == graph::Policy::kSequential || dynamic.segmenter != "yolo" ||
        !(dynamic.inference == "auto" || dynamic.inference.rfind("cuda", 0) == 0)))
     Logger().warn(
-        "--device-overlap does nothing here: it applies to --segmenter yolo on a device "
-        "(--inference cuda) with --policy pipelined or realtime");
+        "{} does nothing here: it applies to {} yolo on a device ({} cuda) with {} pipelined or "
+        "realtime",
+        name("--device-overlap"), name("--segmenter"), name("--inference"), name("--policy"));
   if (pipeline_options.adaptive && dynamic.segmenter == "none")
     Logger().warn(
-        "--adaptive on without a segmenter: no network to choose; only the quality levels' "
-        "keypoint counts, BA iterations and keyframe intervals adapt");
+        "{} on without a segmenter: no network to choose; only the quality levels' keypoint "
+        "counts, BA iterations and keyframe intervals adapt",
+        name("--adaptive"));
   // scripts/tsan.sh passes --inference with --segmenter none (PCR_TSAN_SEQUENCE), as --flow
   // without --filter on.
   if (dynamic.inference != DynamicRunOptions{}.inference && dynamic.segmenter != "yolo")
-    Logger().warn("--inference {} without --segmenter yolo: no network runs", dynamic.inference);
-  if (!dynamic.truth_labels.empty()) CheckTruthLabels(dataset, dynamic.truth_labels);
+    Logger().warn("{} {} without {} yolo: no network runs", name("--inference"), dynamic.inference,
+                  name("--segmenter"));
+  if (!dynamic.truth_labels.empty()) CheckTruthLabels(dataset, dynamic.truth_labels, names);
 
   // One camera for the tracker and the filter.
   WarnIfCameraOverrideDiffers(dataset, config.camera);
@@ -220,30 +233,32 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
   const bool color = dynamic.segmenter == "yolo" && dataset.has_color();
   const nodes::FrameSource source = SourceFromDataset(dataset, rig, range, options.mode, color);
   Segmenters segmenters =
-      MakeSegmenters(dataset, dynamic, options.model_high, options.model_low, source);
+      MakeSegmenters(dataset, dynamic, options.model_high, options.model_low, source, names);
   DriverResult result;
   if (dynamic.segmenter == "yolo")  // the engine that --inference (auto, say) resolved to
     result.inference_engine = static_cast<const YoloSegmenter*>(segmenters.set.fast)->backend();
   // After the segmenters, so that a segmenter's own set-up error (the truth segmenter on a
   // sequence without instance images) comes first.
   if (!dynamic.model_path.empty() && dynamic.segmenter != "yolo")
-    throw ConfigError("--model needs --segmenter yolo, not '" + dynamic.segmenter + "'");
+    throw ConfigError(name("--model") + " needs " + name("--segmenter") + " yolo, not '" +
+                      dynamic.segmenter + "'");
   std::unique_ptr<nodes::DynamicFilterScorer> scorer;
   std::optional<FilterAudit> audit;
   if (dynamic.filter) {
     DynamicFilterOptions filter_options = dynamic.options;
-    ApplyFlow(dynamic.flow, &filter_options);
+    ApplyFlow(dynamic.flow, &filter_options, names);
     scorer = std::make_unique<nodes::DynamicFilterScorer>(rig, config.slam.orb.scale_factor,
                                                           filter_options);
     audit.emplace(dataset, dynamic.truth_labels, dynamic.dump);
     Logger().info("dynamic points: filter on, segmenter {}{}{}", dynamic.segmenter,
                   audit->Describe().empty() ? "" : ", ", audit->Describe());
   } else if (dynamic.flow != "opencv") {
-    Logger().warn("--flow {} without --filter on: no LK flow runs", dynamic.flow);
+    Logger().warn("{} {} without {} on: no LK flow runs", name("--flow"), dynamic.flow,
+                  name("--filter"));
   }
   if (!segmenters.set.empty() && !dynamic.filter)
-    Logger().info("segmenter {} without --filter on: its masks alone exclude keypoints",
-                  dynamic.segmenter);
+    Logger().info("segmenter {} without {} on: its masks alone exclude keypoints",
+                  dynamic.segmenter, name("--filter"));
 
   RunSummary& summary = result.summary;
   summary.dataset_name = dataset.name;

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "driver/option_names.h"
 #include "driver/run_slam.h"
 #include "driver/slam_config.h"
 #include "graph/pipeline.h"
@@ -33,6 +34,9 @@ struct DriverOptions {
   std::string model_low;
   // Called after each completed frame, in frame order (progress).
   std::function<void(size_t done, size_t total, const graph::FrameRecord& record)> on_frame;
+  // How RunDataset's errors and warnings name the options ("--segmenter"); empty: as the command
+  // line's options.
+  OptionNames option_names;
 };
 
 struct DriverResult {

@@ -2,6 +2,7 @@
 // `--inference` and `--flow`: which engines run the YOLOv8-seg network and the filter's LK flow.
 #include <string>
 
+#include "driver/option_names.h"
 #include "slam/dynamic/dynamic_filter.h"
 #include "slam/dynamic/yolo_segmenter.h"
 
@@ -16,8 +17,8 @@ inline constexpr const char* kInferenceHelp =
 
 // Sets yolo->engine_factory for `inference`. Throws ConfigError for an unknown value, for cuda
 // when this build has no CUDA or there is no device, or for onednn when it has no oneDNN (saying
-// which).
-void ApplyInference(const std::string& inference, YoloOptions* yolo);
+// which). Its errors and log lines name the option as `names` says (default: --inference).
+void ApplyInference(const std::string& inference, YoloOptions* yolo, const OptionNames& names = {});
 
 // `--flow`: where the dynamic filter's LK optical flow runs.
 inline constexpr const char* kFlowHelp =
@@ -25,7 +26,9 @@ inline constexpr const char* kFlowHelp =
     "CUDA kernel), twin (its CPU twin, for checking), auto (cuda when a device is present, else "
     "opencv)";
 
-// Sets filter->flow_factory for `flow`; the same values and errors as ApplyInference.
-void ApplyFlow(const std::string& flow, DynamicFilterOptions* filter);
+// Sets filter->flow_factory for `flow`; the same values and errors as ApplyInference (naming
+// --flow as `names` says).
+void ApplyFlow(const std::string& flow, DynamicFilterOptions* filter,
+               const OptionNames& names = {});
 
 }  // namespace pcr::driver

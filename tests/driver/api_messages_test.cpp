@@ -1,5 +1,6 @@
-// What a run says about its own settings: a scheduling option out of range is named as Config's
-// field (and the command line's option), and the start line gives the camera the run uses.
+// What a run says about its own settings: a scheduling option out of range, or options that do
+// not go together, are named as Config's fields (and the command line's options), and the start
+// line gives the camera the run uses.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -43,6 +44,50 @@ TEST(ApiMessages, ASchedulingOptionOutOfRangeIsNamedAsConfigsField) {
   c.threads = 2;
   c.trim_every = -1;
   EXPECT_EQ(ErrorOf(c).rfind("Config::trim_every (--trim-every) must be", 0), 0u) << ErrorOf(c);
+}
+
+// The driver's set-up errors (and warnings) name Config's fields too, the command line's options
+// in brackets; before, they named the options alone ("--segmenter yolo needs --model FILE").
+TEST(ApiMessages, TheDriversSetupErrorsAreNamedAsConfigsFields) {
+  Config c;
+  c.loop_closing = false;
+  const Config without_loop = c;
+  c.segmenter = "yolo";
+  EXPECT_EQ(ErrorOf(c),
+            "Config::segmenter (--segmenter) yolo needs Config::model (--model) FILE (a YOLOv8-seg "
+            "ONNX export)");
+  c.model = "/nonexistent/model.onnx";
+  c.inference = "tensorrt";
+  EXPECT_EQ(ErrorOf(c).rfind("Config::inference (--inference) must be opencv, ", 0), 0u)
+      << ErrorOf(c);
+  c = without_loop;
+  c.truth_miss_rate = 0.2;
+  EXPECT_EQ(ErrorOf(c),
+            "Config::truth_miss_rate (--truth-miss-rate) needs Config::segmenter (--segmenter) "
+            "truth, not 'none'");
+  c.segmenter = "truth";
+  c.truth_miss_rate = 1.5;
+  EXPECT_EQ(ErrorOf(c), "Config::truth_miss_rate (--truth-miss-rate) must be in [0, 1], not 1.5");
+  c = without_loop;
+  c.rate = 0.5;
+  EXPECT_EQ(ErrorOf(c),
+            "Config::rate (--rate) needs Config::policy (--policy) realtime (it paces the frames' "
+            "release), not 'sequential'");
+  c = without_loop;
+  c.filter = true;
+  c.flow = "farneback";
+  EXPECT_EQ(ErrorOf(c).rfind("Config::flow (--flow) must be opencv, ", 0), 0u) << ErrorOf(c);
+  // A warning first, then an error.
+  c = without_loop;
+  c.inference = "opencv";
+  c.model = "/nonexistent/model.onnx";
+  test::LogCapture log;
+  EXPECT_EQ(ErrorOf(c),
+            "Config::model (--model) needs Config::segmenter (--segmenter) yolo, not 'none'");
+  EXPECT_NE(log.Text().find("Config::inference (--inference) opencv without Config::segmenter "
+                            "(--segmenter) yolo: no network runs"),
+            std::string::npos)
+      << log.Text();
 }
 
 TEST(ApiMessages, TheStartLineGivesTheConfigurationsCamera) {

@@ -73,5 +73,24 @@ TEST(CommandLine, LogLevelAppliesToTheLibrarysLines) {
   EXPECT_EQ(r.out.find("[info]"), std::string::npos) << r.out;
 }
 
+// The driver's set-up errors name the command line's options, not api::Config's fields (which
+// api::Run's own users get).
+TEST(CommandLine, SetupErrorsNameTheOptions) {
+  const std::string run = "--log-level off run --sequence " +
+                          test::SharedPath("data/kitti/sequences/06") + " --frames 0:2 --out " +
+                          test::MakeTempDir("pcr_cli_setup_errors") + " --loop off";
+  test::CommandOutput r = test::RunPcrOrb(run + " --segmenter yolo");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("error: --segmenter yolo needs --model FILE (a YOLOv8-seg ONNX export)"),
+            std::string::npos)
+      << r.err;
+  r = test::RunPcrOrb(run + " --segmenter truth --truth-miss-rate 1.5");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("error: --truth-miss-rate must be in [0, 1] (truth_miss_rate), not 1.5"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("Config::"), std::string::npos) << r.err;
+}
+
 }  // namespace
 }  // namespace pcr::app
