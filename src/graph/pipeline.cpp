@@ -212,6 +212,29 @@ void SuspendWhileDeviceWorks(const std::function<void(const DeviceDone&)>& launc
   if (error) std::rethrow_exception(error);
 }
 
+// A stage call in progress (GraphRun::Guarded) on the thread that runs it, so that a device wait
+// inside it can split its profile at the wait: the thread that resumes the call may be another
+// one, and the launching thread runs other stages meanwhile.
+struct GuardedCall {
+  explicit GuardedCall(int64_t start_ns, GuardedCall* enclosing)
+      : pieces(start_ns), outer(enclosing) {}
+  CallPieces pieces;
+  GuardedCall* outer;  // the call this one runs inside on its first thread (sequential loop work)
+  // After a device wait: the call that was current on the thread that resumed this one.
+  GuardedCall* outer_after_resume = nullptr;
+  bool resumed = false;
+};
+thread_local GuardedCall* current_call = nullptr;
+
+// Ends a Guarded call: the thread it ends on gets back the call that was current there before.
+struct EndGuardedCall {
+  GuardedCall& call;
+  ~EndGuardedCall() {
+    current_call =
+        call.resumed && call.outer_after_resume != &call ? call.outer_after_resume : call.outer;
+  }
+};
+
 // Installs device waits for one run (the segmenters' and the scorer's), and removes them after.
 class DeviceWaitScope {
  public:
@@ -275,15 +298,31 @@ class GraphRun {
   // filter's LK passes: kStageDeviceFlow on kFlowDeviceLane.
   DeviceWait MakeDeviceWait(const char* stage, int lane, const FrameTicket* ticket) {
     return [this, stage, lane, ticket](const std::function<void(const DeviceDone&)>& launch) {
-      const FrameTicket frame = *ticket;  // before the task may move to another thread
+      const FrameTicket frame = *ticket;       // before the task may move to another thread
+      GuardedCall* const call = current_call;  // the stage call that waits (null: none)
       const int64_t start = NowNs();
+      if (call) call->pieces.Pause(start);
       int64_t end = 0;  // written before done(), read after the resumption
-      SuspendWhileDeviceWorks([this, &launch, &end](const DeviceDone& done) {
-        launch([this, &end, done] {
-          end = NowNs();
-          done();
-        });
-      });  // (a launch that threw never called done(): its exception skips the record)
+      {
+        // Whether the launch threw or not, on the thread that took the call up again.
+        struct Resumed {
+          GuardedCall* call;
+          const GraphRun* run;
+          ~Resumed() {
+            if (!call) return;
+            call->pieces.Resume(run->NowNs());
+            call->resumed = true;
+            call->outer_after_resume = current_call;
+            current_call = call;
+          }
+        } resumed{call, this};
+        SuspendWhileDeviceWorks([this, &launch, &end](const DeviceDone& done) {
+          launch([this, &end, done] {
+            end = NowNs();
+            done();
+          });
+        });  // (a launch that threw never called done(): its exception skips the record)
+      }
       profiler_.RecordDevice(stage, frame.seq, frame.frame_index, start, end, lane);
     };
   }
@@ -343,11 +382,15 @@ class GraphRun {
   auto Guarded(const char* stage, const FrameTicket& ticket, F&& f, bool profile = true)
       -> std::optional<decltype(f())> {
     const int64_t start = NowNs();
+    GuardedCall call(start, current_call);
+    current_call = &call;
+    const EndGuardedCall end_call{call};
     try {
       if (options_.stage_hook) options_.stage_hook(stage, ticket.frame_index);
       auto out = f();
       const int64_t end = NowNs();
-      if (profile) profiler_.Record(stage, ticket.seq, ticket.frame_index, start, end);
+      if (profile)
+        profiler_.Record(stage, ticket.seq, ticket.frame_index, start, end, &call.pieces);
       const std::string_view name(stage);
       if (name != kStageLoop && name != kStageGlobalBa) {  // off the frame's path
         FrameClock& clock = clocks_[ticket.seq];

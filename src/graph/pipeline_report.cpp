@@ -333,20 +333,28 @@ void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
       {{"name", "process_name"}, {"ph", "M"}, {"pid", 2}, {"args", {{"name", "frames"}}}});
   std::set<int> threads;
   for (const StageEvent& e : result.events) {
-    threads.insert(e.thread);
-    events.push_back(
-        {{"name", e.stage},
-         {"cat", "stage"},
-         {"ph", "X"},
-         {"ts", Us(e.start_ns)},
-         {"dur", Us(e.end_ns - e.start_ns)},
-         {"pid", 1},
-         {"tid", e.thread},
-         {"args",
-          {{"frame", e.frame_index},
-           {"seq", e.seq},
-           {"wait_ms",
-            e.ready_ns >= 0 ? static_cast<double>(e.start_ns - e.ready_ns) * 1e-6 : 0.0}}}});
+    nlohmann::json args = {
+        {"frame", e.frame_index},
+        {"seq", e.seq},
+        {"wait_ms", e.ready_ns >= 0 ? static_cast<double>(e.start_ns - e.ready_ns) * 1e-6 : 0.0}};
+    // A call that waited for a device: a slice per stretch on its thread (the threads ran other
+    // stages in the gaps), each saying which part of the call it is and how long the call took.
+    const std::vector<StagePiece> whole{{e.thread, e.start_ns, e.end_ns}};
+    const std::vector<StagePiece>& pieces = e.pieces.empty() ? whole : e.pieces;
+    if (!e.pieces.empty()) args["call_ms"] = static_cast<double>(e.end_ns - e.start_ns) * 1e-6;
+    for (size_t i = 0; i < pieces.size(); ++i) {
+      const StagePiece& piece = pieces[i];
+      threads.insert(piece.thread);
+      if (!e.pieces.empty()) args["part"] = fmt::format("{} of {}", i + 1, pieces.size());
+      events.push_back({{"name", e.stage},
+                        {"cat", "stage"},
+                        {"ph", "X"},
+                        {"ts", Us(piece.start_ns)},
+                        {"dur", Us(piece.end_ns - piece.start_ns)},
+                        {"pid", 1},
+                        {"tid", piece.thread},
+                        {"args", args}});
+    }
   }
   for (int t : threads) {
     events.push_back({{"name", "thread_name"},
@@ -430,6 +438,7 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
   for (const StageEvent& e : result.events) {
     end_ns = std::max(end_ns, e.end_ns);
     num_threads = std::max(num_threads, e.thread + 1);
+    for (const StagePiece& piece : e.pieces) num_threads = std::max(num_threads, piece.thread + 1);
     if (Profiler::IsDeviceLane(e.thread) &&
         std::find(device_lanes.begin(), device_lanes.end(), e.thread) == device_lanes.end())
       device_lanes.push_back(e.thread);
@@ -477,14 +486,20 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
          {10, y + lane_h - 10});
   }
   for (const StageEvent& e : result.events) {
-    if (e.start_ns >= end_ns) continue;
-    const int x0 =
-        left + static_cast<int>(std::lround(static_cast<double>(e.start_ns) * 1e-6 * px_per_ms));
-    const int x1 = left + static_cast<int>(std::lround(
-                              static_cast<double>(std::min(e.end_ns, end_ns)) * 1e-6 * px_per_ms));
-    const int y = gantt_top + lane_of(e.thread) * lane_h;
-    cv::rectangle(image, {x0, y + 1}, {std::max(x0 + 1, x1), y + lane_h - 5}, StageColour(e.stage),
-                  cv::FILLED);
+    // A call that waited for a device: its stretches on the threads that ran it.
+    const std::vector<StagePiece> whole{{e.thread, e.start_ns, e.end_ns}};
+    for (const StagePiece& piece : e.pieces.empty() ? whole : e.pieces) {
+      if (piece.start_ns >= end_ns) continue;
+      const int x0 =
+          left +
+          static_cast<int>(std::lround(static_cast<double>(piece.start_ns) * 1e-6 * px_per_ms));
+      const int x1 =
+          left + static_cast<int>(std::lround(static_cast<double>(std::min(piece.end_ns, end_ns)) *
+                                              1e-6 * px_per_ms));
+      const int y = gantt_top + lane_of(piece.thread) * lane_h;
+      cv::rectangle(image, {x0, y + 1}, {std::max(x0 + 1, x1), y + lane_h - 5},
+                    StageColour(e.stage), cv::FILLED);
+    }
   }
   // Where the run waited after its last frame: a mark at the last retirement.
   const int64_t last_retire_ns = std::llround(s.last_retire_s * 1e9);

@@ -7,19 +7,29 @@
 namespace pcr::graph {
 
 void Profiler::Record(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
-                      int64_t end_ns) {
+                      int64_t end_ns, const CallPieces* pieces) {
   const std::thread::id id = std::this_thread::get_id();
   std::lock_guard<std::mutex> lock(mutex_);
-  const int thread =
-      thread_ids_.try_emplace(id, static_cast<int>(thread_ids_.size())).first->second;
-  events_.push_back({stage, seq, frame_index, thread, start_ns, end_ns});
+  auto small_id = [this](std::thread::id t) {
+    return thread_ids_.try_emplace(t, static_cast<int>(thread_ids_.size())).first->second;
+  };
+  StageEvent e{stage, seq, frame_index, 0, start_ns, end_ns, -1, {}};
+  if (pieces && pieces->paused()) {
+    for (const CallPieces::Closed& c : pieces->closed_)
+      e.pieces.push_back({small_id(c.thread), c.start_ns, c.end_ns});
+    e.pieces.push_back({small_id(id), pieces->open_ns_, end_ns});
+    e.thread = e.pieces.front().thread;
+  } else {
+    e.thread = small_id(id);
+  }
+  events_.push_back(std::move(e));
 }
 
 void Profiler::RecordDevice(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
                             int64_t end_ns, int lane) {
   if (!IsDeviceLane(lane)) throw std::invalid_argument("Profiler::RecordDevice: not a device lane");
   std::lock_guard<std::mutex> lock(mutex_);
-  events_.push_back({stage, seq, frame_index, lane, start_ns, end_ns});
+  events_.push_back({stage, seq, frame_index, lane, start_ns, end_ns, -1, {}});
 }
 
 std::vector<StageEvent> Profiler::Events() const {

@@ -15,6 +15,12 @@
 
 namespace pcr::graph {
 
+// A stretch of a stage call on one host thread.
+struct StagePiece {
+  int thread = 0;
+  int64_t start_ns = 0, end_ns = 0;
+};
+
 struct StageEvent {
   const char* stage = "";  // one of the kStage* names (static storage)
   int64_t seq = -1;
@@ -22,6 +28,30 @@ struct StageEvent {
   int thread = 0;  // small id: order of first appearance in this run; Profiler::kDeviceLane
   int64_t start_ns = 0, end_ns = 0;
   int64_t ready_ns = -1;  // input ready (filled in by the run's summary; -1 = unknown)
+  // A call that waited for a device: the stretches it ran on host threads (thread: the first's),
+  // before each wait on the thread that launched it and after it on the thread that resumed it,
+  // which ran other stages in the gaps. Empty: the call ran on `thread` from start to end.
+  std::vector<StagePiece> pieces;
+};
+
+// The host stretches of one stage call while it runs, for Profiler::Record: Pause when it starts
+// to wait for a device (the stretch so far, on the calling thread), Resume when a thread takes it
+// up again. Not thread-safe: used by the call itself, on whichever thread runs it.
+class CallPieces {
+ public:
+  explicit CallPieces(int64_t start_ns) : open_ns_(start_ns) {}
+  void Pause(int64_t at_ns) { closed_.push_back({std::this_thread::get_id(), open_ns_, at_ns}); }
+  void Resume(int64_t at_ns) { open_ns_ = at_ns; }
+  bool paused() const { return !closed_.empty(); }
+
+ private:
+  friend class Profiler;
+  struct Closed {
+    std::thread::id thread;
+    int64_t start_ns, end_ns;
+  };
+  std::vector<Closed> closed_;
+  int64_t open_ns_;
 };
 
 class Profiler {
@@ -32,8 +62,10 @@ class Profiler {
   static constexpr int kFlowDeviceLane = -2;
   static bool IsDeviceLane(int thread) { return thread < 0; }
 
-  void Record(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
-              int64_t end_ns);
+  // A call from start_ns to end_ns, ending on the calling thread; `pieces` (may be null): its host
+  // stretches where it waited for a device.
+  void Record(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns, int64_t end_ns,
+              const CallPieces* pieces = nullptr);
   // The same on a device lane (kDeviceLane, kFlowDeviceLane); does not count as a thread.
   void RecordDevice(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
                     int64_t end_ns, int lane = kDeviceLane);

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <map>
 #include <mutex>
 #include <set>
 #include <string_view>
@@ -430,12 +431,23 @@ size_t CheckDevicePasses(const PipelineResult& r, const char* caller, const char
     if (std::string_view(d.stage) != device_stage) continue;
     EXPECT_EQ(d.thread, lane);
     EXPECT_GE(d.end_ns - d.start_ns, min_ns);
-    bool within = false;
+    const StageEvent* call = nullptr;
     for (const StageEvent& c : r.events) {
-      within = within || (std::string_view(c.stage) == caller && c.seq == d.seq &&
-                          c.start_ns <= d.start_ns && d.end_ns <= c.end_ns);
+      if (std::string_view(c.stage) == caller && c.seq == d.seq && c.start_ns <= d.start_ns &&
+          d.end_ns <= c.end_ns)
+        call = &c;
     }
-    EXPECT_TRUE(within) << device_stage << " pass of frame " << d.frame_index;
+    if (!call) {
+      ADD_FAILURE() << device_stage << " pass of frame " << d.frame_index << " outside a call";
+      continue;
+    }
+    // The call's profile is cut at the wait: the pass lies between two of its host stretches.
+    bool between = false;
+    for (size_t i = 1; i < call->pieces.size(); ++i)
+      between = between ||
+                (call->pieces[i - 1].end_ns <= d.start_ns && d.end_ns <= call->pieces[i].start_ns);
+    EXPECT_TRUE(between) << device_stage << " pass of frame " << d.frame_index << ": "
+                         << call->pieces.size() << " stretches";
   }
   const std::string trace = ::testing::TempDir() + "/" + stem + "_trace.json";
   WriteChromeTrace(trace, r);
@@ -445,6 +457,22 @@ size_t CheckDevicePasses(const PipelineResult& r, const char* caller, const char
     return e["name"] == "thread_name" && e["args"]["name"] == lane_name;
   }));
   WriteTimingChart(::testing::TempDir() + "/" + stem + "_timing.png", r);  // draws the lane
+  // A host lane's stage slices do not overlap: a call that waited for the device is one slice per
+  // stretch, and the stages its thread ran during the wait sit in the gaps (one slice over the
+  // whole call overlapped them: Perfetto drew them as nested in it).
+  std::map<int, std::vector<std::pair<double, double>>> lanes;
+  for (const nlohmann::json& e : events) {
+    if (e.value("ph", "") != "X" || e.value("pid", 0) != 1 || e["tid"].get<int>() < 0) continue;
+    const double ts = e["ts"].get<double>();
+    lanes[e["tid"].get<int>()].push_back({ts, ts + e["dur"].get<double>()});
+  }
+  size_t overlaps = 0;
+  for (auto& [tid, slices] : lanes) {
+    std::sort(slices.begin(), slices.end());
+    for (size_t i = 1; i < slices.size(); ++i)
+      overlaps += slices[i].first < slices[i - 1].second - 1e-3;
+  }
+  EXPECT_EQ(overlaps, 0u) << "overlapping stage slices on a thread's lane";
   size_t inside = 0;
   for (const StageEvent& c : r.events) {
     if (std::string_view(c.stage) != caller) continue;
