@@ -195,7 +195,7 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   const Dataset dataset = OpenDataset(source.path, KittiCameras::kGray, raw_truth);
   std::string config_yaml;
   driver::RunConfig run_config =
-      driver::LoadRunConfig(config.config_file, config.overrides, &config_yaml);
+      driver::LoadRunConfig(config.config_file, config.overrides, &config_yaml, names);
   driver::DriverOptions options = ToDriverOptions(config, names);
   // Loop closing runs when loop_closing (--loop), the configuration's loop.enabled and a
   // vocabulary all allow it; config.yaml records the setting the run has.

@@ -249,7 +249,7 @@ DriverResult RunDataset(const Dataset& dataset, const RunConfig& config, FrameRa
     ApplyFlow(dynamic.flow, &filter_options, names);
     scorer = std::make_unique<nodes::DynamicFilterScorer>(rig, config.slam.orb.scale_factor,
                                                           filter_options);
-    audit.emplace(dataset, dynamic.truth_labels, dynamic.dump);
+    audit.emplace(dataset, dynamic.truth_labels, dynamic.dump, names);
     Logger().info("dynamic points: filter on, segmenter {}{}{}", dynamic.segmenter,
                   audit->Describe().empty() ? "" : ", ", audit->Describe());
   } else if (dynamic.flow != "opencv") {

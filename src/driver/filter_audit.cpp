@@ -21,14 +21,15 @@ struct KeypointTruth {
 
 }  // namespace
 
-FilterAudit::FilterAudit(const Dataset& dataset, const std::string& truth_labels, bool dump)
+FilterAudit::FilterAudit(const Dataset& dataset, const std::string& truth_labels, bool dump,
+                         const OptionNames& names)
     : dataset_(dataset), dump_(dump) {
   const std::string table = dataset.root + "/instances.txt";
   if (std::filesystem::is_regular_file(table) &&
       std::filesystem::is_directory(dataset.root + "/instance_0"))
     instances_ = sim::InstanceTable::Read(table);
   if (!truth_labels.empty()) {
-    labels_.emplace(dataset, truth_labels);
+    labels_.emplace(dataset, truth_labels, 1.0, names);
     Logger().info("truth labels {}: {} tracks, {} moving", truth_labels, labels_->num_tracks(),
                   labels_->num_moving_tracks());
   }

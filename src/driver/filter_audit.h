@@ -9,6 +9,7 @@
 #include <string>
 
 #include "driver/label_truth.h"
+#include "driver/option_names.h"
 #include "driver/run_slam.h"
 #include "io/dataset.h"
 #include "nodes/messages.h"
@@ -19,8 +20,10 @@ namespace pcr::driver {
 class FilterAudit {
  public:
   // truth_labels: a label_02 file of the dataset (empty: none). Throws InputError for a bad
-  // labels file or instance table, ConfigError when labels need ground-truth poses it lacks.
-  FilterAudit(const Dataset& dataset, const std::string& truth_labels, bool dump);
+  // labels file or instance table, ConfigError when labels need ground-truth poses it lacks
+  // (naming --truth-labels as `names` says).
+  FilterAudit(const Dataset& dataset, const std::string& truth_labels, bool dump,
+              const OptionNames& names = {});
 
   // "scored against ..." or "" when the dataset has no ground truth for the filter.
   std::string Describe() const;

@@ -19,10 +19,11 @@ const char* LabelTruthName(LabelTruthKind kind) {
 }
 
 LabelTruth::LabelTruth(const Dataset& dataset, const std::string& labels_path,
-                       double moving_threshold_mps)
+                       double moving_threshold_mps, const OptionNames& names)
     : moving_threshold_mps_(moving_threshold_mps) {
   if (!dataset.ground_truth) {
-    throw ConfigError("--truth-labels needs ground-truth poses for the sequence (" + dataset.root +
+    throw ConfigError(Named(names, "--truth-labels") +
+                      " needs ground-truth poses for the sequence (" + dataset.root +
                       "): the world motion of the labelled objects comes from them");
   }
   const TrackingLabels labels = ReadTrackingLabels(labels_path);

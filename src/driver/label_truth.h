@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "driver/option_names.h"
 #include "io/dataset.h"
 #include "io/kitti_tracking.h"
 
@@ -22,9 +23,9 @@ class LabelTruth {
   // labels_path: a KITTI tracking label_02 file whose frame k is the image numbered k
   // (Dataset::frame_numbers; frame indices below are the dataset's). Throws
   // InputError for a bad file, ConfigError when the dataset has no ground-truth poses (the
-  // world motion of the tracks needs them).
+  // world motion of the tracks needs them), naming --truth-labels as `names` says.
   LabelTruth(const Dataset& dataset, const std::string& labels_path,
-             double moving_threshold_mps = 1.0);
+             double moving_threshold_mps = 1.0, const OptionNames& names = {});
 
   // Per keypoint of dataset frame `frame` (level-0 pixels of the left image).
   std::vector<LabelTruthKind> Classify(size_t frame, std::span<const cv::KeyPoint> keypoints) const;

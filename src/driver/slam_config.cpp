@@ -215,12 +215,13 @@ std::string Problem(RunConfig& config) {
 }  // namespace
 
 RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>& overrides,
-                        std::string* effective_yaml) {
+                        std::string* effective_yaml, const OptionNames& names) {
+  const std::string set = Named(names, "--set");
   RunConfig config;
   ConfigSchema schema;
   BindRunConfig(config, schema);
   if (!path.empty()) schema.LoadFile(path);
-  for (const std::string& o : overrides) schema.Set(o, "--set");
+  for (const std::string& o : overrides) schema.Set(o, set);
   const std::string problem = Problem(config);
   if (!problem.empty()) {
     // Where the offending value came from: the file and the key's line, or --set and the key;
@@ -232,11 +233,11 @@ RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>&
     }
     std::string source = "defaults";
     if (!path.empty() && !overrides.empty()) {
-      source = path + " + --set";
+      source = path + " + " + set;
     } else if (!path.empty()) {
       source = path;
     } else if (!overrides.empty()) {
-      source = "--set";
+      source = set;
     }
     throw ConfigError(source + ": " + problem);
   }

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "driver/config_schema.h"
+#include "driver/option_names.h"
 #include "slam/dynamic/dynamic_filter.h"
 #include "slam/dynamic/yolo_segmenter.h"
 #include "slam/system/slam_system.h"
@@ -55,8 +56,9 @@ struct RunConfig {
 void BindRunConfig(RunConfig& config, ConfigSchema& schema);
 
 // Defaults, then the file (if not empty), then "section.key=value" overrides; validated.
-// Throws InputError (file, line) for bad files and ConfigError for invalid values.
+// Throws InputError (file, line) for bad files and ConfigError for invalid values; errors name
+// the overrides' option (--set) as `names` says.
 RunConfig LoadRunConfig(const std::string& path, const std::vector<std::string>& overrides,
-                        std::string* effective_yaml);
+                        std::string* effective_yaml, const OptionNames& names = {});
 
 }  // namespace pcr::driver

@@ -19,9 +19,9 @@ Source TwoFramesOf06() {
 }
 
 // The message api::Run throws for c (before any frame runs), "" when it throws none.
-std::string ErrorOf(const Config& c) {
+std::string ErrorOf(const Config& c, const Source& source = TwoFramesOf06()) {
   try {
-    api::Run(c, TwoFramesOf06());
+    api::Run(c, source);
   } catch (const Error& e) {
     return e.what();
   }
@@ -88,6 +88,59 @@ TEST(ApiMessages, TheDriversSetupErrorsAreNamedAsConfigsFields) {
                             "(--segmenter) yolo: no network runs"),
             std::string::npos)
       << log.Text();
+}
+
+// Tracking labels the run refuses, on a drive without ground truth (refused where the filter's
+// audit reads them) or on a dataset that is not a raw drive, are named as Config's field; before,
+// the former named --truth-labels alone.
+TEST(ApiMessages, RefusedTruthLabelsAreNamedAsConfigsField) {
+  namespace fs = std::filesystem;
+  // Drive 0005 without its oxts folder: a raw drive without ground-truth poses.
+  const std::string date = test::MakeTempDir("pcr_api_raw_no_truth") + "/2011_09_26";
+  const std::string drive = date + "/2011_09_26_drive_0005_sync";
+  fs::create_directories(drive);
+  fs::create_symlink(test::SharedPath("data/kitti_raw/2011_09_26/calib_cam_to_cam.txt"),
+                     date + "/calib_cam_to_cam.txt");
+  for (const char* camera : {"image_00", "image_01"})
+    fs::create_directory_symlink(
+        test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync/") + camera,
+        drive + "/" + camera);
+  Config c;
+  c.loop_closing = false;
+  c.filter = true;
+  c.truth_labels = test::SharedPath("data/kitti_tracking/training/label_02/0000.txt");
+  const std::string error = ErrorOf(c, Source::Dataset(drive, 0, 2));
+  EXPECT_EQ(error.rfind("Config::truth_labels (--truth-labels) needs ground-truth poses for the "
+                        "sequence (",
+                        0),
+            0u)
+      << error;
+  EXPECT_NE(error.find("): the world motion of the labelled objects comes from them"),
+            std::string::npos)
+      << error;
+  EXPECT_EQ(ErrorOf(c), "Config::truth_labels (--truth-labels) " + c.truth_labels +
+                            ": 06 is not a KITTI raw drive (image_00/data); tracking labels only "
+                            "describe raw drives");
+  fs::remove_all(fs::path(date).parent_path());
+}
+
+// A bad override (Config::overrides, the command line's --set) is named as Config's field; before,
+// as --set alone.
+TEST(ApiMessages, ABadOverrideIsNamedAsConfigsField) {
+  Config c;
+  c.loop_closing = false;
+  c.overrides = {"orb.bogus=1"};
+  EXPECT_EQ(ErrorOf(c), "Config::overrides (--set): unknown key 'orb.bogus'");
+  c.overrides = {"orb"};
+  EXPECT_EQ(ErrorOf(c), "Config::overrides (--set): override 'orb' is not section.key=value");
+  c.overrides = {"orb.num_features=["};
+  EXPECT_EQ(
+      ErrorOf(c).rfind("Config::overrides (--set): orb.num_features: malformed value '[': ", 0), 0u)
+      << ErrorOf(c);
+  c.overrides = {"orb.num_features=0"};
+  EXPECT_EQ(
+      ErrorOf(c).rfind("Config::overrides (--set) orb.num_features: invalid configuration", 0), 0u)
+      << ErrorOf(c);
 }
 
 TEST(ApiMessages, TheStartLineGivesTheConfigurationsCamera) {
