@@ -94,17 +94,7 @@ TEST(ApiMessages, TheDriversSetupErrorsAreNamedAsConfigsFields) {
 // audit reads them) or on a dataset that is not a raw drive, are named as Config's field; before,
 // the former named --truth-labels alone.
 TEST(ApiMessages, RefusedTruthLabelsAreNamedAsConfigsField) {
-  namespace fs = std::filesystem;
-  // Drive 0005 without its oxts folder: a raw drive without ground-truth poses.
-  const std::string date = test::MakeTempDir("pcr_api_raw_no_truth") + "/2011_09_26";
-  const std::string drive = date + "/2011_09_26_drive_0005_sync";
-  fs::create_directories(drive);
-  fs::create_symlink(test::SharedPath("data/kitti_raw/2011_09_26/calib_cam_to_cam.txt"),
-                     date + "/calib_cam_to_cam.txt");
-  for (const char* camera : {"image_00", "image_01"})
-    fs::create_directory_symlink(
-        test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync/") + camera,
-        drive + "/" + camera);
+  const std::string drive = test::RawDriveWithoutGroundTruth("pcr_api_raw_no_truth");
   Config c;
   c.loop_closing = false;
   c.filter = true;
@@ -121,7 +111,7 @@ TEST(ApiMessages, RefusedTruthLabelsAreNamedAsConfigsField) {
   EXPECT_EQ(ErrorOf(c), "Config::truth_labels (--truth-labels) " + c.truth_labels +
                             ": 06 is not a KITTI raw drive (image_00/data); tracking labels only "
                             "describe raw drives");
-  fs::remove_all(fs::path(date).parent_path());
+  std::filesystem::remove_all(std::filesystem::path(drive).parent_path().parent_path());
 }
 
 // A bad override (Config::overrides, the command line's --set) is named as Config's field; before,

@@ -95,16 +95,8 @@ TEST(CommandLine, SetupErrorsNameTheOptions) {
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.err.find("error: --set: unknown key 'orb.bogus'"), std::string::npos) << r.err;
   // Truth labels on a raw drive without ground truth (drive 0005 without its oxts folder).
-  namespace fs = std::filesystem;
-  const std::string date = test::MakeTempDir("pcr_cli_raw_no_truth") + "/2011_09_26";
-  const std::string drive = date + "/2011_09_26_drive_0005_sync";
-  fs::create_directories(drive);
-  fs::create_symlink(test::SharedPath("data/kitti_raw/2011_09_26/calib_cam_to_cam.txt"),
-                     date + "/calib_cam_to_cam.txt");
-  for (const char* camera : {"image_00", "image_01"})
-    fs::create_directory_symlink(
-        test::SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync/") + camera,
-        drive + "/" + camera);
+  const std::string drive = test::RawDriveWithoutGroundTruth("pcr_cli_raw_no_truth");
+  const std::string date = std::filesystem::path(drive).parent_path().string();
   r = test::RunPcrOrb("--log-level off run --sequence " + drive + " --frames 0:2 --out " + date +
                       "/out --loop off --filter on --truth-labels " +
                       test::SharedPath("data/kitti_tracking/training/label_02/0000.txt"));
@@ -113,7 +105,7 @@ TEST(CommandLine, SetupErrorsNameTheOptions) {
             std::string::npos)
       << r.err;
   EXPECT_EQ(r.err.find("Config::"), std::string::npos) << r.err;
-  fs::remove_all(fs::path(date).parent_path());
+  std::filesystem::remove_all(std::filesystem::path(date).parent_path());
 }
 
 }  // namespace

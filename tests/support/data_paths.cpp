@@ -87,6 +87,20 @@ TempDirs& CreatedDirs() {
 
 }  // namespace
 
+std::string RawDriveWithoutGroundTruth(const std::string& prefix) {
+  namespace fs = std::filesystem;
+  const std::string date = MakeTempDir(prefix) + "/2011_09_26";
+  const std::string drive = date + "/2011_09_26_drive_0005_sync";
+  fs::create_directories(drive);
+  fs::create_symlink(SharedPath("data/kitti_raw/2011_09_26/calib_cam_to_cam.txt"),
+                     date + "/calib_cam_to_cam.txt");
+  for (const char* camera : {"image_00", "image_01"})
+    fs::create_directory_symlink(
+        SharedPath("data/kitti_raw/2011_09_26/2011_09_26_drive_0005_sync/") + camera,
+        drive + "/" + camera);
+  return drive;
+}
+
 std::string MakeTempDir(const std::string& prefix) {
   namespace fs = std::filesystem;
   TempDirs& created = CreatedDirs();  // constructed before any directory exists

@@ -15,6 +15,11 @@ std::string SharedPath(const std::string& relative);
 // the test process exits normally; PCR_KEEP_TEST_DIRS=1 in the environment keeps it for a look.
 std::string MakeTempDir(const std::string& prefix);
 
+// Raw drive 0005 (image_00, image_01 and the calibration, linked) without its oxts folder, in a
+// fresh MakeTempDir(prefix): a raw drive without ground-truth poses. Returns the drive's folder;
+// its date folder (the drive's parent) may take other files.
+std::string RawDriveWithoutGroundTruth(const std::string& prefix);
+
 // A file's whole contents, byte for byte; empty when it cannot be read.
 std::string ReadFileText(const std::string& path);
 
