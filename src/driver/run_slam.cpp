@@ -470,10 +470,10 @@ std::string FormatRunSummary(const RunSummary& s) {
   } else if (s.keypoints_excluded > 0) {
     o << fmt::format(
         "segmentation masks (filter off) excluded {} of {} keypoints ({:.1f}%) from tracking and "
-        "the map; removed points placed: none ({})\n",
+        "the map; removed points placed: none (map_removed.ply places the filter's decisions "
+        "only)\n",
         s.keypoints_excluded, s.keypoints,
-        100.0 * s.keypoints_excluded / std::max<int64_t>(1, s.keypoints),
-        "map_removed.ply places the filter's decisions only");
+        100.0 * s.keypoints_excluded / std::max<int64_t>(1, s.keypoints));
   }
   if (s.evaluation) o << eval::FormatReport(*s.evaluation, s.eval_options);
   if (!s.error.empty())
