@@ -215,24 +215,22 @@ void SuspendWhileDeviceWorks(const std::function<void(const DeviceDone&)>& launc
 // A stage call in progress (GraphRun::Guarded) on the thread that runs it, so that a device wait
 // inside it can split its profile at the wait: the thread that resumes the call may be another
 // one, and the launching thread runs other stages meanwhile.
+// A call waiting for a device gives its thread back to the call current there before it, and
+// takes up whichever thread resumes it, keeping what that thread had current for its end.
 struct GuardedCall {
   explicit GuardedCall(int64_t start_ns, GuardedCall* enclosing)
       : pieces(start_ns), outer(enclosing) {}
   CallPieces pieces;
-  GuardedCall* outer;  // the call this one runs inside on its first thread (sequential loop work)
-  // After a device wait: the call that was current on the thread that resumed this one.
-  GuardedCall* outer_after_resume = nullptr;
-  bool resumed = false;
+  // What the thread now running this call had current before it: the call it runs inside
+  // (sequential loop work), or after a device wait what the resuming thread was running.
+  GuardedCall* outer;
 };
 thread_local GuardedCall* current_call = nullptr;
 
 // Ends a Guarded call: the thread it ends on gets back the call that was current there before.
 struct EndGuardedCall {
   GuardedCall& call;
-  ~EndGuardedCall() {
-    current_call =
-        call.resumed && call.outer_after_resume != &call ? call.outer_after_resume : call.outer;
-  }
+  ~EndGuardedCall() { current_call = call.outer; }
 };
 
 // Installs device waits for one run (the segmenters' and the scorer's), and removes them after.
@@ -301,7 +299,10 @@ class GraphRun {
       const FrameTicket frame = *ticket;       // before the task may move to another thread
       GuardedCall* const call = current_call;  // the stage call that waits (null: none)
       const int64_t start = NowNs();
-      if (call) call->pieces.Pause(start);
+      if (call) {
+        call->pieces.Pause(start);
+        current_call = call->outer;  // the thread runs other calls while this one waits
+      }
       int64_t end = 0;  // written before done(), read after the resumption
       {
         // Whether the launch threw or not, on the thread that took the call up again.
@@ -311,8 +312,7 @@ class GraphRun {
           ~Resumed() {
             if (!call) return;
             call->pieces.Resume(run->NowNs());
-            call->resumed = true;
-            call->outer_after_resume = current_call;
+            call->outer = current_call;
             current_call = call;
           }
         } resumed{call, this};
