@@ -203,7 +203,7 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   options.pipeline.vocabulary =
       driver::ChooseLoopClosing(config.loop_closing, !config.load_map.empty(), config.vocabulary,
                                 config.config_file, config.overrides, &run_config, &config_yaml,
-                                driver::DefaultVocabularyPaths(), &vocabulary_file);
+                                driver::DefaultVocabularyPaths(), &vocabulary_file, names);
   driver::DynamicRunOptions& d = run_config.dynamic;  // its filter options come from the file
   d.segmenter = config.segmenter;
   d.model_path = config.model;
@@ -214,7 +214,8 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   d.truth_miss_rate = config.truth_miss_rate;
   d.truth_labels = config.truth_labels;
   if (config.localize_only && config.load_map.empty())
-    throw ConfigError("localize_only (--localize-only) needs a map to localise in (--load-map)");
+    throw ConfigError(driver::Named(names, "--localize-only") + " needs a map to localise in (" +
+                      driver::Named(names, "--load-map") + ")");
   run_config.slam.localize_only = config.localize_only;
   if (!config.load_map.empty()) {
     const auto start = std::chrono::steady_clock::now();
@@ -227,12 +228,13 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   }
   options.pipeline.keep_final_map = !config.save_map.empty();
   // Where the outputs go, checked before any frame runs (they are written after the last one).
-  if (!config.out_dir.empty()) driver::CheckOutputDirectory(config.out_dir, "out_dir (--out)");
+  if (!config.out_dir.empty())
+    driver::CheckOutputDirectory(config.out_dir, driver::Named(names, "--out"));
   // A map saved into --out may name it before it exists: it is made before the map is saved.
   if (!config.save_map.empty())
-    driver::CheckOutputFile(config.save_map, "save_map (--save-map)", config.out_dir,
+    driver::CheckOutputFile(config.save_map, driver::Named(names, "--save-map"), config.out_dir,
                             kMapArchiveMagic);
-  driver::CheckOutputsOutsideImages(dataset, config.out_dir, config.save_map);
+  driver::CheckOutputsOutsideImages(dataset, config.out_dir, config.save_map, names);
   if (source.first < 0 || source.end < 0) throw ConfigError("Source: negative frame number");
   const driver::FrameRange range =
       driver::FrameRange{static_cast<size_t>(source.first), static_cast<size_t>(source.end)}.Within(
@@ -259,7 +261,7 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   } catch (const ConfigError& e) {
     // SlamSystem::RestoreMap's refusals ("the map was made in stereo mode, ...") name no file.
     if (!config.load_map.empty() && std::string_view(e.what()).starts_with("the map was made"))
-      throw InputError(config.load_map, 0, std::string("load_map (--load-map): ") + e.what());
+      throw InputError(config.load_map, 0, driver::Named(names, "--load-map") + ": " + e.what());
     throw;
   }
   run.summary.interrupted = run.pipeline.error_stage == graph::kStopStage;

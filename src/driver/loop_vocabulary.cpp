@@ -74,30 +74,28 @@ std::shared_ptr<const Vocabulary> LoadLoopVocabulary(const std::string& path,
   return vocabulary;
 }
 
-std::shared_ptr<const Vocabulary> ChooseLoopClosing(bool loop_flag, bool loaded_map,
-                                                    const std::string& vocabulary_path,
-                                                    const std::string& config_file,
-                                                    const std::vector<std::string>& overrides,
-                                                    RunConfig* run_config, std::string* config_yaml,
-                                                    const std::vector<std::string>& candidates,
-                                                    std::string* vocabulary_file) {
+std::shared_ptr<const Vocabulary> ChooseLoopClosing(
+    bool loop_flag, bool loaded_map, const std::string& vocabulary_path,
+    const std::string& config_file, const std::vector<std::string>& overrides,
+    RunConfig* run_config, std::string* config_yaml, const std::vector<std::string>& candidates,
+    std::string* vocabulary_file, const OptionNames& names) {
   if (vocabulary_file) vocabulary_file->clear();
   const bool configured = run_config->slam.loop.enabled;
-  const char* off_by = !loop_flag ? "loop_closing (--loop off)"
-                                  : "the configuration's loop.enabled: false (--config or --set)";
+  const std::string loop = Named(names, "--loop");
+  const std::string by_config = "the configuration's loop.enabled: false (" +
+                                Named(names, "--config") + " or " + Named(names, "--set") + ")";
+  const std::string off_by = !loop_flag ? loop + " off" : by_config;
   // A vocabulary for loop closing that does not run is not read: a warning, not an error, as a
   // rerun with --config OUT/config.yaml (loop.enabled: false) keeps its --vocabulary.
   if (!vocabulary_path.empty() && !loaded_map && (!loop_flag || !configured))
-    Logger().warn("vocabulary (--vocabulary {}) is not used: loop closing is off ({})",
+    Logger().warn("{} {} is not used: loop closing is off ({})", Named(names, "--vocabulary"),
                   vocabulary_path, off_by);
-  if (!configured && loop_flag)
-    Logger().info(
-        "loop closing off: the configuration's loop.enabled: false (--config or --set) over "
-        "loop_closing (--loop on)");
+  if (!configured && loop_flag) Logger().info("loop closing off: {} over {} on", by_config, loop);
   if (configured && !loop_flag)
     Logger().info(
-        "loop closing off: loop_closing (--loop off) over the configuration's loop.enabled: true "
-        "(config.yaml records false)");
+        "loop closing off: {} off over the configuration's loop.enabled: true (config.yaml "
+        "records false)",
+        loop);
   const bool loop_closing = loop_flag && configured;
   std::shared_ptr<const Vocabulary> vocabulary;
   if (loop_closing || loaded_map) {

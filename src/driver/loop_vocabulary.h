@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "driver/option_names.h"
 #include "driver/slam_config.h"
 #include "slam/loop/vocabulary.h"
 
@@ -36,12 +37,13 @@ std::shared_ptr<const Vocabulary> LoadLoopVocabulary(
 // vocabulary is read also when loop closing is off: relocalisation asks the map's keyframe
 // database, which loop.enabled does not switch (it switches loop detection and correction).
 // Otherwise a `vocabulary_path` given while loop closing is off is not read, with a warning.
-// vocabulary_file (optional): the file the vocabulary was read from ("" when none).
+// vocabulary_file (optional): the file the vocabulary was read from ("" when none). The log
+// names the settings as `names` says (the command line's options when empty).
 std::shared_ptr<const Vocabulary> ChooseLoopClosing(
     bool loop_flag, bool loaded_map, const std::string& vocabulary_path,
     const std::string& config_file, const std::vector<std::string>& overrides,
     RunConfig* run_config, std::string* config_yaml,
     const std::vector<std::string>& candidates = DefaultVocabularyPaths(),
-    std::string* vocabulary_file = nullptr);
+    std::string* vocabulary_file = nullptr, const OptionNames& names = {});
 
 }  // namespace pcr::driver

@@ -207,7 +207,7 @@ void CheckOutputDirectory(const std::string& out_dir, const std::string& what) {
 }
 
 void CheckOutputsOutsideImages(const Dataset& dataset, const std::string& out_dir,
-                               const std::string& save_map) {
+                               const std::string& save_map, const OptionNames& names) {
   namespace fs = std::filesystem;
   auto resolved = [](const fs::path& p) {
     std::error_code ec;
@@ -226,10 +226,10 @@ void CheckOutputsOutsideImages(const Dataset& dataset, const std::string& out_di
                          what + ": lies in the dataset's image folder " + folder.string() +
                              "; choose a place outside the dataset's image folders");
   };
-  if (!out_dir.empty()) check(out_dir, resolved(out_dir), "out_dir (--out)");
+  if (!out_dir.empty()) check(out_dir, resolved(out_dir), Named(names, "--out"));
   if (!save_map.empty()) {
     const fs::path parent = fs::path(save_map).parent_path();
-    check(save_map, resolved(parent.empty() ? fs::path(".") : parent), "save_map (--save-map)");
+    check(save_map, resolved(parent.empty() ? fs::path(".") : parent), Named(names, "--save-map"));
   }
 }
 

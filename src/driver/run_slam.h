@@ -115,14 +115,16 @@ void CreateOutputDirectory(const std::string& out_dir);
 
 // Before any frame runs (nothing is created): throws InputError naming out_dir when it could not
 // be created (an ancestor that is a file, not writable) or exists as something else than a
-// directory. `what` names the option in the message ("out_dir (--out)").
+// directory. `what` names the setting in the message ("--out", or the API's
+// "Config::out_dir (--out)").
 void CheckOutputDirectory(const std::string& out_dir, const std::string& what);
 
 // Before any frame runs: throws InputError when out_dir (a directory) or save_map (a file; each
 // may be empty) is, or lies in, a folder of the dataset's images, where the run's files would
-// mix with its frames (and a later run would refuse the folder's unknown names).
+// mix with its frames (and a later run would refuse the folder's unknown names); the message
+// names the setting as `names` says ("--out", or the API's "Config::out_dir (--out)").
 void CheckOutputsOutsideImages(const Dataset& dataset, const std::string& out_dir,
-                               const std::string& save_map);
+                               const std::string& save_map, const OptionNames& names = {});
 
 // Every name a run writes into its out_dir (WriteRunOutputs' files, trace.json, the map files of
 // map_outputs.h and timing.png), in the order they are written.

@@ -10,6 +10,7 @@
 #include "pcr/api.h"
 #include "support/data_paths.h"
 #include "support/log_capture.h"
+#include "support/shipped_vocabulary.h"
 
 namespace pcr::api {
 namespace {
@@ -131,6 +132,69 @@ TEST(ApiMessages, ABadOverrideIsNamedAsConfigsField) {
   EXPECT_EQ(
       ErrorOf(c).rfind("Config::overrides (--set) orb.num_features: invalid configuration", 0), 0u)
       << ErrorOf(c);
+}
+
+// Where the outputs go and the map to start from are named as Config's fields too; before, these
+// said "out_dir (--out)" on the command line and through the API alike.
+TEST(ApiMessages, OutputsAndTheLoadedMapAreNamedAsConfigsFields) {
+  const std::string dir = test::MakeTempDir("pcr_api_messages_outputs");
+  const std::string file = dir + "/a_file";
+  std::ofstream(file) << "x";
+  Config c;
+  c.loop_closing = false;
+  c.out_dir = file;
+  EXPECT_NE(ErrorOf(c).find("Config::out_dir (--out): "), std::string::npos) << ErrorOf(c);
+  c.out_dir = dir + "/out";
+  c.save_map = dir;
+  EXPECT_NE(ErrorOf(c).find("Config::save_map (--save-map): is a directory, not a file"),
+            std::string::npos)
+      << ErrorOf(c);
+  c.save_map.clear();
+  c.localize_only = true;
+  EXPECT_EQ(ErrorOf(c),
+            "Config::localize_only (--localize-only) needs a map to localise in (Config::load_map "
+            "(--load-map))");
+  std::filesystem::remove_all(dir);
+}
+
+// Which setting turned loop closing off, in the log: Config's fields through the API (before,
+// "(--config or --set)" and "loop_closing (--loop off)" whoever asked).
+TEST(ApiMessages, TheLoopSettingsLinesNameConfigsFields) {
+  const std::string by_config =
+      "the configuration's loop.enabled: false (Config::config_file (--config) or "
+      "Config::overrides (--set))";
+  Config c;
+  c.vocabulary = test::ShippedVocabularyPath();
+  c.overrides = {"loop.enabled=false"};
+  {
+    test::LogCapture log;
+    const Result r = api::Run(c, TwoFramesOf06());
+    ASSERT_TRUE(r.error.empty()) << r.error;
+    EXPECT_NE(log.Text().find("Config::vocabulary (--vocabulary) " + c.vocabulary +
+                              " is not used: loop closing is off (" + by_config + ")"),
+              std::string::npos)
+        << log.Text();
+    EXPECT_NE(log.Text().find("loop closing off: " + by_config +
+                              " over Config::loop_closing "
+                              "(--loop) on"),
+              std::string::npos)
+        << log.Text();
+  }
+  c.overrides.clear();
+  c.loop_closing = false;
+  {
+    test::LogCapture log;
+    const Result r = api::Run(c, TwoFramesOf06());
+    ASSERT_TRUE(r.error.empty()) << r.error;
+    EXPECT_NE(
+        log.Text().find("is not used: loop closing is off (Config::loop_closing (--loop) off)"),
+        std::string::npos)
+        << log.Text();
+    EXPECT_NE(log.Text().find("loop closing off: Config::loop_closing (--loop) off over the "
+                              "configuration's loop.enabled: true"),
+              std::string::npos)
+        << log.Text();
+  }
 }
 
 TEST(ApiMessages, TheStartLineGivesTheConfigurationsCamera) {

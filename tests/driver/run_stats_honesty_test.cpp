@@ -179,8 +179,8 @@ TEST(RunStatsHonesty, AVocabularyForLoopClosingThatIsOffIsWarnedAbout) {
   {
     test::LogCapture log;
     EXPECT_EQ(ChooseLoopClosing(false, false, vocabulary, "", {}, &run_config, &yaml), nullptr);
-    EXPECT_NE(log.Text().find("vocabulary (--vocabulary " + vocabulary +
-                              ") is not used: loop closing is off (loop_closing (--loop off))"),
+    EXPECT_NE(log.Text().find("--vocabulary " + vocabulary +
+                              " is not used: loop closing is off (--loop off)"),
               std::string::npos)
         << log.Text();
   }
