@@ -25,7 +25,8 @@
 //              same windows' errors off and on), and the drift per metre: the relative error
 //              over 40 m of path (all pairs, RMS; translation in %, rotation in deg / 100 m).
 //  --latency   one seed, pipelined policy: ON/OFF/ON/OFF... for --repeat rounds; tracking latency
-//              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages.
+//              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages;
+//              the p99 of all rounds' frames pooled, also split at the ON run's first loop job.
 //  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
 //              (must be 0: "FALSE LOOP" and exit 1 otherwise), detection p50/p99, and where
 //              the clip has ground truth its ATE and its drift per metre as above (a clip
@@ -772,8 +773,14 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
   // Every round's frames together, per side: one p99 over repeat x frames latencies, which a few
   // slow frames of one run move less than they move that run's own p99.
   std::vector<double> pooled_on, pooled_off;
+  // The same frames split where the ON run made its first loop job: before it loop closing only
+  // adds the owner's database add and detection; from it on also the loop lane's work and a map
+  // that holds the loop (the OFF run of the round split at the same frame).
+  std::vector<double> before_on, before_off, after_on, after_off;
+  std::vector<int64_t> split_frames;
   for (int round = 0; round < args.repeat; ++round) {
     double p99_on = kNaN;
+    int64_t split = std::numeric_limits<int64_t>::max();
     for (bool on : {true, false}) {
       const pcr::driver::DriverResult run =
           Run(d, args, pcr::graph::Policy::kPipelined, on ? vocabulary : nullptr);
@@ -791,8 +798,18 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
                   run.summary.error.empty() ? "" : "  FAILED: ", run.summary.error.c_str());
       std::fflush(stdout);
       failed += !run.summary.error.empty();
-      for (const pcr::graph::FrameRecord& f : run.pipeline.frames)
+      if (on) {
+        for (const pcr::graph::FrameRecord& f : run.pipeline.frames)
+          if (f.output.loop_job) split = std::min(split, f.frame_index);
+        if (split != std::numeric_limits<int64_t>::max()) split_frames.push_back(split);
+      }
+      for (const pcr::graph::FrameRecord& f : run.pipeline.frames) {
         (on ? pooled_on : pooled_off).push_back(f.latency_ms);
+        if (f.frame_index < split)
+          (on ? before_on : before_off).push_back(f.latency_ms);
+        else
+          (on ? after_on : after_off).push_back(f.latency_ms);
+      }
       if (on)
         p99_on = st.latency.p99_ms;
       else
@@ -810,6 +827,20 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
         "latency p99 of the rounds' frames pooled: on %.1f ms (%zu frames), off %.1f ms "
         "(%zu frames), on/off %.3f\n",
         on, pooled_on.size(), off, pooled_off.size(), on / off);
+  }
+  if (!split_frames.empty() && !before_on.empty() && !before_off.empty()) {
+    const auto [first, last] = std::minmax_element(split_frames.begin(), split_frames.end());
+    const double b_on = pcr::Percentile(before_on, 99), b_off = pcr::Percentile(before_off, 99);
+    std::printf(
+        "  before the first loop job (frame %lld-%lld): on %.1f ms, off %.1f ms (%zu / %zu "
+        "frames), on/off %.3f\n",
+        static_cast<long long>(*first), static_cast<long long>(*last), b_on, b_off,
+        before_on.size(), before_off.size(), b_on / b_off);
+    if (!after_on.empty() && !after_off.empty()) {
+      const double a_on = pcr::Percentile(after_on, 99), a_off = pcr::Percentile(after_off, 99);
+      std::printf("  from it on: on %.1f ms, off %.1f ms (%zu / %zu frames), on/off %.3f\n", a_on,
+                  a_off, after_on.size(), after_off.size(), a_on / a_off);
+    }
   }
   return failed > 0 ? 1 : 0;
 }

@@ -139,6 +139,18 @@ void AddFrameToSummary(const FrameOutput& out, double preprocess_ms, double segm
   const bool mapped = (out.keyframe_inserted && out.method != TrackingMethod::kInitialisation) ||
                       out.loop_outcomes_applied > 0;
   if (mapped) s->stages["local_mapping"].Add(out.times_ms.local_mapping);
+  // Where a keyframe's mapping time goes (out.mapping: valid for the keyframes mapping made).
+  if (out.keyframe_inserted && out.method != TrackingMethod::kInitialisation) {
+    const MappingResult& m = out.mapping;
+    s->stages["local_mapping_stereo_points"].Add(m.stereo_ms);
+    s->stages["local_mapping_point_culling"].Add(m.culling_ms);
+    s->stages["local_mapping_triangulation"].Add(m.triangulation_ms);
+    s->stages["local_mapping_fusion"].Add(m.fusion_ms);
+    s->stages["local_mapping_ba"].Add(m.ba_ms);
+    s->stages["local_mapping_keyframe_culling"].Add(m.keyframe_culling_ms);
+    if (m.ba_keyframes > 0)
+      s->local_ba.push_back({m.ba_keyframes, m.ba_fixed_keyframes, m.ba_points});
+  }
   s->stages["total"].Add(out.times_ms.total + preprocess_ms + segment_ms);
   s->keyframes = out.num_keyframes;
   s->map_points = out.num_map_points;
@@ -362,6 +374,21 @@ void WriteRunOutputs(const std::string& out_dir, const RunSummary& s,
   j["wall_s"] = s.wall_s;
   j["fps"] = s.wall_s > 0 ? static_cast<double>(s.frames_in) / s.wall_s : 0.0;
   for (const auto& [name, series] : s.stages) j["stages"][name] = TimingJson(series.Summarize());
+  if (!s.local_ba.empty()) {
+    auto size = [&s](int RunSummary::LocalBaSize::*field) {
+      double sum = 0;
+      int max = 0;
+      for (const RunSummary::LocalBaSize& b : s.local_ba) {
+        sum += b.*field;
+        max = std::max(max, b.*field);
+      }
+      return nlohmann::json{{"mean", sum / static_cast<double>(s.local_ba.size())}, {"max", max}};
+    };
+    j["local_ba"] = {{"count", s.local_ba.size()},
+                     {"keyframes", size(&RunSummary::LocalBaSize::keyframes)},
+                     {"fixed_keyframes", size(&RunSummary::LocalBaSize::fixed_keyframes)},
+                     {"points", size(&RunSummary::LocalBaSize::points)}};
+  }
   if (!s.error.empty()) j["error"] = s.error;
   if (s.interrupted) j["interrupted"] = true;
   j["keypoints"] = {{"total", s.keypoints}, {"excluded", s.keypoints_excluded}};
@@ -435,12 +462,14 @@ std::string FormatRunSummary(const RunSummary& s) {
   // Per frame that ran (a frame the realtime policy dropped has none; segment: the result the
   // frame used); the pipeline's table below counts every call of its nodes.
   o << "per frame run:\n";
-  o << fmt::format("{:<14} {:>6} {:>9} {:>9} {:>9} {:>9}\n", "stage", "frames", "mean ms", "p50 ms",
-                   "p95 ms", "p99 ms");
+  size_t width = 14;
+  for (const auto& [name, series] : s.stages) width = std::max(width, name.size());
+  o << fmt::format("{:<{}} {:>6} {:>9} {:>9} {:>9} {:>9}\n", "stage", width, "frames", "mean ms",
+                   "p50 ms", "p95 ms", "p99 ms");
   for (const auto& [name, series] : s.stages) {
     const TimingSummary t = series.Summarize();
-    o << fmt::format("{:<14} {:>6} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f}\n", name, t.count, t.mean_ms,
-                     t.p50_ms, t.p95_ms, t.p99_ms);
+    o << fmt::format("{:<{}} {:>6} {:>9.2f} {:>9.2f} {:>9.2f} {:>9.2f}\n", name, width, t.count,
+                     t.mean_ms, t.p50_ms, t.p95_ms, t.p99_ms);
   }
   if (s.filtered) {
     o << "dynamic filter decisions:";

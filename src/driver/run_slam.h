@@ -55,8 +55,16 @@ struct RunSummary {
   Trajectory ground_truth;  // the dataset's ground truth of the per_frame frames (empty: none)
   // Per-stage milliseconds; "total": the sum of a frame's stages (its compute time: preprocess,
   // segment, the SLAM stages), not its wall-clock latency. filter_flow, filter_ransac and
-  // filter_scoring (FilterAudit) are parts of "filter".
+  // filter_scoring (FilterAudit) are parts of "filter"; the local_mapping_* steps of the
+  // keyframes mapped (MappingResult: stereo_points, point_culling, triangulation, fusion, ba,
+  // keyframe_culling) parts of "local_mapping".
   StageTimings stages;
+  // The local bundle adjustments' size, one entry per keyframe whose mapping ran one: the
+  // keyframes optimised, those held fixed, the points.
+  struct LocalBaSize {
+    int keyframes = 0, fixed_keyframes = 0, points = 0;
+  };
+  std::vector<LocalBaSize> local_ba;
   std::optional<eval::EvalResult> evaluation;
   eval::EvalOptions eval_options;
   // Dynamic filter (when on): per-reason counts, stage times, and on synthetic sequences the

@@ -71,7 +71,8 @@ TEST(RunStatsHonesty, MonocularCountsAgreeWithTheTrajectory) {
 void ExpectTotalIsTheSumOfTheStages(const RunSummary& s) {
   double stages_ms = 0, total_ms = 0;
   for (const auto& [name, series] : s.stages) {
-    if (name.rfind("filter_", 0) == 0) continue;  // parts of "filter" (filter_flow, ...)
+    if (name.rfind("filter_", 0) == 0) continue;         // parts of "filter" (filter_flow, ...)
+    if (name.rfind("local_mapping_", 0) == 0) continue;  // parts of "local_mapping"
     const TimingSummary t = series.Summarize();
     (name == "total" ? total_ms : stages_ms) += t.mean_ms * static_cast<double>(t.count);
   }
@@ -111,6 +112,48 @@ TEST(RunStatsHonesty, LocalMappingCountsTheMappingCalls) {
   EXPECT_EQ(r.summary.stages.at("local_mapping").Summarize().count,
             r.pipeline.stats.stages.at("mapping").time.count);
   ExpectTotalIsTheSumOfTheStages(r.summary);
+}
+
+// Where local mapping's time goes: its steps, one entry per keyframe mapped, are parts of it
+// (they add up to most of it and never to more), and the local BA's size is counted. Before, a
+// keyframe's mapping was one number.
+TEST(RunStatsHonesty, LocalMappingsStepsArePartsOfIt) {
+  const Dataset dataset = OpenDataset(Kitti("06"));
+  DriverOptions o;
+  o.pipeline.policy = graph::Policy::kSequential;
+  const DriverResult r = RunDataset(dataset, RunConfig{}, FrameRange{0, 15}, o);
+  ASSERT_TRUE(r.summary.error.empty()) << r.summary.error;
+  const StageTimings& stages = r.summary.stages;
+  ASSERT_TRUE(stages.count("local_mapping"));
+  const TimingSummary mapping = stages.at("local_mapping").Summarize();
+  ASSERT_GT(mapping.count, 1u);
+  double steps_ms = 0;
+  for (const char* step :
+       {"stereo_points", "point_culling", "triangulation", "fusion", "ba", "keyframe_culling"}) {
+    const std::string name = std::string("local_mapping_") + step;
+    ASSERT_TRUE(stages.count(name)) << name;
+    const TimingSummary t = stages.at(name).Summarize();
+    EXPECT_EQ(t.count, mapping.count) << name;
+    steps_ms += t.mean_ms * static_cast<double>(t.count);
+  }
+  const double mapping_ms = mapping.mean_ms * static_cast<double>(mapping.count);
+  EXPECT_LE(steps_ms, mapping_ms);
+  EXPECT_GE(steps_ms, 0.5 * mapping_ms);
+  EXPECT_GT(stages.at("local_mapping_ba").Summarize().mean_ms, 0.0);
+  // One local BA a keyframe mapped, over at most ba_local_keyframes (+ the new one).
+  ASSERT_EQ(r.summary.local_ba.size(), mapping.count);
+  for (const RunSummary::LocalBaSize& b : r.summary.local_ba) {
+    EXPECT_GE(b.keyframes, 1);
+    EXPECT_LE(b.keyframes, RunConfig{}.slam.mapping.ba_local_keyframes + 1);
+    EXPECT_GT(b.points, 0);
+  }
+  const std::string dir = test::MakeTempDir("pcr_local_mapping_steps");
+  WriteRunOutputs(dir, r.summary, "");
+  const nlohmann::json j = ReadJson(dir + "/stats.json");
+  EXPECT_EQ(j["local_ba"]["count"], mapping.count);
+  EXPECT_GT(j["local_ba"]["points"]["max"].get<int>(), 0);
+  EXPECT_EQ(j["stages"]["local_mapping_ba"]["count"], mapping.count);
+  std::filesystem::remove_all(dir);
 }
 
 // Scheduling options a policy or a run without a segmenter would ignore are refused, naming the
