@@ -99,13 +99,17 @@ TEST(RunStatsHonesty, TotalIsTheSumOfEveryStageOfTheFrame) {
   ExpectTotalIsTheSumOfTheStages(s);
 }
 
+// KITTI 06's first `frames` frames in the sequential policy, default settings.
+DriverResult SequentialRunOf06(size_t frames) {
+  DriverOptions o;
+  o.pipeline.policy = graph::Policy::kSequential;
+  return RunDataset(OpenDataset(Kitti("06")), RunConfig{}, FrameRange{0, frames}, o);
+}
+
 // Local mapping counts the frames mapping ran for, as the pipeline's mapping stage does: not the
 // initialisation's keyframe, which tracking made.
 TEST(RunStatsHonesty, LocalMappingCountsTheMappingCalls) {
-  const Dataset dataset = OpenDataset(Kitti("06"));
-  DriverOptions o;
-  o.pipeline.policy = graph::Policy::kSequential;
-  const DriverResult r = RunDataset(dataset, RunConfig{}, FrameRange{0, 15}, o);
+  const DriverResult r = SequentialRunOf06(15);
   ASSERT_TRUE(r.summary.error.empty()) << r.summary.error;
   ASSERT_TRUE(r.summary.stages.count("local_mapping"));
   ASSERT_TRUE(r.pipeline.stats.stages.count("mapping"));
@@ -118,10 +122,7 @@ TEST(RunStatsHonesty, LocalMappingCountsTheMappingCalls) {
 // (they add up to most of it and never to more), and the local BA's size is counted. Before, a
 // keyframe's mapping was one number.
 TEST(RunStatsHonesty, LocalMappingsStepsArePartsOfIt) {
-  const Dataset dataset = OpenDataset(Kitti("06"));
-  DriverOptions o;
-  o.pipeline.policy = graph::Policy::kSequential;
-  const DriverResult r = RunDataset(dataset, RunConfig{}, FrameRange{0, 15}, o);
+  const DriverResult r = SequentialRunOf06(15);
   ASSERT_TRUE(r.summary.error.empty()) << r.summary.error;
   const StageTimings& stages = r.summary.stages;
   ASSERT_TRUE(stages.count("local_mapping"));
