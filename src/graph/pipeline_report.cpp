@@ -339,8 +339,7 @@ void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
         {"wait_ms", e.ready_ns >= 0 ? static_cast<double>(e.start_ns - e.ready_ns) * 1e-6 : 0.0}};
     // A call that waited for a device: a slice per stretch on its thread (the threads ran other
     // stages in the gaps), each saying which part of the call it is and how long the call took.
-    const std::vector<StagePiece> whole{{e.thread, e.start_ns, e.end_ns}};
-    const std::vector<StagePiece>& pieces = e.pieces.empty() ? whole : e.pieces;
+    const std::vector<StagePiece> pieces = HostStretches(e);
     if (!e.pieces.empty()) args["call_ms"] = static_cast<double>(e.end_ns - e.start_ns) * 1e-6;
     for (size_t i = 0; i < pieces.size(); ++i) {
       const StagePiece& piece = pieces[i];
@@ -487,8 +486,7 @@ void WriteTimingChart(const std::string& path, const PipelineResult& result, dou
   }
   for (const StageEvent& e : result.events) {
     // A call that waited for a device: its stretches on the threads that ran it.
-    const std::vector<StagePiece> whole{{e.thread, e.start_ns, e.end_ns}};
-    for (const StagePiece& piece : e.pieces.empty() ? whole : e.pieces) {
+    for (const StagePiece& piece : HostStretches(e)) {
       if (piece.start_ns >= end_ns) continue;
       const int x0 =
           left +

@@ -6,6 +6,11 @@
 
 namespace pcr::graph {
 
+std::vector<StagePiece> HostStretches(const StageEvent& e) {
+  if (!e.pieces.empty()) return e.pieces;
+  return {{e.thread, e.start_ns, e.end_ns}};
+}
+
 void Profiler::Record(const char* stage, int64_t seq, int64_t frame_index, int64_t start_ns,
                       int64_t end_ns, const CallPieces* pieces) {
   const std::thread::id id = std::this_thread::get_id();

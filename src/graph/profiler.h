@@ -34,6 +34,10 @@ struct StageEvent {
   std::vector<StagePiece> pieces;
 };
 
+// A call's host stretches: its pieces where it waited for a device, else the whole call on its
+// thread.
+std::vector<StagePiece> HostStretches(const StageEvent& e);
+
 // The host stretches of one stage call while it runs, for Profiler::Record: Pause when it starts
 // to wait for a device (the stretch so far, on the calling thread), Resume when a thread takes it
 // up again. Not thread-safe: used by the call itself, on whichever thread runs it.
