@@ -136,11 +136,12 @@ void AddFrameToSummary(const FrameOutput& out, double preprocess_ms, double segm
   if (out.times_ms.filter > 0) s->stages["filter"].Add(out.times_ms.filter);
   s->stages["tracking"].Add(out.times_ms.tracking);
   // The initialisation's keyframe is made by tracking (keyframe_inserted, no mapping call).
-  const bool mapped = (out.keyframe_inserted && out.method != TrackingMethod::kInitialisation) ||
-                      out.loop_outcomes_applied > 0;
-  if (mapped) s->stages["local_mapping"].Add(out.times_ms.local_mapping);
+  const bool keyframe_mapped =
+      out.keyframe_inserted && out.method != TrackingMethod::kInitialisation;
+  if (keyframe_mapped || out.loop_outcomes_applied > 0)
+    s->stages["local_mapping"].Add(out.times_ms.local_mapping);
   // Where a keyframe's mapping time goes (out.mapping: valid for the keyframes mapping made).
-  if (out.keyframe_inserted && out.method != TrackingMethod::kInitialisation) {
+  if (keyframe_mapped) {
     const MappingResult& m = out.mapping;
     s->stages["local_mapping_stereo_points"].Add(m.stereo_ms);
     s->stages["local_mapping_point_culling"].Add(m.culling_ms);
