@@ -175,8 +175,7 @@ TEST(ApiMessages, TheLoopSettingsLinesNameConfigsFields) {
               std::string::npos)
         << log.Text();
     EXPECT_NE(log.Text().find("loop closing off: " + by_config +
-                              " over Config::loop_closing "
-                              "(--loop) on"),
+                              " over Config::loop_closing (--loop) on"),
               std::string::npos)
         << log.Text();
   }
