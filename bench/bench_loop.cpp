@@ -27,6 +27,8 @@
 //  --latency   one seed, pipelined policy: ON/OFF/ON/OFF... for --repeat rounds; tracking latency
 //              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages;
 //              the p99 of all rounds' frames pooled, also split at the ON run's first loop job.
+//              --realtime: the same in the realtime policy (frames released at the sequence's
+//              10 Hz, latency from release to pose), with the frames each run dropped.
 //  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
 //              (must be 0: "FALSE LOOP" and exit 1 otherwise), detection p50/p99, and where
 //              the clip has ground truth its ATE and its drift per metre as above (a clip
@@ -87,7 +89,8 @@
 // Runtime (2 cores, 600 frames; 2026-12-04, seeds 1-4, 6-8): stereo sequential 60-95 s ON / 54-78 s
 // OFF, so the default 3 seeds take ~7 minutes (plus rendering of missing loops; with other work
 // on the cores, load average 2-3, seed 1 took ~160 s ON / ~130 s OFF); mono ~100 s / ~55 s;
-// --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7 minutes); --sequence 10-40 s a KITTI
+// --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7 minutes; --realtime 60 s a run, the
+// 600 frames at 10 Hz); --sequence 10-40 s a KITTI
 // clip; --place ~1 min on the four shipped clips (--held-out ~1 min more); --cross ~8 minutes on
 // them (16 runs, most frames of the cross pairs try 10-20 keyframes).
 #include <fmt/format.h>
@@ -166,6 +169,7 @@ struct Args {
   int threads = 2;
   std::string vocabulary;  // "" = the shipped one
   bool latency = false;
+  bool realtime = false;  // --latency: the realtime policy (frames released at their rate)
   int repeat = 2;
   std::vector<std::string> sequences;
   std::vector<std::string> place;
@@ -190,6 +194,7 @@ void CheckArgs(Args* a) {
   a->seed_list = pcr::bench::ParseSeeds(a->seeds, "--seeds");
   a->threshold_list = pcr::bench::ParseList(a->thresholds, "--thresholds");
   const bool loops = a->place.empty() && a->cross.empty() && a->sequences.empty();
+  if (a->realtime && !a->latency) throw std::invalid_argument("--realtime goes with --latency");
   if (loops && a->seed_list.empty())
     throw std::invalid_argument(std::string(a->latency ? "--latency" : "the synthetic loops") +
                                 " need at least one seed: --seeds '" + a->seeds + "'");
@@ -763,11 +768,15 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
 int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary) {
   const uint64_t seed = args.seed_list.at(0);  // CheckArgs: at least one
   const pcr::Dataset d = pcr::OpenDataset(LoopSequence(args, seed));
-  std::printf("\nTracking latency, pipelined, %d threads, %s, seed %llu, %zu frames (ms)\n",
-              args.threads, args.mode.c_str(), static_cast<unsigned long long>(seed), d.size());
-  std::printf("%5s %4s | %7s %7s %7s | %5s | %5s %7s %7s | %4s %8s | %6s\n", "round", "loop",
+  const pcr::graph::Policy policy =
+      args.realtime ? pcr::graph::Policy::kRealtime : pcr::graph::Policy::kPipelined;
+  std::printf("\nTracking latency, %s, %d threads, %s, seed %llu, %zu frames (ms%s)\n",
+              pcr::graph::ToString(policy), args.threads, args.mode.c_str(),
+              static_cast<unsigned long long>(seed), d.size(),
+              args.realtime ? "; from a frame's release to its pose; drop: frames dropped" : "");
+  std::printf("%5s %4s | %7s %7s %7s | %5s | %5s %7s %7s | %4s %8s | %6s%s\n", "round", "loop",
               "lat p50", "lat p99", "lat max", "loops", "loop n", "p50", "max", "gBA", "max",
-              "wall s");
+              "wall s", args.realtime ? "   drop" : "");
   int failed = 0;
   std::vector<double> p99_ratios;
   // Every round's frames together, per side: one p99 over repeat x frames latencies, which a few
@@ -782,8 +791,7 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
     double p99_on = kNaN;
     int64_t split = std::numeric_limits<int64_t>::max();
     for (bool on : {true, false}) {
-      const pcr::driver::DriverResult run =
-          Run(d, args, pcr::graph::Policy::kPipelined, on ? vocabulary : nullptr);
+      const pcr::driver::DriverResult run = Run(d, args, policy, on ? vocabulary : nullptr);
       const pcr::graph::PipelineStats& st = run.pipeline.stats;
       auto stage = [&](const char* name) {
         const auto it = st.stages.find(name);
@@ -791,10 +799,12 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
       };
       const pcr::TimingSummary loop = stage(pcr::graph::kStageLoop);
       const pcr::TimingSummary ba = stage(pcr::graph::kStageGlobalBa);
-      std::printf("%5d %4s | %7.1f %7.1f %7.1f | %5d | %5zu %7.1f %7.1f | %4zu %8.1f | %6.1f%s%s\n",
+      std::printf("%5d %4s | %7.1f %7.1f %7.1f | %5d | %5zu %7.1f %7.1f | %4zu %8.1f | %6.1f",
                   round + 1, on ? "on" : "off", st.latency.p50_ms, st.latency.p99_ms,
                   st.latency.max_ms, run.pipeline.loop_stats.corrections, loop.count, loop.p50_ms,
-                  loop.max_ms, ba.count, ba.max_ms, run.summary.wall_s,
+                  loop.max_ms, ba.count, ba.max_ms, run.summary.wall_s);
+      if (args.realtime) std::printf(" %6zu", st.frames_dropped);
+      std::printf("%s%s\n",
                   run.summary.error.empty() ? "" : "  FAILED: ", run.summary.error.c_str());
       std::fflush(stdout);
       failed += !run.summary.error.empty();
@@ -1993,6 +2003,9 @@ int main(int argc, char** argv) {
   app.add_option("--set", a.settings,
                  "a run setting, section.key=value (pcr_orb run's --set), for every run");
   app.add_flag("--latency", a.latency, "tracking latency with loop closing on and off");
+  app.add_flag("--realtime", a.realtime,
+               "--latency: the realtime policy (frames released at the sequence's rate, as from "
+               "a camera; latency from release to pose) instead of pipelined");
   AddInt(app, "--repeat", &a.repeat, 1, 1000, "N", "--latency: on/off rounds");
   app.add_option("--sequence", a.sequences, "real clips without a loop: false loops");
   app.add_option("--place", a.place, "place recognition alone on these clips");
