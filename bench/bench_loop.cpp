@@ -90,9 +90,9 @@
 // OFF, so the default 3 seeds take ~7 minutes (plus rendering of missing loops; with other work
 // on the cores, load average 2-3, seed 1 took ~160 s ON / ~130 s OFF); mono ~100 s / ~55 s;
 // --latency ~120 s ON / ~95 s OFF a round (--repeat 2: ~7 minutes; --realtime 60 s a run, the
-// 600 frames at 10 Hz); --sequence 10-40 s a KITTI
-// clip; --place ~1 min on the four shipped clips (--held-out ~1 min more); --cross ~8 minutes on
-// them (16 runs, most frames of the cross pairs try 10-20 keyframes).
+// 600 frames at 10 Hz); --sequence 10-40 s a KITTI clip; --place ~1 min on the four shipped
+// clips (--held-out ~1 min more); --cross ~8 minutes on them (16 runs, most frames of the cross
+// pairs try 10-20 keyframes).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
