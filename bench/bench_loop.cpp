@@ -26,9 +26,11 @@
 //              over 40 m of path (all pairs, RMS; translation in %, rotation in deg / 100 m).
 //  --latency   one seed, pipelined policy: ON/OFF/ON/OFF... for --repeat rounds; tracking latency
 //              p50/p99, the median over rounds of p99 ON / p99 OFF, the loop and global_ba stages;
-//              the p99 of all rounds' frames pooled, also split at the ON run's first loop job.
-//              --realtime: the same in the realtime policy (frames released at the sequence's
-//              10 Hz, latency from release to pose), with the frames each run dropped.
+//              the p99 of all rounds' frames pooled, also split at the ON run's first loop job,
+//              with the keyframes' mapping calls after it (what those frames wait for) and their
+//              local BA windows' points. --realtime: the same in the realtime policy (frames
+//              released at the sequence's 10 Hz, latency from release to pose), with the frames
+//              each run dropped.
 //  --sequence  real clips without a loop, loop closing ON: jobs, rejections, accepted loops
 //              (must be 0: "FALSE LOOP" and exit 1 otherwise), detection p50/p99, and where
 //              the clip has ground truth its ATE and its drift per metre as above (a clip
@@ -110,6 +112,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <numeric>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -787,6 +790,9 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
   // that holds the loop (the OFF run of the round split at the same frame).
   std::vector<double> before_on, before_off, after_on, after_off;
   std::vector<int64_t> split_frames;
+  // What the frames from the split on wait for: the keyframes' mapping calls there (ms) and their
+  // local BA windows (observed points), per side.
+  std::vector<double> mapping_after_on, mapping_after_off, ba_points_after_on, ba_points_after_off;
   for (int round = 0; round < args.repeat; ++round) {
     double p99_on = kNaN;
     int64_t split = std::numeric_limits<int64_t>::max();
@@ -815,10 +821,15 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
       }
       for (const pcr::graph::FrameRecord& f : run.pipeline.frames) {
         (on ? pooled_on : pooled_off).push_back(f.latency_ms);
-        if (f.frame_index < split)
+        if (f.frame_index < split) {
           (on ? before_on : before_off).push_back(f.latency_ms);
-        else
+        } else {
           (on ? after_on : after_off).push_back(f.latency_ms);
+          if (f.output.keyframe_inserted && f.output.mapping.ba_points > 0) {
+            (on ? mapping_after_on : mapping_after_off).push_back(f.output.times_ms.local_mapping);
+            (on ? ba_points_after_on : ba_points_after_off).push_back(f.output.mapping.ba_points);
+          }
+        }
       }
       if (on)
         p99_on = st.latency.p99_ms;
@@ -850,6 +861,20 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
       const double a_on = pcr::Percentile(after_on, 99), a_off = pcr::Percentile(after_off, 99);
       std::printf("  from it on: on %.1f ms, off %.1f ms (%zu / %zu frames), on/off %.3f\n", a_on,
                   a_off, after_on.size(), after_off.size(), a_on / a_off);
+      if (!mapping_after_on.empty() && !mapping_after_off.empty()) {
+        // The frames there wait for these (tracking of frame k+1 starts after mapping frame k).
+        auto mean = [](const std::vector<double>& v) {
+          return std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+        };
+        std::printf(
+            "    its keyframes' mapping calls: on p50 %.1f max %.1f ms (%zu), off p50 %.1f max "
+            "%.1f ms (%zu); their local BA windows' points: on %.0f, off %.0f (mean)\n",
+            pcr::Percentile(mapping_after_on, 50),
+            *std::max_element(mapping_after_on.begin(), mapping_after_on.end()),
+            mapping_after_on.size(), pcr::Percentile(mapping_after_off, 50),
+            *std::max_element(mapping_after_off.begin(), mapping_after_off.end()),
+            mapping_after_off.size(), mean(ba_points_after_on), mean(ba_points_after_off));
+      }
     }
   }
   return failed > 0 ? 1 : 0;
