@@ -112,7 +112,6 @@
 #include <limits>
 #include <map>
 #include <memory>
-#include <numeric>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -782,17 +781,21 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
               "wall s", args.realtime ? "   drop" : "");
   int failed = 0;
   std::vector<double> p99_ratios;
-  // Every round's frames together, per side: one p99 over repeat x frames latencies, which a few
-  // slow frames of one run move less than they move that run's own p99.
-  std::vector<double> pooled_on, pooled_off;
-  // The same frames split where the ON run made its first loop job: before it loop closing only
-  // adds the owner's database add and detection; from it on also the loop lane's work and a map
-  // that holds the loop (the OFF run of the round split at the same frame).
-  std::vector<double> before_on, before_off, after_on, after_off;
+  // Per side (loop closing on, off):
+  // - every round's frames together: one p99 over repeat x frames latencies, which a few slow
+  //   frames of one run move less than they move that run's own p99;
+  // - the same frames split where the ON run made its first loop job: before it loop closing
+  //   only adds the owner's database add and detection; from it on also the loop lane's work and
+  //   a map that holds the loop (the OFF run of the round split at the same frame);
+  // - what the frames from the split on wait for: the keyframes' mapping calls there and their
+  //   local BA windows (observed points).
+  struct Side {
+    std::vector<double> pooled, before, after;
+    pcr::TimingSeries mapping_after;
+    std::vector<double> ba_points_after;
+  };
+  Side on_side, off_side;
   std::vector<int64_t> split_frames;
-  // What the frames from the split on wait for: the keyframes' mapping calls there (ms) and their
-  // local BA windows (observed points), per side.
-  std::vector<double> mapping_after_on, mapping_after_off, ba_points_after_on, ba_points_after_off;
   for (int round = 0; round < args.repeat; ++round) {
     double p99_on = kNaN;
     int64_t split = std::numeric_limits<int64_t>::max();
@@ -819,15 +822,16 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
           if (f.output.loop_job) split = std::min(split, f.frame_index);
         if (split != std::numeric_limits<int64_t>::max()) split_frames.push_back(split);
       }
+      Side& side = on ? on_side : off_side;
       for (const pcr::graph::FrameRecord& f : run.pipeline.frames) {
-        (on ? pooled_on : pooled_off).push_back(f.latency_ms);
+        side.pooled.push_back(f.latency_ms);
         if (f.frame_index < split) {
-          (on ? before_on : before_off).push_back(f.latency_ms);
+          side.before.push_back(f.latency_ms);
         } else {
-          (on ? after_on : after_off).push_back(f.latency_ms);
+          side.after.push_back(f.latency_ms);
           if (f.output.keyframe_inserted && f.output.mapping.ba_points > 0) {
-            (on ? mapping_after_on : mapping_after_off).push_back(f.output.times_ms.local_mapping);
-            (on ? ba_points_after_on : ba_points_after_off).push_back(f.output.mapping.ba_points);
+            side.mapping_after.Add(f.output.times_ms.local_mapping);
+            side.ba_points_after.push_back(f.output.mapping.ba_points);
           }
         }
       }
@@ -842,38 +846,36 @@ int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& v
     std::printf("latency p99 on/off: median %.3f over %zu rounds (min %.3f, max %.3f)\n",
                 pcr::Percentile(p99_ratios, 50), p99_ratios.size(), p99_ratios.front(),
                 p99_ratios.back());
-  if (!pooled_on.empty() && !pooled_off.empty()) {
-    const double on = pcr::Percentile(pooled_on, 99), off = pcr::Percentile(pooled_off, 99);
+  const Side &on = on_side, &off = off_side;
+  if (!on.pooled.empty() && !off.pooled.empty()) {
+    const double p_on = pcr::Percentile(on.pooled, 99), p_off = pcr::Percentile(off.pooled, 99);
     std::printf(
         "latency p99 of the rounds' frames pooled: on %.1f ms (%zu frames), off %.1f ms "
         "(%zu frames), on/off %.3f\n",
-        on, pooled_on.size(), off, pooled_off.size(), on / off);
+        p_on, on.pooled.size(), p_off, off.pooled.size(), p_on / p_off);
   }
-  if (!split_frames.empty() && !before_on.empty() && !before_off.empty()) {
+  if (!split_frames.empty() && !on.before.empty() && !off.before.empty()) {
     const auto [first, last] = std::minmax_element(split_frames.begin(), split_frames.end());
-    const double b_on = pcr::Percentile(before_on, 99), b_off = pcr::Percentile(before_off, 99);
+    const double b_on = pcr::Percentile(on.before, 99), b_off = pcr::Percentile(off.before, 99);
     std::printf(
         "  before the first loop job (frame %lld-%lld): on %.1f ms, off %.1f ms (%zu / %zu "
         "frames), on/off %.3f\n",
         static_cast<long long>(*first), static_cast<long long>(*last), b_on, b_off,
-        before_on.size(), before_off.size(), b_on / b_off);
-    if (!after_on.empty() && !after_off.empty()) {
-      const double a_on = pcr::Percentile(after_on, 99), a_off = pcr::Percentile(after_off, 99);
+        on.before.size(), off.before.size(), b_on / b_off);
+    if (!on.after.empty() && !off.after.empty()) {
+      const double a_on = pcr::Percentile(on.after, 99), a_off = pcr::Percentile(off.after, 99);
       std::printf("  from it on: on %.1f ms, off %.1f ms (%zu / %zu frames), on/off %.3f\n", a_on,
-                  a_off, after_on.size(), after_off.size(), a_on / a_off);
-      if (!mapping_after_on.empty() && !mapping_after_off.empty()) {
+                  a_off, on.after.size(), off.after.size(), a_on / a_off);
+      const pcr::TimingSummary m_on = on.mapping_after.Summarize();
+      const pcr::TimingSummary m_off = off.mapping_after.Summarize();
+      if (m_on.count > 0 && m_off.count > 0) {
         // The frames there wait for these (tracking of frame k+1 starts after mapping frame k).
-        auto mean = [](const std::vector<double>& v) {
-          return std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
-        };
         std::printf(
             "    its keyframes' mapping calls: on p50 %.1f max %.1f ms (%zu), off p50 %.1f max "
             "%.1f ms (%zu); their local BA windows' points: on %.0f, off %.0f (mean)\n",
-            pcr::Percentile(mapping_after_on, 50),
-            *std::max_element(mapping_after_on.begin(), mapping_after_on.end()),
-            mapping_after_on.size(), pcr::Percentile(mapping_after_off, 50),
-            *std::max_element(mapping_after_off.begin(), mapping_after_off.end()),
-            mapping_after_off.size(), mean(ba_points_after_on), mean(ba_points_after_off));
+            m_on.p50_ms, m_on.max_ms, m_on.count, m_off.p50_ms, m_off.max_ms, m_off.count,
+            pcr::eval::ComputeStatistics(on.ba_points_after).mean,
+            pcr::eval::ComputeStatistics(off.ba_points_after).mean);
       }
     }
   }
