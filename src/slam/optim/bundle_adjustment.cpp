@@ -44,11 +44,15 @@ class BundleAdjuster {
         poses_(keyframes.size()),
         points_(points.size()),
         prepared_(observations.size()),
-        optimised_pose_(keyframes.size(), false) {
-    for (size_t k = 0; k < keyframes.size(); ++k)
+        optimised_pose_(keyframes.size(), false),
+        fixed_(keyframes.size(), false) {
+    for (size_t k = 0; k < keyframes.size(); ++k) {
       optim::PoseToParams(keyframes[k].cam_from_world, poses_[k].data());
+      fixed_[k] = keyframes[k].fixed;
+    }
     for (size_t j = 0; j < points.size(); ++j) points_[j] = points[j].p_in_world;
     for (size_t i = 0; i < observations.size(); ++i) Prepare(i);
+    HoldUnanchoredParts();
     problem_options_.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     problem_options_.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   }
@@ -61,6 +65,7 @@ class BundleAdjuster {
     const std::vector<bool> first_set = active;
 
     BundleAdjustmentResult result;
+    result.gauge_anchors = gauge_anchors_;
     result.initial_cost = RobustCost(first_set);
     bool changed = !Aborted() && Solve(active, /*robust=*/true, &result.iterations);
     if (options_.optimise_twice && !aborted_) {
@@ -133,6 +138,45 @@ class BundleAdjuster {
                : optim::CheckReprojection<2>(rig_, prepared_[i].target, pose, point);
   }
 
+  // Keyframes joined by usable observations of shared points form a part of the problem; a part
+  // without a fixed keyframe (a part of the map started after a tracking loss, before a loop joins
+  // it to the first) holds its keyframe with the smallest id fixed, so that no solve has a free
+  // gauge.
+  void HoldUnanchoredParts() {
+    std::vector<int> root(keyframes_.size());
+    for (size_t k = 0; k < root.size(); ++k) root[k] = static_cast<int>(k);
+    auto find = [&root](int k) {
+      while (root[k] != k) k = root[k] = root[root[k]];
+      return k;
+    };
+    std::vector<int> point_keyframe(points_.size(), -1);
+    std::vector<bool> used(keyframes_.size(), false);
+    for (size_t i = 0; i < observations_.size(); ++i) {
+      if (!prepared_[i].usable) continue;
+      const int k = observations_[i].keyframe;
+      int& first = point_keyframe[observations_[i].point];
+      used[k] = true;
+      if (first < 0)
+        first = k;
+      else
+        root[find(k)] = find(first);
+    }
+    std::vector<int> anchor(keyframes_.size(), -1);  // per part: a fixed keyframe, or the oldest
+    std::vector<bool> held(keyframes_.size(), false);
+    for (size_t k = 0; k < keyframes_.size(); ++k) {
+      if (!used[k]) continue;
+      const int r = find(static_cast<int>(k));
+      if (fixed_[k]) held[r] = true;
+      if (anchor[r] < 0 || keyframes_[k].id < keyframes_[anchor[r]].id)
+        anchor[r] = static_cast<int>(k);
+    }
+    for (size_t r = 0; r < keyframes_.size(); ++r) {
+      if (anchor[r] < 0 || held[r]) continue;
+      fixed_[anchor[r]] = true;
+      ++gauge_anchors_;
+    }
+  }
+
   // Keeps an observation active iff it is active now, in front of its camera and within its
   // chi-square threshold.
   void Classify(std::vector<bool>* active) const {
@@ -169,7 +213,7 @@ class BundleAdjuster {
       if (!problem.HasParameterBlock(pose)) {
         problem.AddParameterBlock(pose, optim::kPoseParamSize, &manifold_);
         ordering->AddElementToGroup(pose, 1);
-        if (keyframes_[obs.keyframe].fixed) {
+        if (fixed_[obs.keyframe]) {
           problem.SetParameterBlockConstant(pose);
         } else {
           optimised_pose_[obs.keyframe] = true;
@@ -219,6 +263,8 @@ class BundleAdjuster {
   std::vector<Eigen::Vector3d> points_;
   std::vector<PreparedObservation> prepared_;
   std::vector<bool> optimised_pose_;  // free keyframes that entered some solve
+  std::vector<bool> fixed_;           // the input's fixed keyframes and the parts' anchors
+  int gauge_anchors_ = 0;
   optim::LeftSe3Manifold manifold_;
   ceres::HuberLoss huber_mono_{std::sqrt(options_.chi2_mono)};
   ceres::HuberLoss huber_stereo_{std::sqrt(options_.chi2_stereo)};

@@ -64,6 +64,9 @@ struct BundleAdjustmentResult {
   // its camera counts as Huber(chi2 threshold)).
   double initial_cost = 0, final_cost = 0;
   int iterations = 0;  // solver iterations over both solves
+  // Keyframes held fixed although the input left them free: one per part of the problem that no
+  // fixed keyframe holds (see the contract).
+  int gauge_anchors = 0;
   // The abort flag was seen (before or during a solve): cam_from_world and p_in_world are the
   // input values bitwise, observation_inlier is the set that would have entered the first solve,
   // final_cost == initial_cost.
@@ -80,6 +83,9 @@ struct BundleAdjustmentResult {
 //   optimise_twice, observations with chi2 > threshold or depth <= kMinDepthM are dropped and the
 //   rest is re-solved without the kernel (max_iterations again). Final classification at the
 //   output: inlier iff it entered the last solve, depth > kMinDepthM and chi2 <= threshold.
+// - Gauge: keyframes joined through the usable observations of shared points form parts of the
+//   problem; in a part without a fixed keyframe the keyframe with the smallest id is held fixed
+//   (BundleAdjustmentResult::gauge_anchors counts them).
 // - Fixed keyframes, keyframes without usable observations and points without usable
 //   observations are returned bitwise unchanged.
 // - Deterministic (bitwise) for num_threads == 1; with more threads Ceres' parallel reductions

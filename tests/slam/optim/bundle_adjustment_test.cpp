@@ -316,6 +316,71 @@ TEST(BundleAdjustmentTest, UnobservedBlocksAreReturnedUnchanged) {
   EXPECT_FALSE(result.observation_inlier.back());
 }
 
+// Two parts that share no point: the first held by its fixed keyframe, the second with none (a
+// part of the map started after a tracking loss). The second part's oldest keyframe is held where
+// it is, and the rest of that part lands where the truth puts it relative to that keyframe.
+TEST(BundleAdjustmentTest, APartWithoutAFixedKeyframeIsHeldByItsOldest) {
+  const StereoRig rig = KittiRig();
+  std::mt19937_64 rng(5);
+  BaSceneOptions held_options;
+  held_options.noise_px = 0.0;
+  held_options.num_fixed = 1;
+  const BaScene held = MakeBaScene(rig, held_options, rng);
+  BaSceneOptions free_options = held_options;
+  free_options.num_fixed = 0;  // every keyframe free and perturbed, the first one included
+  const BaScene free = MakeBaScene(rig, free_options, rng);
+
+  std::vector<BaKeyframe> keyframes = held.keyframes;
+  std::vector<BaPoint> points = held.points;
+  std::vector<BaObservation> observations = held.observations;
+  const int kf_offset = static_cast<int>(keyframes.size());
+  const int point_offset = static_cast<int>(points.size());
+  // The free part's keyframes come first in the vector but have the larger ids: the anchor is
+  // picked by id, not by position.
+  std::vector<BaKeyframe> free_keyframes = free.keyframes;
+  for (BaKeyframe& kf : free_keyframes) kf.id += 1000;
+  std::reverse(free_keyframes.begin(), free_keyframes.end());
+  const int n_free = static_cast<int>(free_keyframes.size());
+  keyframes.insert(keyframes.end(), free_keyframes.begin(), free_keyframes.end());
+  for (BaPoint p : free.points) {
+    p.id += 1000000;
+    points.push_back(p);
+  }
+  for (BaObservation o : free.observations) {
+    o.keyframe = kf_offset + (n_free - 1 - o.keyframe);  // reversed
+    o.point += point_offset;
+    observations.push_back(o);
+  }
+  const int anchor = kf_offset + n_free - 1;  // the free part's smallest id
+  ASSERT_FALSE(keyframes[anchor].fixed);
+  ASSERT_GT(CentreErrorM(keyframes[anchor].cam_from_world, free.cam_from_world_true[0]), 0.01);
+
+  BundleAdjustmentOptions options;
+  options.max_iterations = 30;
+  options.function_tolerance = 1e-12;
+  const BundleAdjustmentResult result =
+      RunBundleAdjustment(rig, keyframes, points, observations, options);
+  EXPECT_EQ(result.gauge_anchors, 1);
+  EXPECT_TRUE(BitwiseEqual(result.cam_from_world[anchor], keyframes[anchor].cam_from_world));
+  EXPECT_TRUE(BitwiseEqual(result.cam_from_world[0], held.keyframes[0].cam_from_world));
+  for (int k = 1; k < kf_offset; ++k)
+    EXPECT_LT(CentreErrorM(result.cam_from_world[k], held.cam_from_world_true[k]), 1e-6) << k;
+  // The free part: the truth moved rigidly onto its held keyframe.
+  const SE3 world_shift =
+      keyframes[anchor].cam_from_world.inverse() * free.cam_from_world_true[0];  // est <- true
+  for (int i = 0; i < n_free; ++i) {
+    const int k = kf_offset + (n_free - 1 - i);
+    const SE3 expected = free.cam_from_world_true[i] * world_shift.inverse();
+    EXPECT_LT(CentreErrorM(result.cam_from_world[k], expected), 1e-6) << i;
+    EXPECT_LT(RotationErrorRad(result.cam_from_world[k], expected), 1e-7) << i;
+  }
+  EXPECT_LT(result.final_cost, 1e-12);
+
+  // With the free part's first keyframe fixed by the caller, nothing more is held.
+  keyframes[anchor].fixed = true;
+  EXPECT_EQ(RunBundleAdjustment(rig, keyframes, points, observations, options).gauge_anchors, 0);
+}
+
 TEST(BundleAdjustmentTest, EmptyProblemAndBadInput) {
   const StereoRig rig = KittiRig();
   std::vector<BaKeyframe> keyframes(2);
