@@ -146,6 +146,7 @@
 #include "slam/loop/vocabulary.h"
 #include "slam/optim/pose_graph.h"
 #include "slam/system/map_archive.h"
+#include "slam/tracking/tracker.h"
 
 namespace {
 
@@ -181,13 +182,15 @@ struct Args {
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
   std::vector<double> threshold_list;  // --thresholds, parsed (CheckArgs)
   bool held_out = false;
-  bool map_distance = false;           // --place: the clips' own maps place the answers
-  bool road_distance = false;          // --place: the road measures the answers
-  double road_limit_m = 9.0;           // --place --road-distance: per clip within this
-  pcr::SequenceScoreOptions sequence;  // --place: answer (4)
-  double uniqueness = 1.05;            // --place: answer (4)'s gate
-  std::vector<std::string> settings;   // --set: "section.key=value" for every run
-  bool floor = false;                  // loops: the measurements' own floor (FloorOf)
+  bool map_distance = false;                       // --place: the clips' own maps place the answers
+  bool road_distance = false;                      // --place: the road measures the answers
+  double road_limit_m = 9.0;                       // --place --road-distance: per clip within this
+  pcr::SequenceScoreOptions sequence;              // --place: answer (4)
+  double uniqueness = 1.05;                        // --place: answer (4)'s gate
+  std::vector<std::string> settings;               // --set: "section.key=value" for every run
+  bool floor = false;                              // loops: the measurements' own floor (FloorOf)
+  std::string blackout;                            // loops: frames A:B shown black (RunBlackout)
+  int64_t blackout_first = -1, blackout_end = -1;  // --blackout, parsed (CheckArgs)
 };
 
 // Parses the list options into their vectors and checks what CLI11 does not, before any work (a
@@ -197,6 +200,26 @@ void CheckArgs(Args* a) {
   a->threshold_list = pcr::bench::ParseList(a->thresholds, "--thresholds");
   const bool loops = a->place.empty() && a->cross.empty() && a->sequences.empty();
   if (a->realtime && !a->latency) throw std::invalid_argument("--realtime goes with --latency");
+  if (!a->blackout.empty()) {
+    const size_t colon = a->blackout.find(':');
+    try {
+      size_t used_a = 0, used_b = 0;
+      if (colon == std::string::npos) throw std::invalid_argument("no colon");
+      a->blackout_first = std::stoll(a->blackout.substr(0, colon), &used_a);
+      a->blackout_end = std::stoll(a->blackout.substr(colon + 1), &used_b);
+      if (used_a != colon || used_b != a->blackout.size() - colon - 1)
+        throw std::invalid_argument("trailing characters");
+    } catch (const std::exception&) {
+      throw std::invalid_argument("--blackout '" + a->blackout + "': frames A:B (B exclusive)");
+    }
+    if (a->blackout_first < 1 || a->blackout_end <= a->blackout_first ||
+        a->blackout_end >= a->frames)
+      throw std::invalid_argument("--blackout '" + a->blackout +
+                                  "': needs 1 <= A < B < --frames (" + std::to_string(a->frames) +
+                                  ")");
+    if (a->latency || !loops || a->mode == "mono")
+      throw std::invalid_argument("--blackout goes with the stereo synthetic loops alone");
+  }
   if (loops && a->seed_list.empty())
     throw std::invalid_argument(std::string(a->latency ? "--latency" : "the synthetic loops") +
                                 " need at least one seed: --seeds '" + a->seeds + "'");
@@ -766,6 +789,71 @@ int RunLoops(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& voc
 }
 
 // --- Latency -----------------------------------------------------------------------------------
+
+// --blackout A:B: each loop route with frames [A, B) black on both cameras (a tunnel, glare, a
+// covered lens), run with loop closing three ways in the same hour: without the blackout, and
+// with it when tracking stays lost until relocalised (tracking.reinitialise_after_lost_frames=0)
+// and when a new part of the map starts after the default number of lost frames with depth.
+int RunBlackout(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary) {
+  pcr::graph::Policy policy;
+  if (!pcr::graph::ParsePolicy(args.policy, &policy) || policy == pcr::graph::Policy::kRealtime) {
+    std::fprintf(stderr, "--policy: sequential or pipelined\n");
+    return 1;
+  }
+  std::printf(
+      "blackout: frames %lld-%lld black on both cameras, loop closing on; 'lost' keeps tracking "
+      "lost until relocalised (tracking.reinitialise_after_lost_frames=0), 'new part' starts one "
+      "after %d lost frames with depth (the default)\n",
+      static_cast<long long>(args.blackout_first), static_cast<long long>(args.blackout_end - 1),
+      pcr::TrackerOptions{}.reinitialise_after_lost_frames);
+  std::printf("%-5s %-9s %8s %9s %8s %8s %7s %6s %7s %10s %8s\n", "seed", "run", "tracked", "ATE m",
+              "ATE %", "end m", "parts", "loops", "links", "first loop", "wall s");
+  int failed = 0;
+  for (uint64_t seed : args.seed_list) {
+    const pcr::Dataset clean = pcr::OpenDataset(LoopSequence(args, seed));
+    const double path_m = clean.ground_truth ? pcr::PathLength(*clean.ground_truth) : kNaN;
+    pcr::Dataset dark = clean;
+    const fs::path black =
+        fs::path(args.work) /
+        fmt::format("black_{}x{}.png", clean.rig.left.width_px, clean.rig.left.height_px);
+    fs::create_directories(black.parent_path());
+    if (!cv::imwrite(black.string(),
+                     cv::Mat::zeros(clean.rig.left.height_px, clean.rig.left.width_px, CV_8UC1)))
+      throw std::runtime_error("cannot write " + black.string());
+    for (int64_t i = args.blackout_first; i < args.blackout_end; ++i) {
+      dark.left_paths.at(static_cast<size_t>(i)) = black.string();
+      if (dark.has_right()) dark.right_paths.at(static_cast<size_t>(i)) = black.string();
+    }
+    Args lost_args = args;
+    lost_args.settings.push_back("tracking.reinitialise_after_lost_frames=0");
+    const std::array<std::tuple<const char*, const pcr::Dataset*, const Args*>, 3> runs = {
+        std::tuple{"no gap", &clean, &args}, std::tuple{"lost", &dark, &lost_args},
+        std::tuple{"new part", &dark, &args}};
+    for (const auto& [label, d, run_args] : runs) {
+      const pcr::driver::DriverResult run = Run(*d, *run_args, policy, vocabulary);
+      const Figures f = Measure(*d, run, /*mono=*/false);
+      const LoopFigures loop = LoopFiguresOf(run.pipeline);
+      int links = 0;
+      for (const pcr::LoopEvent& e : run.pipeline.loop_events)
+        links += e.outcome.pose_graph_part_links;
+      failed += !f.error.empty();
+      std::printf("%-5llu %-9s %4zu/%-3zu %9.4f %8.3f %8.3f %7d %6d %7d %10lld %8.1f%s%s\n",
+                  static_cast<unsigned long long>(seed), label, f.tracked, d->size(), f.ate_m,
+                  100 * f.ate_m / path_m, f.end_m,
+                  run.pipeline.relocalisation_stats.reinitialisations, loop.loops, links,
+                  static_cast<long long>(loop.first_frame), f.wall_s,
+                  f.error.empty() ? "" : "  FAILED: ", f.error.c_str());
+      std::fflush(stdout);
+    }
+  }
+  std::printf(
+      "(tracked: frames with a pose; ATE over them, SE(3)-aligned, and in %% of the path; end: "
+      "the last tracked frame's position error against the first's; parts: new parts of the map "
+      "started after a loss; links: spanning-tree links between parts the loops' pose graphs left "
+      "out; first loop: the frame of the first correction, -1 none)\n");
+  if (failed > 0) std::printf("%d run(s) FAILED\n", failed);
+  return failed > 0 ? 1 : 0;
+}
 
 int RunLatency(const Args& args, const std::shared_ptr<const pcr::Vocabulary>& vocabulary) {
   const uint64_t seed = args.seed_list.at(0);  // CheckArgs: at least one
@@ -2063,6 +2151,10 @@ int main(int argc, char** argv) {
   app.add_flag(
       "--held-out", a.held_out,
       "--place: also each clip under a vocabulary trained without it (the others' frames)");
+  app.add_option("--blackout", a.blackout,
+                 "loops (stereo): also with frames A:B (B exclusive) black on both cameras; each "
+                 "seed without the blackout, lost until relocalised, and with a new part of the "
+                 "map after the loss");
   app.add_flag("--floor", a.floor,
                "loops (stereo): also the keyframes' ATE after a global BA to convergence from "
                "the map's estimate and from the ground truth (what the measurements allow)");
@@ -2084,6 +2176,7 @@ int main(int argc, char** argv) {
     if (!a.cross.empty()) return RunCross(a, vocabulary);
     if (!a.sequences.empty()) return RunSequences(a, vocabulary);
     if (a.latency) return RunLatency(a, vocabulary);
+    if (!a.blackout.empty()) return RunBlackout(a, vocabulary);
     return RunLoops(a, vocabulary);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_loop: %s\n", e.what());

@@ -153,6 +153,9 @@ struct Statistics {
   // Relocalisation (a lost frame; in localisation mode also the checks in the whole map): poses
   // accepted, and candidates that held PnP but that the local map did not confirm.
   int relocalisations = 0, relocalisations_rejected = 0;
+  // Stereo: new parts of the map started after a tracking loss (Config::overrides
+  // "tracking.reinitialise_after_lost_frames=N"), which a loop closure joins to the rest.
+  int reinitialisations = 0;
 };
 
 struct Result {

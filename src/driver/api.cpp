@@ -320,6 +320,7 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   st.global_bas = run.pipeline.loop_stats.global_bas;
   st.relocalisations = run.pipeline.relocalisation_stats.accepted;
   st.relocalisations_rejected = run.pipeline.relocalisation_stats.rejected;
+  st.reinitialisations = run.pipeline.relocalisation_stats.reinitialisations;
   if (s.evaluation) {
     st.ate_rmse_m = s.evaluation->ape.trans_m.rmse;
     st.rpe_rmse_m = s.evaluation->rpe.trans_m.rmse;

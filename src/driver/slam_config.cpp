@@ -60,6 +60,8 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
         "--localize-only: a frame with fewer map-point inliers also tries relocalisation");
   s.Add("tracking", "localisation_recheck_frames", &t.localisation_recheck_frames,
         "--localize-only: and every this many frames");
+  s.Add("tracking", "reinitialise_after_lost_frames", &t.reinitialise_after_lost_frames,
+        "stereo: this many lost frames with depth in a row start a new part of the map (0: never)");
   s.Add("tracking", "pose_rounds", &t.pose.rounds, "outlier rounds of the pose optimisation");
   s.Add("tracking", "pose_iterations_per_round", &t.pose.iterations_per_round);
   s.Add("tracking", "chi2_mono", &t.pose.chi2_mono);

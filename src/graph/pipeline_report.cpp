@@ -221,6 +221,7 @@ nlohmann::json LoopToJson(const PipelineResult& result) {
         j["correction_deg"] = o.correction_deg;
         j["fused_points"] = o.fused_points;
         j["pose_graph_edges"] = o.pose_graph_edges;
+        j["pose_graph_part_links"] = o.pose_graph_part_links;
         j["pose_graph_iterations"] = o.pose_graph_iterations;
         j["pose_graph_cost"] = {o.pose_graph_initial_cost, o.pose_graph_final_cost};
         j["verify_ms"] = o.verify_ms;
@@ -313,16 +314,22 @@ nlohmann::json RelocalisationToJson(const RelocalisationStats& st) {
           {"matched", st.matched},
           {"passed", st.passed},
           {"rejected", st.rejected},
-          {"accepted", st.accepted}};
+          {"accepted", st.accepted},
+          {"reinitialisations", st.reinitialisations},
+          {"frames_lost_before_reinitialisation", st.frames_lost_before_reinitialisation}};
 }
 
 std::string FormatRelocalisationSummary(const RelocalisationStats& st) {
   if (st.calls == 0) return "";
   return fmt::format(
       "relocalisation: {} calls, {} accepted; {} place-recognition candidates, {} keyframes "
-      "tried, {} with enough matches, {} held by PnP, {} of those rejected by the local map\n",
+      "tried, {} with enough matches, {} held by PnP, {} of those rejected by the local map{}\n",
       st.calls, st.accepted, st.place_candidates, st.keyframes_tried, st.matched, st.passed,
-      st.rejected);
+      st.rejected,
+      st.reinitialisations == 0
+          ? std::string()
+          : fmt::format("; {} new part(s) of the map started after {} lost frames",
+                        st.reinitialisations, st.frames_lost_before_reinitialisation));
 }
 
 void WriteChromeTrace(const std::string& path, const PipelineResult& result) {

@@ -871,7 +871,29 @@ LoopOutcome LoopCloser::CloseLoop(const LoopJob& job) {
   };
   for (const auto& [i, j] : new_edges) loop_edge(i, j);
   for (const auto& [i, j] : job.loop_edges) loop_edge(i, j);
+  // Parts of the map: keyframes joined by shared points before this loop's fusion. A part that
+  // tracking started after a loss (TrackerOptions::reinitialise_after_lost_frames) hangs in the
+  // spanning tree below the keyframe before the loss, at a guessed pose: that link is no
+  // measurement, so it is left out, and the loop that joins the part moves it as a whole.
+  const std::set<std::pair<KeyframeId, KeyframeId>> fusion_links(new_edges.begin(),
+                                                                 new_edges.end());
+  std::map<KeyframeId, KeyframeId> part;
+  auto part_of = [&part](KeyframeId k) {
+    KeyframeId r = k;
+    while (part.count(r) && part.at(r) != r) r = part.at(r);
+    for (KeyframeId at = k; part.count(at) && part.at(at) != r;) at = std::exchange(part[at], r);
+    return r;
+  };
+  for (const auto& [id, kf] : work.keyframes()) part.emplace(id, id);
+  for (const auto& [id, kf] : work.keyframes())
+    for (const auto& [n, w] : kf.connections)
+      if (w > 0 && part.count(n) && !fusion_links.count({id, n}) && !fusion_links.count({n, id}))
+        part[part_of(id)] = part_of(n);
   for (const auto& [id, kf] : work.keyframes()) {
+    if (kf.parent.valid() && before.count(kf.parent) && part_of(id) != part_of(kf.parent)) {
+      ++outcome.pose_graph_part_links;
+      continue;
+    }
     if (kf.parent.valid() && before.count(kf.parent))
       add_edge(id, kf.parent, before.at(id) * before.at(kf.parent).Inverse());
     for (const auto& [n, w] : kf.connections)

@@ -167,6 +167,8 @@ struct LoopOutcome {
   double correction_m = 0, correction_deg = 0;
   int fused_points = 0;
   int pose_graph_edges = 0, pose_graph_iterations = 0;
+  // Spanning-tree links between parts of the map left out of the pose graph (see CloseLoop).
+  int pose_graph_part_links = 0;
   double pose_graph_initial_cost = 0, pose_graph_final_cost = 0;
   int ba_keyframes = 0, ba_points = 0, ba_iterations = 0;
   bool ba_aborted = false;

@@ -156,6 +156,12 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
   }
   map_.Apply(result.map_delta);
   if (initialised) {
+    if (result.reinitialised)
+      Logger().info(
+          "frame {}: after {} lost frames a new part of the map starts here, from its stereo "
+          "depth at the pose the last tracked frame's motion extrapolates to ({} points; it joins "
+          "the rest of the map where a loop closes)",
+          frame_index, result.frames_lost_before, result.map_delta.new_points.size());
     pending_.clear();
     const KeyframeId id(frame->id());
     // The frame is its own keyframe: recorded at the identity from it, so that it follows its

@@ -94,7 +94,8 @@ bool TrackerOptions::IsValid(std::string* why) const {
     return fail("local search level windows must be >= 0");
   if (max_local_keyframes < 1 || local_neighbours_per_keyframe < 0 ||
       relocalisation_keyframes < 1 || relocalised_frames < 0 || min_temporary_points < 0 ||
-      localisation_relocalise_below < 0 || localisation_recheck_frames < 0)
+      localisation_relocalise_below < 0 || localisation_recheck_frames < 0 ||
+      reinitialise_after_lost_frames < 0)
     return fail("local-map and relocalisation sizes must be positive");
   if (!(pnp_reprojection_px > 0) || pnp_iterations < 1)
     return fail("PnP RANSAC needs a positive threshold and iterations");
@@ -148,6 +149,9 @@ void Tracker::Reset() {
   last_keyframe_t_ns_ = 0;
   last_keyframe_ = KeyframeId();
   frames_since_relocalisation_ = 1 << 30;
+  loss_anchor_ = LossAnchor();
+  lost_frames_ = 0;
+  lost_frames_with_depth_ = 0;
 }
 
 std::vector<int> Tracker::FreeMask(const Frame& frame, const Matches& m) const {
@@ -465,9 +469,11 @@ LocalMap CollectLocalKeyframes(const Map& map, const std::vector<MapPointId>& ma
     if (static_cast<int>(local.keyframes.size()) >= max_keyframes) break;
     const Keyframe* kf = map.keyframe(id);
     for (KeyframeId n : kf->BestCovisible(neighbours_per_keyframe)) add(n);
+    // Tree links that share no point (a part of the map started after a loss hangs below the
+    // keyframe before it, at a guessed pose) bring no point the frame could be seen with.
     for (KeyframeId c : kf->children)
-      if (add(c)) break;
-    if (kf->parent.valid()) add(kf->parent);
+      if (kf->Weight(c) > 0 && add(c)) break;
+    if (kf->parent.valid() && kf->Weight(kf->parent) > 0) add(kf->parent);
   }
   return local;
 }
@@ -673,6 +679,20 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
   }
 
   if (!ok) {
+    if (previous_ok) {  // the loss starts here: where the last tracked frame was, how it moved
+      loss_anchor_.valid = true;
+      loss_anchor_.reference = last_.reference;
+      loss_anchor_.cam_from_reference = last_.cam_from_reference;
+      loss_anchor_.cam_from_world = last_.cam_from_world;
+      loss_anchor_.t_ns = last_.frame->t_ns();
+      loss_anchor_.has_velocity = has_velocity_;
+      loss_anchor_.velocity = velocity_;
+      loss_anchor_.velocity_dt_ns = velocity_dt_ns_;
+      lost_frames_ = 0;
+      lost_frames_with_depth_ = 0;
+    }
+    if (Reinitialise(frame_ptr, map, &result)) return result;
+    ++lost_frames_;
     status_ = TrackingStatus::kLost;
     has_velocity_ = false;
     result.status = TrackingStatus::kLost;
@@ -692,6 +712,9 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
   result.status = TrackingStatus::kOk;
   result.cam_from_world = pose;
   result.reference_keyframe = reference_;
+  loss_anchor_.valid = false;
+  lost_frames_ = 0;
+  lost_frames_with_depth_ = 0;
   // The motion model needs two consecutive tracked frames in one place.
   has_velocity_ = previous_ok && !switched_place;
   if (has_velocity_) {
@@ -730,6 +753,45 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
   in.recently_relocalised = frames_since_relocalisation_ < options_.relocalised_frames;
   in.stereo = stereo;
   return result;
+}
+
+bool Tracker::Reinitialise(const FramePtr& frame_ptr, const Map& map, TrackingResult* result) {
+  const Frame& frame = *frame_ptr;
+  if (options_.reinitialise_after_lost_frames <= 0 || localisation_mode_ ||
+      !frame.rig().IsStereo() || !loss_anchor_.valid)
+    return false;
+  // The last tracked frame where the map holds its reference now, moved on by its motion over
+  // the time lost (the motion model's extrapolation, PredictedMotion, over the whole gap).
+  SE3 anchor = loss_anchor_.cam_from_world;
+  if (const auto ref_pose = map.CamFromWorld(loss_anchor_.reference))
+    anchor = loss_anchor_.cam_from_reference * *ref_pose;
+  SE3 motion = SE3::Identity();
+  const int64_t dt_ns = frame.t_ns() - loss_anchor_.t_ns;
+  if (loss_anchor_.has_velocity && loss_anchor_.velocity_dt_ns > 0 && dt_ns > 0)
+    motion = ExpSE3(static_cast<double>(dt_ns) / static_cast<double>(loss_anchor_.velocity_dt_ns) *
+                    LogSE3(loss_anchor_.velocity));
+  const SE3 pose = motion * anchor;
+  std::optional<MapDelta> init =
+      StereoInitialisation(frame_ptr, pose, options_.min_init_stereo_points);
+  // A frame without the depth to start from (a black one) does not count; one with it that was
+  // not relocalised does, and the last of them starts the part.
+  if (!init || ++lost_frames_with_depth_ < options_.reinitialise_after_lost_frames) return false;
+  init->new_keyframe->parent_hint = last_keyframe_;
+  ++relocalisation_stats_.reinitialisations;
+  relocalisation_stats_.frames_lost_before_reinitialisation += lost_frames_;
+  result->status = TrackingStatus::kOk;
+  result->method = TrackingMethod::kInitialisation;
+  result->reinitialised = true;
+  result->frames_lost_before = lost_frames_;
+  result->cam_from_world = pose;
+  result->num_tracked = static_cast<int>(init->new_points.size());
+  result->map_delta = std::move(*init);
+  result->reference_keyframe = KeyframeId(frame.id());
+  StartFromInitialisation(frame_ptr, pose);
+  loss_anchor_.valid = false;
+  lost_frames_ = 0;
+  lost_frames_with_depth_ = 0;
+  return true;
 }
 
 void Tracker::OnKeyframeInserted(KeyframeId id, const Map& map) {

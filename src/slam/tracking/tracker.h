@@ -83,6 +83,17 @@ struct TrackerOptions {
   // Localisation mode: also every this many frames (0: never), kept when the local map confirms
   // it with a quarter more inliers than the tracked pose has.
   int localisation_recheck_frames = 5;
+  // Stereo, mapping: when this many frames in a row with the depth to start a map from (at
+  // least min_init_stereo_points stereo points) were neither tracked nor relocalised, after a
+  // blackout, glare or a tunnel, the last of them starts a new part of the map: it becomes a
+  // keyframe from its own stereo points (as the first keyframe does) at the pose the last
+  // tracked frame's motion extrapolates to over the time lost, hung in the spanning tree below
+  // the newest keyframe. Frames without that depth (a black one) do not count, so relocalisation
+  // in the map has this many frames with structure to find the place first. The new part shares
+  // no point with the old one until a loop closure joins them (loop closing), so the run goes
+  // on instead of staying lost. 0: never (lost until relocalised). Not in localisation mode, not
+  // in mono, not before this run tracked a frame.
+  int reinitialise_after_lost_frames = 5;
   double pnp_reprojection_px = 4.0;
   int pnp_iterations = 300;
   int min_temporary_points = 100;  // stereo: temporary points made from the last frame's depth
@@ -106,6 +117,10 @@ struct TrackingResult {
   int num_local_matches = 0;
   int motion_model_rejected = 0;  // 1: the consistency check replaced the motion-model pose
   KeyframeId reference_keyframe;  // local keyframe sharing most points
+  // With method kInitialisation: a new part of the map after a loss (see
+  // TrackerOptions::reinitialise_after_lost_frames), not the map's first keyframe.
+  bool reinitialised = false;
+  int frames_lost_before = 0;  // then: the frames lost in a row before it
   // Map edits: visible/found counters of the local map points and, at initialisation, the first
   // keyframe with its points (monocular: the second keyframe and the points).
   MapDelta map_delta;
@@ -128,6 +143,10 @@ struct RelocalisationStats {
   int passed = 0;
   int rejected = 0;
   int accepted = 0;
+  // New parts of the map started after a loss (TrackerOptions::reinitialise_after_lost_frames),
+  // and the lost frames before them.
+  int reinitialisations = 0;
+  int frames_lost_before_reinitialisation = 0;
 };
 
 // Place recognition for relocalisation: keyframes of the whole map that look like the frame, best
@@ -224,6 +243,24 @@ class Tracker {
   SE3 last_keyframe_cam_from_world_ = SE3::Identity();  // when it was inserted
   KeyframeId last_keyframe_;  // its pose in the map is read when it is there
   int64_t frames_since_relocalisation_ = 1 << 30;
+  // The last tracked frame before a loss, held relative to its reference keyframe (which a loop
+  // correction may move meanwhile), with the motion it had then: the re-initialisation's pose.
+  struct LossAnchor {
+    bool valid = false;
+    KeyframeId reference;
+    SE3 cam_from_reference = SE3::Identity();
+    SE3 cam_from_world = SE3::Identity();  // where the reference is gone
+    int64_t t_ns = 0;
+    bool has_velocity = false;
+    SE3 velocity = SE3::Identity();
+    int64_t velocity_dt_ns = 0;
+  };
+  LossAnchor loss_anchor_;
+  int lost_frames_ = 0;             // frames lost in a row since the last tracked one
+  int lost_frames_with_depth_ = 0;  // those of them with the depth to start a part from
+  // Stereo re-initialisation of a frame lost after lost_frames_ others (see
+  // TrackerOptions::reinitialise_after_lost_frames); fills *result when it succeeds.
+  bool Reinitialise(const FramePtr& frame, const Map& map, TrackingResult* result);
 };
 
 // Local map of a frame: the keyframes observing its matched points (by decreasing count), their
