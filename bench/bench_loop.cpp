@@ -182,15 +182,16 @@ struct Args {
   std::string thresholds = "0,0.02,0.04,0.06,0.18,0.2,0.22,0.25";
   std::vector<double> threshold_list;  // --thresholds, parsed (CheckArgs)
   bool held_out = false;
-  bool map_distance = false;                       // --place: the clips' own maps place the answers
-  bool road_distance = false;                      // --place: the road measures the answers
-  double road_limit_m = 9.0;                       // --place --road-distance: per clip within this
-  pcr::SequenceScoreOptions sequence;              // --place: answer (4)
-  double uniqueness = 1.05;                        // --place: answer (4)'s gate
-  std::vector<std::string> settings;               // --set: "section.key=value" for every run
-  bool floor = false;                              // loops: the measurements' own floor (FloorOf)
-  std::string blackout;                            // loops: frames A:B shown black (RunBlackout)
-  int64_t blackout_first = -1, blackout_end = -1;  // --blackout, parsed (CheckArgs)
+  bool map_distance = false;           // --place: the clips' own maps place the answers
+  bool road_distance = false;          // --place: the road measures the answers
+  double road_limit_m = 9.0;           // --place --road-distance: per clip within this
+  pcr::SequenceScoreOptions sequence;  // --place: answer (4)
+  double uniqueness = 1.05;            // --place: answer (4)'s gate
+  std::vector<std::string> settings;   // --set: "section.key=value" for every run
+  bool floor = false;                  // loops: the measurements' own floor (FloorOf)
+  std::string blackout;                // loops: frames A:B shown black (RunBlackout)
+  int64_t blackout_first = -1;         // --blackout, parsed (CheckArgs)
+  int64_t blackout_end = -1;
 };
 
 // Parses the list options into their vectors and checks what CLI11 does not, before any work (a
@@ -201,14 +202,10 @@ void CheckArgs(Args* a) {
   const bool loops = a->place.empty() && a->cross.empty() && a->sequences.empty();
   if (a->realtime && !a->latency) throw std::invalid_argument("--realtime goes with --latency");
   if (!a->blackout.empty()) {
-    const size_t colon = a->blackout.find(':');
     try {
-      size_t used_a = 0, used_b = 0;
-      if (colon == std::string::npos) throw std::invalid_argument("no colon");
-      a->blackout_first = std::stoll(a->blackout.substr(0, colon), &used_a);
-      a->blackout_end = std::stoll(a->blackout.substr(colon + 1), &used_b);
-      if (used_a != colon || used_b != a->blackout.size() - colon - 1)
-        throw std::invalid_argument("trailing characters");
+      const pcr::driver::FrameRange r = pcr::driver::FrameRange::ParseText(a->blackout);
+      a->blackout_first = static_cast<int64_t>(r.first);
+      a->blackout_end = static_cast<int64_t>(r.end);
     } catch (const std::exception&) {
       throw std::invalid_argument("--blackout '" + a->blackout + "': frames A:B (B exclusive)");
     }
