@@ -164,7 +164,9 @@ class Tracker {
   // frame's keyframe with OnKeyframeInserted. num_matches_initial then counts the monocular
   // initialiser's matches.
   // place (may be empty): relocalisation tries its keyframes first, then the most recent ones and
-  // the reference keyframe's covisible ones.
+  // the reference keyframe's covisible ones. A stereo frame lost after a loss may start a new
+  // part of the map instead (TrackerOptions::reinitialise_after_lost_frames): the result is then
+  // an initialisation too, with reinitialised set, which the caller applies the same way.
   TrackingResult Track(const FramePtr& frame, const Map& map, const PlaceQuery& place = {});
   // Tells the tracker that the frame of the last Track() call became keyframe id (after the
   // map applied the keyframe and its local mapping): its associations and pose then seed the
