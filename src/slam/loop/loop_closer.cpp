@@ -12,6 +12,7 @@
 #include <unordered_set>
 #include <utility>
 
+#include "slam/common/disjoint_sets.h"
 #include "slam/common/error.h"
 #include "slam/common/lie.h"
 #include "slam/common/timing.h"
@@ -877,25 +878,19 @@ LoopOutcome LoopCloser::CloseLoop(const LoopJob& job) {
   // measurement, so it is left out, and the loop that joins the part moves it as a whole.
   const std::set<std::pair<KeyframeId, KeyframeId>> fusion_links(new_edges.begin(),
                                                                  new_edges.end());
-  std::map<KeyframeId, KeyframeId> part;
-  auto part_of = [&part](KeyframeId k) {
-    KeyframeId r = k;
-    while (part.count(r) && part.at(r) != r) r = part.at(r);
-    for (KeyframeId at = k; part.count(at) && part.at(at) != r;) at = std::exchange(part[at], r);
-    return r;
-  };
-  for (const auto& [id, kf] : work.keyframes()) part.emplace(id, id);
+  DisjointSets parts(vertices.size());
   for (const auto& [id, kf] : work.keyframes())
     for (const auto& [n, w] : kf.connections)
-      if (w > 0 && part.count(n) && !fusion_links.count({id, n}) && !fusion_links.count({n, id}))
-        part[part_of(id)] = part_of(n);
+      if (w > 0 && vertex_of.count(n) && !fusion_links.count({id, n}) &&
+          !fusion_links.count({n, id}))
+        parts.Join(vertex_of.at(id), vertex_of.at(n));
   for (const auto& [id, kf] : work.keyframes()) {
-    if (kf.parent.valid() && before.count(kf.parent) && part_of(id) != part_of(kf.parent)) {
-      ++outcome.pose_graph_part_links;
-      continue;
+    if (kf.parent.valid() && before.count(kf.parent) && vertex_of.count(kf.parent)) {
+      if (parts.Joined(vertex_of.at(id), vertex_of.at(kf.parent)))
+        add_edge(id, kf.parent, before.at(id) * before.at(kf.parent).Inverse());
+      else
+        ++outcome.pose_graph_part_links;
     }
-    if (kf.parent.valid() && before.count(kf.parent))
-      add_edge(id, kf.parent, before.at(id) * before.at(kf.parent).Inverse());
     for (const auto& [n, w] : kf.connections)
       if (w >= job.options.covisibility_edge_weight && n < id && before.count(n))
         add_edge(id, n, before.at(id) * before.at(n).Inverse());

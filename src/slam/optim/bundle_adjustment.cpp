@@ -11,6 +11,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "slam/common/disjoint_sets.h"
 #include "slam/common/error.h"
 #include "slam/optim/reprojection_cost.h"
 #include "slam/optim/se3.h"
@@ -143,12 +144,7 @@ class BundleAdjuster {
   // it to the first) holds its keyframe with the smallest id fixed, so that no solve has a free
   // gauge.
   void HoldUnanchoredParts() {
-    std::vector<int> root(keyframes_.size());
-    for (size_t k = 0; k < root.size(); ++k) root[k] = static_cast<int>(k);
-    auto find = [&root](int k) {
-      while (root[k] != k) k = root[k] = root[root[k]];
-      return k;
-    };
+    DisjointSets parts(keyframes_.size());
     std::vector<int> point_keyframe(points_.size(), -1);
     std::vector<bool> used(keyframes_.size(), false);
     for (size_t i = 0; i < observations_.size(); ++i) {
@@ -159,13 +155,13 @@ class BundleAdjuster {
       if (first < 0)
         first = k;
       else
-        root[find(k)] = find(first);
+        parts.Join(k, first);
     }
     std::vector<int> anchor(keyframes_.size(), -1);  // per part: a fixed keyframe, or the oldest
     std::vector<bool> held(keyframes_.size(), false);
     for (size_t k = 0; k < keyframes_.size(); ++k) {
       if (!used[k]) continue;
-      const int r = find(static_cast<int>(k));
+      const size_t r = parts.Find(k);
       if (fixed_[k]) held[r] = true;
       if (anchor[r] < 0 || keyframes_[k].id < keyframes_[anchor[r]].id)
         anchor[r] = static_cast<int>(k);
