@@ -129,6 +129,16 @@ void Tracker::Matches::Reset(int n) {
 
 namespace {
 
+// A motion measured over velocity_dt_ns, carried over dt_ns: the same twist over a longer (or
+// shorter) time, as it is for a regular frame spacing (no exp/log round trip there), and as it
+// is where either time is not positive.
+SE3 MotionOver(const SE3& velocity, int64_t velocity_dt_ns, int64_t dt_ns) {
+  if (velocity_dt_ns <= 0 || dt_ns <= 0) return velocity;
+  const double ratio = static_cast<double>(dt_ns) / static_cast<double>(velocity_dt_ns);
+  if (std::abs(ratio - 1.0) < 0.05) return velocity;
+  return ExpSE3(ratio * LogSE3(velocity));
+}
+
 const TrackerOptions& CheckedTrackerOptions(const TrackerOptions& options) {
   std::string why;
   if (!options.IsValid(&why)) throw ConfigError("TrackerOptions: " + why);
@@ -149,9 +159,7 @@ void Tracker::Reset() {
   last_keyframe_t_ns_ = 0;
   last_keyframe_ = KeyframeId();
   frames_since_relocalisation_ = 1 << 30;
-  loss_anchor_ = LossAnchor();
-  lost_frames_ = 0;
-  lost_frames_with_depth_ = 0;
+  loss_ = Loss();
 }
 
 std::vector<int> Tracker::FreeMask(const Frame& frame, const Matches& m) const {
@@ -214,12 +222,7 @@ void Tracker::StartFromInitialisation(const FramePtr& frame, const SE3& cam_from
 
 SE3 Tracker::PredictedMotion(int64_t t_ns) const {
   const int64_t dt_ns = last_.frame ? t_ns - last_.frame->t_ns() : 0;
-  if (velocity_dt_ns_ <= 0 || dt_ns <= 0) return velocity_;
-  const double ratio = static_cast<double>(dt_ns) / static_cast<double>(velocity_dt_ns_);
-  // Regular frame spacing: the measured motion as it is (no exp/log round trip).
-  if (std::abs(ratio - 1.0) < 0.05) return velocity_;
-  // Skipped or dropped frames: the same twist over a longer (or shorter) time.
-  return ExpSE3(ratio * LogSE3(velocity_));
+  return MotionOver(velocity_, velocity_dt_ns_, dt_ns);
 }
 
 bool Tracker::TrackMotionModel(const Frame& frame, const Map& map, SE3* pose, Matches* m, int* n0,
@@ -680,19 +683,18 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
 
   if (!ok) {
     if (previous_ok) {  // the loss starts here: where the last tracked frame was, how it moved
-      loss_anchor_.valid = true;
-      loss_anchor_.reference = last_.reference;
-      loss_anchor_.cam_from_reference = last_.cam_from_reference;
-      loss_anchor_.cam_from_world = last_.cam_from_world;
-      loss_anchor_.t_ns = last_.frame->t_ns();
-      loss_anchor_.has_velocity = has_velocity_;
-      loss_anchor_.velocity = velocity_;
-      loss_anchor_.velocity_dt_ns = velocity_dt_ns_;
-      lost_frames_ = 0;
-      lost_frames_with_depth_ = 0;
+      loss_ = Loss();
+      loss_.valid = true;
+      loss_.reference = last_.reference;
+      loss_.cam_from_reference = last_.cam_from_reference;
+      loss_.cam_from_world = last_.cam_from_world;
+      loss_.t_ns = last_.frame->t_ns();
+      loss_.has_velocity = has_velocity_;
+      loss_.velocity = velocity_;
+      loss_.velocity_dt_ns = velocity_dt_ns_;
     }
     if (Reinitialise(frame_ptr, map, &result)) return result;
-    ++lost_frames_;
+    ++loss_.frames;
     status_ = TrackingStatus::kLost;
     has_velocity_ = false;
     result.status = TrackingStatus::kLost;
@@ -712,9 +714,7 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
   result.status = TrackingStatus::kOk;
   result.cam_from_world = pose;
   result.reference_keyframe = reference_;
-  loss_anchor_.valid = false;
-  lost_frames_ = 0;
-  lost_frames_with_depth_ = 0;
+  loss_ = Loss();
   // The motion model needs two consecutive tracked frames in one place.
   has_velocity_ = previous_ok && !switched_place;
   if (has_velocity_) {
@@ -758,39 +758,35 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
 bool Tracker::Reinitialise(const FramePtr& frame_ptr, const Map& map, TrackingResult* result) {
   const Frame& frame = *frame_ptr;
   if (options_.reinitialise_after_lost_frames <= 0 || localisation_mode_ ||
-      !frame.rig().IsStereo() || !loss_anchor_.valid)
+      !frame.rig().IsStereo() || !loss_.valid)
     return false;
   // The last tracked frame where the map holds its reference now, moved on by its motion over
-  // the time lost (the motion model's extrapolation, PredictedMotion, over the whole gap).
-  SE3 anchor = loss_anchor_.cam_from_world;
-  if (const auto ref_pose = map.CamFromWorld(loss_anchor_.reference))
-    anchor = loss_anchor_.cam_from_reference * *ref_pose;
-  SE3 motion = SE3::Identity();
-  const int64_t dt_ns = frame.t_ns() - loss_anchor_.t_ns;
-  if (loss_anchor_.has_velocity && loss_anchor_.velocity_dt_ns > 0 && dt_ns > 0)
-    motion = ExpSE3(static_cast<double>(dt_ns) / static_cast<double>(loss_anchor_.velocity_dt_ns) *
-                    LogSE3(loss_anchor_.velocity));
+  // the time lost (the motion model's extrapolation over the whole gap).
+  SE3 anchor = loss_.cam_from_world;
+  if (const auto ref_pose = map.CamFromWorld(loss_.reference))
+    anchor = loss_.cam_from_reference * *ref_pose;
+  const SE3 motion = loss_.has_velocity ? MotionOver(loss_.velocity, loss_.velocity_dt_ns,
+                                                     frame.t_ns() - loss_.t_ns)
+                                        : SE3::Identity();
   const SE3 pose = motion * anchor;
   std::optional<MapDelta> init =
       StereoInitialisation(frame_ptr, pose, options_.min_init_stereo_points);
   // A frame without the depth to start from (a black one) does not count; one with it that was
   // not relocalised does, and the last of them starts the part.
-  if (!init || ++lost_frames_with_depth_ < options_.reinitialise_after_lost_frames) return false;
+  if (!init || ++loss_.frames_with_depth < options_.reinitialise_after_lost_frames) return false;
   init->new_keyframe->parent_hint = last_keyframe_;
   ++relocalisation_stats_.reinitialisations;
-  relocalisation_stats_.frames_lost_before_reinitialisation += lost_frames_;
+  relocalisation_stats_.frames_lost_before_reinitialisation += loss_.frames;
   result->status = TrackingStatus::kOk;
   result->method = TrackingMethod::kInitialisation;
   result->reinitialised = true;
-  result->frames_lost_before = lost_frames_;
+  result->frames_lost_before = loss_.frames;
   result->cam_from_world = pose;
   result->num_tracked = static_cast<int>(init->new_points.size());
   result->map_delta = std::move(*init);
   result->reference_keyframe = KeyframeId(frame.id());
   StartFromInitialisation(frame_ptr, pose);
-  loss_anchor_.valid = false;
-  lost_frames_ = 0;
-  lost_frames_with_depth_ = 0;
+  loss_ = Loss();
   return true;
 }
 

@@ -245,9 +245,10 @@ class Tracker {
   SE3 last_keyframe_cam_from_world_ = SE3::Identity();  // when it was inserted
   KeyframeId last_keyframe_;  // its pose in the map is read when it is there
   int64_t frames_since_relocalisation_ = 1 << 30;
-  // The last tracked frame before a loss, held relative to its reference keyframe (which a loop
-  // correction may move meanwhile), with the motion it had then: the re-initialisation's pose.
-  struct LossAnchor {
+  // A loss in progress: the last tracked frame before it, held relative to its reference
+  // keyframe (which a loop correction may move meanwhile), with the motion it had then (the
+  // re-initialisation's pose), and the frames lost since. Default (valid false): no loss.
+  struct Loss {
     bool valid = false;
     KeyframeId reference;
     SE3 cam_from_reference = SE3::Identity();
@@ -256,11 +257,11 @@ class Tracker {
     bool has_velocity = false;
     SE3 velocity = SE3::Identity();
     int64_t velocity_dt_ns = 0;
+    int frames = 0;             // frames lost in a row since the last tracked one
+    int frames_with_depth = 0;  // those of them with the depth to start a part from
   };
-  LossAnchor loss_anchor_;
-  int lost_frames_ = 0;             // frames lost in a row since the last tracked one
-  int lost_frames_with_depth_ = 0;  // those of them with the depth to start a part from
-  // Stereo re-initialisation of a frame lost after lost_frames_ others (see
+  Loss loss_;
+  // Stereo re-initialisation of a frame lost after loss_.frames others (see
   // TrackerOptions::reinitialise_after_lost_frames); fills *result when it succeeds.
   bool Reinitialise(const FramePtr& frame, const Map& map, TrackingResult* result);
 };
