@@ -9,13 +9,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 
 #include "driver/map_outputs.h"
 #include "driver/traffic_street.h"
 #include "slam/common/error.h"
 #include "slam/tracking/tracker.h"
+#include "support/black_frames.h"
 #include "support/data_paths.h"
 #include "support/log_capture.h"
 
@@ -380,10 +380,7 @@ TEST(Driver, AFrameThatFailsAfterTrackingIsNotCounted) {
 TEST(Driver, AfterABlackoutANewPartOfTheMapKeepsTheRunGoing) {
   const Dataset original = OpenDataset(test::SharedPath("data/kitti/sequences/06"));
   Dataset dataset = original;
-  const std::string black = test::MakeTempDir("pcr_driver_blackout") + "/black.png";
-  ASSERT_TRUE(cv::imwrite(
-      black, cv::Mat::zeros(dataset.rig.left.height_px, dataset.rig.left.width_px, CV_8UC1)));
-  for (size_t i = 20; i < 32; ++i) dataset.left_paths.at(i) = dataset.right_paths.at(i) = black;
+  test::BlackOut(&dataset, 20, 32);
   const FrameRange all{0, dataset.size()};
 
   const RunConfig lost = LoadRunConfig("", {"tracking.reinitialise_after_lost_frames=0"}, nullptr);

@@ -15,7 +15,6 @@
 #include <functional>
 #include <limits>
 #include <memory>
-#include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <string>
 #include <thread>
@@ -30,6 +29,7 @@
 #include "loop_street.h"
 #include "slam/system/map_archive.h"
 #include "slam/tracking/tracker.h"
+#include "support/black_frames.h"
 #include "support/data_paths.h"
 
 namespace pcr::driver {
@@ -228,13 +228,7 @@ TEST(LoopClosing, ABlackoutStartsANewPartOfTheMapThatTheRevisitJoins) {
   graph::PipelineOptions keep_map;
   keep_map.keep_final_map = true;
   const LoopRun dark = RunLoop(graph::Policy::kSequential, true, keep_map, {}, {}, [](Dataset* d) {
-    const std::filesystem::path black = std::filesystem::path(PCR_TEST_CACHE_DIR) /
-                                        ("black_" + std::to_string(d->rig.left.width_px) + "x" +
-                                         std::to_string(d->rig.left.height_px) + ".png");
-    ASSERT_TRUE(cv::imwrite(black.string(),
-                            cv::Mat::zeros(d->rig.left.height_px, d->rig.left.width_px, CV_8UC1)));
-    for (size_t i = kFirstBlack; i < kFirstBlack + kBlack; ++i)
-      d->left_paths.at(i) = d->right_paths.at(i) = black.string();
+    test::BlackOut(d, kFirstBlack, kFirstBlack + kBlack);
   });
   const LoopRun& clean = SequentialRun(true);
   const Dataset dataset = OpenDataset(LoopStreet());
