@@ -19,7 +19,18 @@
 // against the whole lap's ATE would compare a short, well-mapped stretch, whose own alignment
 // absorbs most of its error, with a whole lap.)
 //
+// --outside (loops only): a drive that starts outside a loaded map (ORB-SLAM3's atlas case). The
+// route's first quarter up to its revisit is mapped and saved, and a run on that map (mapping on)
+// drives from a third of the way to the end: it is not in the map until the revisit. Three runs
+// of those frames: on the map as configured (a part of its own after
+// tracking.reinitialise_after_lost_frames frames not found, joined to the map by the revisit's
+// loop), on the map with that option at 0 (waiting to be found), and without the map (its own
+// frame). Printed: frames tracked, parts started, loops closed, the error against the truth
+// without alignment (the map's frame; for the run without the map it is not in that frame, so
+// only its ATE), its largest value, and the SE(3)-aligned ATE.
+//
 //   build/bench/bench_map --sequence ../shared/data/kitti/sequences/06 --seeds 7,8,9
+//   build/bench/bench_map --outside --seeds 1,2,3
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -58,6 +69,7 @@ struct Args {
   int lap_extra = 10;
   std::string work = "/tmp/pcr_bench_map";
   std::vector<std::string> overrides;
+  bool outside = false;
 };
 
 double Seconds(std::chrono::steady_clock::time_point since) {
@@ -192,6 +204,66 @@ bool MapAndLocalise(const Args& a, const std::string& name, const std::string& s
          frames.size() == loc_end - loc_first;
 }
 
+// Maps [0, map_end) and saves it; then drives [first, end) on the loaded map as configured, with
+// tracking.reinitialise_after_lost_frames=0, and without the map; prints one row.
+bool DriveOutsideTheMap(const Args& a, const std::string& name, const std::string& sequence,
+                        size_t map_end, size_t first, size_t end) {
+  const pcr::Dataset dataset = pcr::OpenDataset(sequence);
+  const pcr::Trajectory& truth = *dataset.ground_truth;
+  pcr::api::Config c;
+  c.threads = 2;
+  c.overrides = a.overrides;
+  c.save_map = fmt::format("{}/{}_first_{}.map", a.work, name, map_end);
+  const pcr::api::Result mapped =
+      pcr::api::Run(c, pcr::api::Source::Dataset(sequence, 0, static_cast<int64_t>(map_end)));
+  const auto drive = [&](bool load, bool own_part) {
+    pcr::api::Config d = c;
+    d.save_map.clear();
+    if (load) d.load_map = c.save_map;
+    if (!own_part) d.overrides.push_back("tracking.reinitialise_after_lost_frames=0");
+    return pcr::api::Run(d, pcr::api::Source::Dataset(sequence, static_cast<int64_t>(first),
+                                                      static_cast<int64_t>(end)));
+  };
+  const pcr::api::Result own = drive(true, true), waiting = drive(true, false),
+                         alone = drive(false, true);
+  // Errors over each run's own tracked frames, and the largest unaligned one.
+  const auto scored = [&](const pcr::api::Result& r, double* max_m) {
+    std::vector<int64_t> frames;
+    *max_m = 0;
+    for (const pcr::api::Pose& p : r.trajectory) {
+      frames.push_back(p.frame_index);
+      *max_m =
+          std::max(*max_m, (p.world_from_cam.block<3, 1>(0, 3) -
+                            truth[static_cast<size_t>(p.frame_index)].world_from_cam.translation())
+                               .norm());
+    }
+    return ErrorsOn(r.trajectory, truth, frames);
+  };
+  double own_max = 0, waiting_max = 0, alone_max = 0;
+  const Errors e_own = scored(own, &own_max), e_waiting = scored(waiting, &waiting_max),
+               e_alone = scored(alone, &alone_max);
+  const auto from = [](const pcr::api::Result& r) {
+    return r.trajectory.empty() ? std::string("-")
+                                : std::to_string(r.trajectory.front().frame_index);
+  };
+  std::printf(
+      "| %s | %zu:%zu (%zu kf) | %zu:%zu | %zu from %s, %d part(s), %d loop(s) | %.4f (max %.3f) | "
+      "%.4f | %zu from %s | %.4f | %zu, %d loop(s) | %.4f |\n",
+      name.c_str(), size_t{0}, map_end, mapped.stats.keyframes, first, end,
+      own.stats.frames_tracked, from(own).c_str(), own.stats.reinitialisations,
+      own.stats.loops_closed, e_own.unaligned_m, own_max, e_own.ate_m, waiting.stats.frames_tracked,
+      from(waiting).c_str(), e_waiting.unaligned_m, alone.stats.frames_tracked,
+      alone.stats.loops_closed, e_alone.ate_m);
+  std::fflush(stdout);
+  bool failed = false;
+  for (const pcr::api::Result* r : {&mapped, &own, &waiting, &alone})
+    if (!r->error.empty()) {
+      std::fprintf(stderr, "bench_map: %s: %s\n", name.c_str(), r->error.c_str());
+      failed = true;
+    }
+  return !failed;
+}
+
 // The loop route of `seed`.
 pcr::sim::SynthOptions LoopOptions(const Args& a, uint64_t seed) {
   pcr::sim::SynthOptions o;
@@ -226,6 +298,9 @@ int main(int argc, char** argv) {
          "close there)");
   app.add_option("--work", a.work, "where routes and maps are written")->capture_default_str();
   app.add_option("--set", a.overrides, "configuration override section.key=value (repeatable)");
+  app.add_flag("--outside", a.outside,
+               "loops: map the route's first quarter up to its revisit, then drive from a third "
+               "of the way on that map (a drive that starts outside a loaded map)");
   spdlog::set_level(spdlog::level::warn);
   try {
     if (const int status = pcr::bench::Parse(app, argc, argv); status >= 0) return status;
@@ -241,12 +316,22 @@ int main(int argc, char** argv) {
     if (!LoopOptions(a, seeds.empty() ? 1 : seeds.front()).IsValid(&why))
       throw std::invalid_argument("the loop routes (--frames, --speed, --movers, --scale): " + why);
     fs::create_directories(a.work);
-    std::printf(
-        "| run | mapped | tracked | keyframes | MB | save ms | load ms | same bytes | localised "
-        "frames | localised | s | map points | map unchanged | ATE mapping, its frames | mapping "
-        "run compared | frames compared | ATE mapping | ATE localised | error mapping "
-        "(unaligned) | error localised (unaligned) |\n|");
-    for (int i = 0; i < 20; ++i) std::printf("---|");
+    if (a.outside && !a.sequences.empty())
+      throw std::invalid_argument("--outside takes loop routes (--seeds), not --sequence");
+    if (a.outside) {
+      std::printf(
+          "| run | mapped (keyframes) | driven | on the map: tracked, parts, loops | error in the "
+          "map's frame, m (largest) | ATE | option 0: tracked | error in the map's frame | "
+          "without the map: tracked, loops | ATE |\n|");
+      for (int i = 0; i < 10; ++i) std::printf("---|");
+    } else {
+      std::printf(
+          "| run | mapped | tracked | keyframes | MB | save ms | load ms | same bytes | localised "
+          "frames | localised | s | map points | map unchanged | ATE mapping, its frames | mapping "
+          "run compared | frames compared | ATE mapping | ATE localised | error mapping "
+          "(unaligned) | error localised (unaligned) |\n|");
+      for (int i = 0; i < 20; ++i) std::printf("---|");
+    }
     std::printf("\n");
     bool ok = true;
     for (const std::string& seq : a.sequences) {
@@ -264,6 +349,12 @@ int main(int argc, char** argv) {
         std::printf("| loop seed %llu | the route does not come back to its start |\n",
                     static_cast<unsigned long long>(seed));
         ok = false;
+        continue;
+      }
+      if (a.outside) {
+        ok = DriveOutsideTheMap(a, fmt::format("loop_s{}", o.seed), sequence, revisit / 4,
+                                revisit / 3, d.size()) &&
+             ok;
         continue;
       }
       const size_t lap_end = std::min(d.size() - 1, revisit + static_cast<size_t>(a.lap_extra));

@@ -156,7 +156,7 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
   }
   map_.Apply(result.map_delta);
   if (initialised) {
-    if (result.reinitialised)
+    if (result.reinitialised && !result.own_part_in_loaded_map)
       Logger().info(
           "frame {}: after {} lost frames a new part of the map starts here, from its stereo "
           "depth at the pose the last tracked frame's motion extrapolates to ({} points; it joins "
@@ -186,6 +186,16 @@ TrackingResult SlamSystem::Track(const FramePtr& frame, int64_t frame_index) {
 }
 
 void SlamSystem::NoteLoadedMapStart(const TrackingResult& result, int64_t frame_index) {
+  if (result.own_part_in_loaded_map) {
+    Logger().info(
+        "frame {}: after {} frames not found in the loaded map ({} keyframes), this run starts a "
+        "part of the map of its own here, from its stereo depth at the map's origin ({} points; "
+        "it joins the loaded map where a loop closes)",
+        frame_index, result.frames_lost_before, loaded_map_keyframes_,
+        result.map_delta.new_points.size());
+    loaded_map_keyframes_ = 0;
+    return;
+  }
   if (result.status == TrackingStatus::kOk) {
     if (frames_before_loaded_map_ >= kLostInLoadedMapWarnFrames)
       Logger().info("frame {} relocalised in the loaded map after {} frames that were not",
@@ -194,16 +204,23 @@ void SlamSystem::NoteLoadedMapStart(const TrackingResult& result, int64_t frame_
     return;
   }
   if (++frames_before_loaded_map_ != kLostInLoadedMapWarnFrames) return;
+  const bool own_part = !options_.localize_only && mode_ == SlamMode::kStereo &&
+                        options_.tracker.reinitialise_after_lost_frames > 0;
   Logger().warn(
       "the first {} frames of this run were not relocalised in the loaded map ({} keyframes{}): "
-      "a run on a loaded map starts at the first frame found in it; until then no frame is "
-      "tracked{}",
+      "{}",
       frames_before_loaded_map_, loaded_map_keyframes_,
       loop_closer_.HasPlaceRecognition()
           ? ""
           : fmt::format(", tried against its {} newest only: no vocabulary",
                         options_.tracker.relocalisation_keyframes),
-      options_.localize_only ? "" : " and nothing is added to the map");
+      own_part ? fmt::format("the run starts a part of the map of its own once {} frames in a row "
+                             "with stereo depth are not found in it "
+                             "(tracking.reinitialise_after_lost_frames)",
+                             options_.tracker.reinitialise_after_lost_frames)
+               : fmt::format("a run on a loaded map starts at the first frame found in it; until "
+                             "then no frame is tracked{}",
+                             options_.localize_only ? "" : " and nothing is added to the map"));
 }
 
 void SlamSystem::RecordTracked(const TrackingResult& result, const Frame& frame,

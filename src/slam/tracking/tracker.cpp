@@ -692,6 +692,12 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
       loss_.has_velocity = has_velocity_;
       loss_.velocity = velocity_;
       loss_.velocity_dt_ns = velocity_dt_ns_;
+    } else if (!loss_.valid) {
+      // No frame of this run was tracked yet in a map that holds keyframes: a loaded map (a map
+      // made in this run tracked its first keyframe). Its origin is the only pose there is.
+      loss_ = Loss();
+      loss_.valid = true;
+      loss_.in_loaded_map = true;
     }
     if (Reinitialise(frame_ptr, map, &result)) return result;
     ++loss_.frames;
@@ -761,7 +767,8 @@ bool Tracker::Reinitialise(const FramePtr& frame_ptr, const Map& map, TrackingRe
       !frame.rig().IsStereo() || !loss_.valid)
     return false;
   // The last tracked frame where the map holds its reference now, moved on by its motion over
-  // the time lost (the motion model's extrapolation over the whole gap).
+  // the time lost (the motion model's extrapolation over the whole gap); in a loaded map that no
+  // frame of this run was found in, the map's origin.
   SE3 anchor = loss_.cam_from_world;
   if (const auto ref_pose = map.CamFromWorld(loss_.reference))
     anchor = loss_.cam_from_reference * *ref_pose;
@@ -780,6 +787,7 @@ bool Tracker::Reinitialise(const FramePtr& frame_ptr, const Map& map, TrackingRe
   result->status = TrackingStatus::kOk;
   result->method = TrackingMethod::kInitialisation;
   result->reinitialised = true;
+  result->own_part_in_loaded_map = loss_.in_loaded_map;
   result->frames_lost_before = loss_.frames;
   result->cam_from_world = pose;
   result->num_tracked = static_cast<int>(init->new_points.size());

@@ -91,8 +91,11 @@ struct TrackerOptions {
   // the newest keyframe. Frames without that depth (a black one) do not count, so relocalisation
   // in the map has this many frames with structure to find the place first. The new part shares
   // no point with the old one until a loop closure joins them (loop closing), so the run goes
-  // on instead of staying lost. 0: never (lost until relocalised). Not in localisation mode, not
-  // in mono, not before this run tracked a frame.
+  // on instead of staying lost. A run on a loaded map whose first frames are not found in it
+  // (a drive that starts outside the map) starts its own part the same way, at the map's origin:
+  // no frame of the run had a pose in the map before it. 0: never (lost until relocalised; a run
+  // on a loaded map then starts at the first frame found in it). Not in localisation mode, not
+  // in mono.
   int reinitialise_after_lost_frames = 5;
   double pnp_reprojection_px = 4.0;
   int pnp_iterations = 300;
@@ -120,6 +123,10 @@ struct TrackingResult {
   // With method kInitialisation: a new part of the map after a loss (see
   // TrackerOptions::reinitialise_after_lost_frames), not the map's first keyframe.
   bool reinitialised = false;
+  // Then: no frame of this run had been tracked before it in the map, which came loaded (the run
+  // was never found in it), so the part starts at the map's origin; see
+  // TrackerOptions::reinitialise_after_lost_frames.
+  bool own_part_in_loaded_map = false;
   int frames_lost_before = 0;  // then: the frames lost in a row before it
   // Map edits: visible/found counters of the local map points and, at initialisation, the first
   // keyframe with its points (monocular: the second keyframe and the points).
@@ -259,6 +266,9 @@ class Tracker {
     int64_t velocity_dt_ns = 0;
     int frames = 0;             // frames lost in a row since the last tracked one
     int frames_with_depth = 0;  // those of them with the depth to start a part from
+    // No frame of this run was tracked before it, in a loaded map: the part starts at the map's
+    // origin, without motion.
+    bool in_loaded_map = false;
   };
   Loss loss_;
   // Stereo re-initialisation of a frame lost after loss_.frames others (see
