@@ -105,6 +105,9 @@ void BindRunConfig(RunConfig& c, ConfigSchema& s) {
   s.Add("loop", "min_ransac_inliers", &l.min_ransac_inliers);
   s.Add("loop", "min_sim3_inliers", &l.min_sim3_inliers);
   s.Add("loop", "min_loop_matches", &l.min_loop_matches);
+  s.Add("loop", "join_evidence_factor", &l.join_evidence_factor,
+        "a loop that joins two parts of the map needs this many times min_sim3_inliers and "
+        "min_loop_matches");
   s.Add("loop", "covisibility_edge_weight", &l.covisibility_edge_weight);
   s.Add("loop", "pose_graph_iterations", &l.pose_graph_iterations);
   s.Add("loop", "global_bundle_adjustment", &l.global_bundle_adjustment);

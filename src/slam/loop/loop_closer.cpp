@@ -128,6 +128,8 @@ bool LoopClosingOptions::IsValid(std::string* why) const {
   if (!(projection_radius_factor > 0) || !(fuse_radius_factor > 0))
     return fail("projection_radius_factor and fuse_radius_factor must be > 0");
   if (!(max_correction_m > 0)) return fail("max_correction_m must be > 0");
+  if (!(join_evidence_factor >= 1) || join_evidence_factor > 100)
+    return fail("join_evidence_factor must be in [1, 100]");
   if (covisibility_edge_weight < 1) return fail("covisibility_edge_weight must be >= 1");
   if (pose_graph_iterations < 1) return fail("pose_graph_iterations must be >= 1");
   if (global_ba_iterations < 1) return fail("global_ba_iterations must be >= 1");
@@ -589,8 +591,31 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
 
 namespace {
 
+// Whether a path of keyframes sharing points leads from a to b.
+bool SharePart(const Map& map, KeyframeId a, KeyframeId b) {
+  std::set<KeyframeId> seen{a};
+  std::vector<KeyframeId> open{a};
+  while (!open.empty()) {
+    const Keyframe* kf = map.keyframe(open.back());
+    open.pop_back();
+    if (!kf) continue;
+    for (const auto& [n, w] : kf->connections) {
+      if (w <= 0 || !seen.insert(n).second) continue;
+      if (n == b) return true;
+      open.push_back(n);
+    }
+  }
+  return false;
+}
+
+// A threshold times LoopClosingOptions::join_evidence_factor, rounded up.
+int JoinThreshold(int threshold, double factor) {
+  return static_cast<int>(std::ceil(factor * threshold - 1e-9));
+}
+
 // Geometric verification of one candidate; fills *match and returns true when it passes,
-// otherwise sets *why.
+// otherwise sets *why. A candidate in another part of the map than the query must pass the
+// thresholds times LoopClosingOptions::join_evidence_factor.
 bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& candidate,
                      LoopMatch* match, std::string* why) {
   const Map& map = *job.map;
@@ -618,8 +643,11 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
   so.fix_scale = job.fix_scale;
   const Sim3OptimizerResult refined = OptimizeSim3(camera, corr, ransac.cam1_from_cam2, so);
   match->sim3_inliers = refined.num_inliers;
-  if (!refined.success || refined.num_inliers < o.min_sim3_inliers) {
-    *why = "Sim3 refinement kept " + std::to_string(refined.num_inliers) + " inliers";
+  match->joins_parts = !SharePart(map, query.id, candidate.id);
+  const double factor = match->joins_parts ? o.join_evidence_factor : 1.0;
+  const std::string joining = match->joins_parts ? " (joining two parts of the map)" : "";
+  if (!refined.success || refined.num_inliers < JoinThreshold(o.min_sim3_inliers, factor)) {
+    *why = "Sim3 refinement kept " + std::to_string(refined.num_inliers) + " inliers" + joining;
     return false;
   }
   match->query = query.id;
@@ -664,8 +692,8 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
     ++added;
   }
   match->projection_matches = added;
-  if (static_cast<int>(match->matches.size()) < o.min_loop_matches) {
-    *why = "projection found " + std::to_string(match->matches.size()) + " loop matches";
+  if (static_cast<int>(match->matches.size()) < JoinThreshold(o.min_loop_matches, factor)) {
+    *why = "projection found " + std::to_string(match->matches.size()) + " loop matches" + joining;
     return false;
   }
   const double jump_m =

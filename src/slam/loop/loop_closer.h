@@ -49,9 +49,15 @@ struct LoopClosingOptions {
   // The owner runs the lane's Sim(3) RANSAC on each candidate before it makes a job (the same
   // map, the same seed: the same outcome), so candidates it rejects cost no job and no snapshot.
   bool ransac_precheck = true;
-  int min_ransac_inliers = 20;           // Sim(3) RANSAC inliers
-  int min_sim3_inliers = 20;             // after refinement
-  int min_loop_matches = 40;             // after projecting the loop's map points into the query
+  int min_ransac_inliers = 20;  // Sim(3) RANSAC inliers
+  int min_sim3_inliers = 20;    // after refinement
+  int min_loop_matches = 40;    // after projecting the loop's map points into the query
+  // A loop that joins two parts of the map (no path of shared points leads from the query to the
+  // candidate: a part tracking started after a loss, or a run's own part beside a loaded map) is
+  // the only tie between them: nothing else checks its transform, and the part moves with it as
+  // a whole. Its Sim(3) inliers and loop matches must reach this many times min_sim3_inliers and
+  // min_loop_matches (rounded up).
+  double join_evidence_factor = 2.0;
   double projection_radius_factor = 10;  // window of that projection (times the level scale)
   double fuse_radius_factor = 4;         // window of the fusion into the query's group
   // Largest correction accepted (a wrong loop on a look-alike place asks for a huge jump):
@@ -116,6 +122,7 @@ struct LoopMatch {
   // Query keypoint -> loop map point: the verified matches and those found by projection.
   std::vector<std::pair<int, MapPointId>> matches;
   int bow_matches = 0, ransac_inliers = 0, sim3_inliers = 0, projection_matches = 0;
+  bool joins_parts = false;  // see LoopClosingOptions::join_evidence_factor
 };
 
 // What the loop lane was given: the query, its consistent candidates and a snapshot of the map.

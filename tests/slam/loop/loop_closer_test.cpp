@@ -538,6 +538,9 @@ TEST(LoopCloser, CloseLoopKeepsTheVerifiedCandidateWithTheMostMatches) {
   ASSERT_GE(job.word_matches[a].size(), 40u);
   ASSERT_GT(job.word_matches[b].size(), 2 * job.word_matches[a].size());
   job.map = std::make_shared<const Map>(map);
+  // The three keyframes share no point, so each loop here would join two parts of the map; the
+  // thresholds are those of any loop (ALoopThatJoinsTwoPartsOfTheMapNeedsMoreEvidence).
+  job.options.join_evidence_factor = 1.0;
 
   const LoopOutcome outcome = LoopCloser::CloseLoop(job);
   ASSERT_EQ(outcome.kind, LoopOutcomeKind::kCorrected) << outcome.rejection;
@@ -555,6 +558,63 @@ TEST(LoopCloser, CloseLoopKeepsTheVerifiedCandidateWithTheMostMatches) {
   ASSERT_EQ(only_a.kind, LoopOutcomeKind::kCorrected) << only_a.rejection;
   EXPECT_EQ(only_a.match->matched, a);
   EXPECT_LT(only_a.match->matches.size(), outcome.match->matches.size());
+}
+
+TEST(LoopCloser, ALoopThatJoinsTwoPartsOfTheMapNeedsMoreEvidence) {
+  // A place keyframe A with 60 map points and a query that sees it with a drifted pose: the
+  // loop verifies with 52 loop matches, above min_loop_matches (40) but below twice that. While
+  // A and the query share no point, the loop would be the only tie between their parts and is
+  // rejected (join_evidence_factor 2); with a point seen by both, they are one part and the same
+  // matches close it.
+  test::SyntheticScene scene(11);
+  Map map;
+  const SE3 pose_a = test::CamFromWorld({0, 0, 0}, 0.0);
+  const SE3 true_q = test::CamFromWorld({0.1, 0, 1.5}, 0.02);
+  const SE3 drifted_q = test::CamFromWorld({1.1, 0, 2.5}, 0.06);
+  std::vector<int> of_a, of_q;
+  AddSceneKeyframe(scene, &map, 0, pose_a, pose_a, 60, &of_a);
+  AddSceneKeyframe(scene, &map, 1, true_q, drifted_q, 1000, &of_q);
+  const KeyframeId a(0), q(1);
+  LoopJob job;
+  job.query = q;
+  job.candidates = {a};
+  const Keyframe& ka = *map.keyframe(a);
+  for (size_t i = 0; i < of_q.size(); ++i) {
+    if (of_q[i] < 0 || !map.keyframe(q)->points[i].valid()) continue;
+    for (size_t j = 0; j < of_a.size(); ++j)
+      if (of_a[j] == of_q[i] && ka.points[j].valid())
+        job.word_matches[a].emplace_back(static_cast<int>(i), static_cast<int>(j));
+  }
+  ASSERT_EQ(job.options.join_evidence_factor, 2.0);  // the default
+  job.map = std::make_shared<const Map>(map);
+  const LoopOutcome joining = LoopCloser::CloseLoop(job);
+  EXPECT_EQ(joining.kind, LoopOutcomeKind::kRejected);
+  EXPECT_NE(joining.rejection.find("joining two parts of the map"), std::string::npos)
+      << joining.rejection;
+
+  // One point seen by both (a keypoint of each without a map point, far from the loop's).
+  int free_a = -1, free_q = -1;
+  for (int j = 0; j < ka.frame->size() && free_a < 0; ++j)
+    if (!ka.points[static_cast<size_t>(j)].valid()) free_a = j;
+  const Keyframe& kq = *map.keyframe(q);
+  for (int i = 0; i < kq.frame->size() && free_q < 0; ++i)
+    if (!kq.points[static_cast<size_t>(i)].valid()) free_q = i;
+  ASSERT_GE(free_a, 0);
+  ASSERT_GE(free_q, 0);
+  MapDelta shared;
+  NewMapPoint p;
+  p.p_in_world = Eigen::Vector3d(0, 0, 10);
+  p.observations = {{a, free_a}, {q, free_q}};
+  shared.new_points.push_back(p);
+  map.Apply(shared);
+  ASSERT_EQ(map.keyframe(a)->Weight(q), 1);
+  job.map = std::make_shared<const Map>(map);
+  const LoopOutcome within = LoopCloser::CloseLoop(job);
+  ASSERT_EQ(within.kind, LoopOutcomeKind::kCorrected) << within.rejection;
+  ASSERT_TRUE(within.match.has_value());
+  EXPECT_FALSE(within.match->joins_parts);
+  EXPECT_LT(within.match->matches.size(), 80u);
+  EXPECT_GE(within.match->matches.size(), 40u);
 }
 
 // Everything the loop lane reads of a map, compared field by field.
