@@ -156,6 +156,10 @@ struct Statistics {
   // Stereo: new parts of the map started after a tracking loss (Config::overrides
   // "tracking.reinitialise_after_lost_frames=N"), which a loop closure joins to the rest.
   int reinitialisations = 0;
+  // Parts of the map at the end: 1, or more where a part started after a loss or beside a loaded
+  // map was never joined by a loop (its poses are then in a frame of its own; stats.json's
+  // map.parts says which frames); 0 without a map.
+  int map_parts = 0;
 };
 
 struct Result {

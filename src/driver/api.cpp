@@ -17,6 +17,7 @@
 #include "driver/driver.h"
 #include "driver/loop_vocabulary.h"
 #include "driver/map_file.h"
+#include "graph/pipeline_report.h"
 #include "pcr/version.h"
 #include "slam/common/error.h"
 #include "slam/common/log.h"
@@ -321,6 +322,7 @@ Result RunChecked(const Config& config, const Source& source, const FrameCallbac
   st.relocalisations = run.pipeline.relocalisation_stats.accepted;
   st.relocalisations_rejected = run.pipeline.relocalisation_stats.rejected;
   st.reinitialisations = run.pipeline.relocalisation_stats.reinitialisations;
+  st.map_parts = static_cast<int>(graph::SummariseMapParts(run.pipeline.map).size());
   if (s.evaluation) {
     st.ate_rmse_m = s.evaluation->ape.trans_m.rmse;
     st.rpe_rmse_m = s.evaluation->rpe.trans_m.rmse;

@@ -366,6 +366,7 @@ void WriteDriverOutputs(const std::string& out_dir, const DriverResult& result,
 std::string FormatDriverSummary(const DriverResult& result) {
   return FormatRunSummary(result.summary) + graph::FormatLoopSummary(result.pipeline) +
          graph::FormatRelocalisationSummary(result.pipeline.relocalisation_stats) +
+         graph::FormatMapPartsSummary(result.pipeline.map) +
          graph::FormatPipelineStats(result.pipeline.stats);
 }
 

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "eval/association.h"
+#include "graph/pipeline_report.h"
 #include "io/text_parse.h"
 #include "io/trajectory_io.h"
 #include "slam/common/error.h"
@@ -283,6 +284,7 @@ nlohmann::json MapOutputsJson(const graph::MapSnapshot& map, const RunSummary& s
   summary_json["keyframes"] = map.keyframes.size();
   summary_json["keyframes_loaded"] = LoadedKeyframes(map);
   summary_json["loops"] = map.loops;
+  summary_json["parts"] = graph::MapPartsToJson(map);
   summary_json["ground"] = GroundScaleJson(map, summary);
   return summary_json;
 }

@@ -963,7 +963,10 @@ PipelineResult GraphRun::Collect() {
   out.loop_stats = slam_->loop_closer().stats();
   out.loop_database_keyframes = slam_->loop_closer().database().size();
   out.relocalisation_stats = slam_->relocalisation_stats();
-  out.tracked = slam_->RefinedTrajectory();
+  std::vector<int> tracked_parts;
+  out.tracked = slam_->RefinedTrajectory(&tracked_parts);
+  for (size_t i = 0; i < out.tracked.size(); ++i)
+    out.map.frame_parts[out.tracked[i].frame_index] = tracked_parts[i];
   if (error_) {
     // The poses of the completed frames only: frames after the failing one may have been tracked
     // already when the graph was cancelled, and their records are not in the result.
@@ -971,6 +974,7 @@ PipelineResult GraphRun::Collect() {
     for (const FrameRecord& f : out.frames) completed.insert(f.frame_index);
     std::erase_if(out.tracked,
                   [&](const StampedPose& p) { return !completed.count(p.frame_index); });
+    std::erase_if(out.map.frame_parts, [&](const auto& f) { return !completed.count(f.first); });
   }
   out.keyframes = slam_->map().num_keyframes();
   out.map_points = slam_->map().num_points();
@@ -992,7 +996,9 @@ PipelineResult GraphRun::Collect() {
   std::sort(keyframes.begin(), keyframes.end(),
             [](const Keyframe* a, const Keyframe* b) { return a->index < b->index; });
   std::map<KeyframeId, size_t> position_of;
+  const std::map<KeyframeId, int> parts = map.Parts();
   for (const Keyframe* kf : keyframes) {
+    out.map.keyframe_parts.push_back(parts.at(kf->id));
     position_of.emplace(kf->id, out.map.keyframes.size());
     const auto made_here = frame_index_of_frame_.find(kf->frame->id());
     out.map.keyframes.push_back({kf->frame->t_ns(),

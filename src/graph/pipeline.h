@@ -135,6 +135,12 @@ struct MapSnapshot {
   // (PipelineOptions::initial_map; made by the runs that built it). The loaded keyframes come
   // first: the map numbers this run's keyframes after them.
   Trajectory keyframes;
+  // Per keyframe, its part of the map (Map::Parts(): 0 holds the oldest keyframe; another part
+  // shares no point with it, so its poses are in a frame of its own).
+  std::vector<int> keyframe_parts;
+  // The part of every tracked frame of PipelineResult::tracked (that of its reference keyframe;
+  // -1 where it resolves to none), by frame index.
+  std::map<int64_t, int> frame_parts;
   // Every loop closed (a correction applied), as indices into `keyframes`: the query keyframe
   // and the earlier keyframe it was matched to (each the nearest live one along the spanning tree
   // when it was culled since).

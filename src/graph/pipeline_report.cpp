@@ -332,6 +332,58 @@ std::string FormatRelocalisationSummary(const RelocalisationStats& st) {
                         st.reinitialisations, st.frames_lost_before_reinitialisation));
 }
 
+std::vector<MapPartSummary> SummariseMapParts(const MapSnapshot& map) {
+  std::vector<MapPartSummary> parts;
+  const auto part = [&parts](int p) -> MapPartSummary& {
+    while (static_cast<int>(parts.size()) <= p) {
+      parts.emplace_back();
+      parts.back().part = static_cast<int>(parts.size()) - 1;
+    }
+    return parts[static_cast<size_t>(p)];
+  };
+  for (size_t i = 0; i < map.keyframes.size() && i < map.keyframe_parts.size(); ++i) {
+    if (map.keyframe_parts[i] < 0) continue;
+    MapPartSummary& p = part(map.keyframe_parts[i]);
+    if (p.keyframes++ == 0) p.first_keyframe_frame = map.keyframes[i].frame_index;
+  }
+  for (const auto& [frame, p] : map.frame_parts) {  // by frame index
+    if (p < 0) continue;
+    MapPartSummary& s = part(p);
+    if (s.tracked_frames++ == 0) s.first_tracked_frame = frame;
+  }
+  return parts;
+}
+
+nlohmann::json MapPartsToJson(const MapSnapshot& map) {
+  nlohmann::json parts = nlohmann::json::array();
+  for (const MapPartSummary& p : SummariseMapParts(map))
+    parts.push_back({{"part", p.part},
+                     {"keyframes", p.keyframes},
+                     {"first_keyframe_frame", p.first_keyframe_frame},
+                     {"tracked_frames", p.tracked_frames},
+                     {"first_tracked_frame", p.first_tracked_frame}});
+  return parts;
+}
+
+std::string FormatMapPartsSummary(const MapSnapshot& map) {
+  const std::vector<MapPartSummary> parts = SummariseMapParts(map);
+  if (parts.size() <= 1) return "";
+  std::string others;
+  for (size_t i = 1; i < parts.size(); ++i)
+    others += fmt::format("{}part {}: {} keyframes from {}, {} tracked frames from frame {}",
+                          i > 1 ? "; " : "", parts[i].part, parts[i].keyframes,
+                          parts[i].first_keyframe_frame < 0
+                              ? std::string("the loaded map")
+                              : fmt::format("frame {}", parts[i].first_keyframe_frame),
+                          parts[i].tracked_frames, parts[i].first_tracked_frame);
+  return fmt::format(
+      "map parts: the map ended in {} parts that share no point, as no loop joined them ({}); "
+      "the first part ({} keyframes, {} tracked frames) is in the world's frame, each other one "
+      "where a guess put it (the motion extrapolated over a loss, or a loaded map's origin), so "
+      "an evaluation of the whole trajectory mixes frames\n",
+      parts.size(), others, parts[0].keyframes, parts[0].tracked_frames);
+}
+
 void WriteChromeTrace(const std::string& path, const PipelineResult& result) {
   nlohmann::json events = nlohmann::json::array();
   events.push_back(

@@ -26,6 +26,23 @@ std::string FormatLoopSummary(const PipelineResult& result);
 nlohmann::json RelocalisationToJson(const RelocalisationStats& stats);
 std::string FormatRelocalisationSummary(const RelocalisationStats& stats);
 
+// The map's parts when the run ended (MapSnapshot::keyframe_parts, frame_parts), in part order:
+// part 0 holds the oldest keyframe; another part shares no point with it (a part tracking started
+// after a loss, or beside a loaded map, that no loop joined), so its poses are in a frame of
+// their own.
+struct MapPartSummary {
+  int part = 0;
+  size_t keyframes = 0;
+  int64_t first_keyframe_frame = -1;  // its oldest keyframe's frame of this run; -1: loaded
+  size_t tracked_frames = 0;          // frames whose pose hangs on one of its keyframes
+  int64_t first_tracked_frame = -1;   // the first of them; -1: none
+};
+std::vector<MapPartSummary> SummariseMapParts(const MapSnapshot& map);
+// stats.json's map.parts: one object per part (the fields above).
+nlohmann::json MapPartsToJson(const MapSnapshot& map);
+// One line when the map ended in more than one part ("" otherwise).
+std::string FormatMapPartsSummary(const MapSnapshot& map);
+
 // Chrome trace: one "X" (complete) event per stage call on pid 1 with the thread as tid; one per
 // frame on pid 2 (realtime: release -> retirement, else admission -> retirement), each on the
 // first lane ("frames N") free at its start, so that no two frames overlap on a lane; an instant

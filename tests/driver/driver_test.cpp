@@ -13,6 +13,7 @@
 
 #include "driver/map_outputs.h"
 #include "driver/traffic_street.h"
+#include "graph/pipeline_report.h"
 #include "slam/common/error.h"
 #include "slam/tracking/tracker.h"
 #include "support/black_frames.h"
@@ -402,6 +403,20 @@ TEST(Driver, AfterABlackoutANewPartOfTheMapKeepsTheRunGoing) {
   EXPECT_EQ(st.reinitialisations, 1);
   EXPECT_EQ(st.frames_lost_before_reinitialisation, kStart - 20);
   ExpectSameSummary(seq.summary, pip.summary);
+  // No loop joins the new part (the clip never comes back): the map ends in two parts, and the
+  // report says which frames are in the second, placed by the extrapolation.
+  const std::vector<graph::MapPartSummary> parts = graph::SummariseMapParts(seq.pipeline.map);
+  ASSERT_EQ(parts.size(), 2u);
+  EXPECT_EQ(parts[0].first_keyframe_frame, 0);
+  EXPECT_EQ(parts[0].tracked_frames, 20u);
+  EXPECT_EQ(parts[1].first_keyframe_frame, kStart);
+  EXPECT_EQ(parts[1].first_tracked_frame, kStart);
+  EXPECT_EQ(parts[1].tracked_frames, dataset.size() - kStart);
+  EXPECT_EQ(parts[0].keyframes + parts[1].keyframes, seq.summary.keyframes);
+  EXPECT_NE(FormatDriverSummary(seq).find("map parts: the map ended in 2 parts"),
+            std::string::npos);
+  EXPECT_EQ(graph::SummariseMapParts(stays_lost.pipeline.map).size(), 1u);
+  EXPECT_EQ(FormatDriverSummary(stays_lost).find("map parts"), std::string::npos);
   // The new part starts where the car is, give or take the extrapolation over 1.7 s, and tracks
   // on from there: the ATE over every tracked frame stays near the run without the blackout.
   ASSERT_TRUE(seq.summary.evaluation.has_value());

@@ -25,6 +25,7 @@
 #include "driver/map_floor.h"
 #include "eval/evaluation.h"
 #include "graph/pipeline_options.h"
+#include "graph/pipeline_report.h"
 #include "io/dataset.h"
 #include "loop_street.h"
 #include "slam/system/map_archive.h"
@@ -252,6 +253,11 @@ TEST(LoopClosing, ABlackoutStartsANewPartOfTheMapThatTheRevisitJoins) {
   }
   EXPECT_GE(first, 150);
   EXPECT_EQ(links, 1);
+  // Joined: the map ends in one part, which holds every tracked frame.
+  const std::vector<graph::MapPartSummary> parts =
+      graph::SummariseMapParts(dark.result.pipeline.map);
+  ASSERT_EQ(parts.size(), 1u);
+  EXPECT_EQ(parts[0].tracked_frames, dark.result.summary.frames_tracked);
   // The joined trajectory: the new part is placed by the loop alone (nothing measured the
   // blackout), so its error is that of odometry from the revisit back to the blackout; below the
   // run without loop closing, and the end of the route back where it belongs.

@@ -337,6 +337,7 @@ TEST(MapFile, ADriveThatStartsOutsideTheLoadedMapMapsAPartOfItsOwnThatTheRevisit
   const api::Result street = api::Run(c, api::Source::Dataset(LoopStreet(), 0, 42));
   ASSERT_TRUE(street.error.empty()) << street.error;
   ASSERT_EQ(street.stats.frames_tracked, 42u);
+  EXPECT_EQ(street.stats.map_parts, 1);
 
   constexpr size_t kFirst = 60, kEnd = 200, kNotFound = 4;
   api::Config drive = c;
@@ -358,6 +359,7 @@ TEST(MapFile, ADriveThatStartsOutsideTheLoadedMapMapsAPartOfItsOwnThatTheRevisit
   // The revisit joins the parts: the whole trajectory is in the map's frame, where the part's
   // origin (frame 64 at the identity) was 57 m off.
   EXPECT_GE(own.stats.loops_closed, 1);
+  EXPECT_EQ(own.stats.map_parts, 1);  // joined
   const auto errors = ErrorsInTheMapsFrame(own, truth);
   double sum2 = 0, max_error = 0, max_after = 0;
   for (const auto& [frame, error] : errors) {

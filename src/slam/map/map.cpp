@@ -7,6 +7,8 @@
 #include <string>
 #include <unordered_set>
 
+#include "slam/common/disjoint_sets.h"
+
 namespace pcr {
 
 PointTable::PointTable(Points points) : points_(std::move(points)) { Reindex(); }
@@ -158,6 +160,27 @@ KeyframeId Map::ResolveKeyframe(KeyframeId id) const {
     id = it->second.parent;
   }
   return KeyframeId();
+}
+
+std::map<KeyframeId, int> Map::Parts() const {
+  std::vector<const Keyframe*> by_index;
+  for (const auto& [id, kf] : keyframes_) by_index.push_back(&kf);
+  std::sort(by_index.begin(), by_index.end(),
+            [](const Keyframe* a, const Keyframe* b) { return a->index < b->index; });
+  std::map<KeyframeId, size_t> position;
+  for (size_t i = 0; i < by_index.size(); ++i) position.emplace(by_index[i]->id, i);
+  DisjointSets sets(by_index.size());
+  for (size_t i = 0; i < by_index.size(); ++i)
+    for (const auto& [n, w] : by_index[i]->connections)
+      if (const auto it = position.find(n); w > 0 && it != position.end()) sets.Join(i, it->second);
+  // Numbered in the order of their oldest keyframes.
+  std::map<size_t, int> number;
+  std::map<KeyframeId, int> parts;
+  for (size_t i = 0; i < by_index.size(); ++i) {
+    const auto [it, added] = number.emplace(sets.Find(i), static_cast<int>(number.size()));
+    parts.emplace(by_index[i]->id, it->second);
+  }
+  return parts;
 }
 
 std::optional<SE3> Map::CamFromWorld(KeyframeId id) const {

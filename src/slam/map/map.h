@@ -240,6 +240,11 @@ class Map {
   std::optional<SE3> CamFromWorld(KeyframeId id) const;
   // Points of the keyframe observed by at least min_observations keyframes.
   int TrackedPoints(KeyframeId id, int min_observations) const;
+  // Parts of the map: live keyframes joined through shared points (a path of connections), as a
+  // part number per keyframe. Part 0 holds the oldest keyframe (the smallest index), the others
+  // are numbered by their oldest keyframe's index. A map is one part unless tracking started a
+  // new part after a loss, or beside a loaded map, that no loop has joined to the rest.
+  std::map<KeyframeId, int> Parts() const;
 
  private:
   void AddObservation(MapPointId point, KeyframeId keyframe, int keypoint);

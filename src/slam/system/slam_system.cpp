@@ -480,8 +480,13 @@ FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv
   return out;
 }
 
-Trajectory SlamSystem::RefinedTrajectory() const {
+Trajectory SlamSystem::RefinedTrajectory(std::vector<int>* parts) const {
   Trajectory trajectory;
+  std::map<KeyframeId, int> part_of;
+  if (parts) {
+    parts->clear();
+    part_of = map_.Parts();
+  }
   for (const FrameRecord& r : records_) {
     const auto ref_pose = map_.CamFromWorld(r.reference);
     if (!ref_pose) continue;
@@ -490,6 +495,10 @@ Trajectory SlamSystem::RefinedTrajectory() const {
     p.frame_index = r.frame_index;
     p.world_from_cam = (r.cam_from_reference * *ref_pose).inverse();
     trajectory.push_back(p);
+    if (parts) {
+      const auto it = part_of.find(map_.ResolveKeyframe(r.reference));
+      parts->push_back(it == part_of.end() ? -1 : it->second);
+    }
   }
   return trajectory;
 }
