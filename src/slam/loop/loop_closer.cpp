@@ -591,23 +591,6 @@ std::shared_ptr<const LoopJob> LoopCloser::Detect(KeyframeId id, const Map& map,
 
 namespace {
 
-// Whether a path of keyframes sharing points leads from a to b.
-bool SharePart(const Map& map, KeyframeId a, KeyframeId b) {
-  std::set<KeyframeId> seen{a};
-  std::vector<KeyframeId> open{a};
-  while (!open.empty()) {
-    const Keyframe* kf = map.keyframe(open.back());
-    open.pop_back();
-    if (!kf) continue;
-    for (const auto& [n, w] : kf->connections) {
-      if (w <= 0 || !seen.insert(n).second) continue;
-      if (n == b) return true;
-      open.push_back(n);
-    }
-  }
-  return false;
-}
-
 // A threshold times LoopClosingOptions::join_evidence_factor, rounded up.
 int JoinThreshold(int threshold, double factor) {
   return static_cast<int>(std::ceil(factor * threshold - 1e-9));
@@ -643,7 +626,8 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
   so.fix_scale = job.fix_scale;
   const Sim3OptimizerResult refined = OptimizeSim3(camera, corr, ransac.cam1_from_cam2, so);
   match->sim3_inliers = refined.num_inliers;
-  match->joins_parts = !SharePart(map, query.id, candidate.id);
+  const std::map<KeyframeId, int> parts = map.Parts();
+  match->joins_parts = parts.at(query.id) != parts.at(candidate.id);
   const double factor = match->joins_parts ? o.join_evidence_factor : 1.0;
   const std::string joining = match->joins_parts ? " (joining two parts of the map)" : "";
   if (!refined.success || refined.num_inliers < JoinThreshold(o.min_sim3_inliers, factor)) {

@@ -504,16 +504,41 @@ void AddSceneKeyframe(test::SyntheticScene& scene, Map* map, int64_t frame, cons
   map->Apply(d);
 }
 
+// A place keyframe's pose, and a query's true and drifted pose that sees the same place.
+struct PlaceAndQuery {
+  SE3 a = test::CamFromWorld({0, 0, 0}, 0.0);
+  SE3 true_q = test::CamFromWorld({0.1, 0, 1.5}, 0.02);
+  SE3 drifted_q = test::CamFromWorld({1.1, 0, 2.5}, 0.06);
+};
+
+// Word matches as the owner's precheck would give them: query keypoint <-> candidate keypoint of
+// the same scene point (of_*: AddSceneKeyframe's scene point per keypoint), where both have a
+// map point.
+std::vector<std::pair<int, int>> SameScenePointMatches(const Map& map, KeyframeId query,
+                                                       const std::vector<int>& of_query,
+                                                       KeyframeId candidate,
+                                                       const std::vector<int>& of_candidate) {
+  std::vector<std::pair<int, int>> pairs;
+  const Keyframe& kq = *map.keyframe(query);
+  const Keyframe& kc = *map.keyframe(candidate);
+  for (size_t i = 0; i < of_query.size(); ++i) {
+    if (of_query[i] < 0 || !kq.points[i].valid()) continue;
+    for (size_t j = 0; j < of_candidate.size(); ++j)
+      if (of_candidate[j] == of_query[i] && kc.points[j].valid())
+        pairs.emplace_back(static_cast<int>(i), static_cast<int>(j));
+  }
+  return pairs;
+}
+
 TEST(LoopCloser, CloseLoopKeepsTheVerifiedCandidateWithTheMostMatches) {
   // Two earlier keyframes of the same place, A (60 map points) and B (300), and a query that
   // sees it with a drifted pose. Both pass verification; A is the first candidate (the better
   // bag-of-words score), B the one with the most loop matches.
   test::SyntheticScene scene(11);
   Map map;
-  const SE3 pose_a = test::CamFromWorld({0, 0, 0}, 0.0);
+  const PlaceAndQuery poses;
+  const SE3 pose_a = poses.a, true_q = poses.true_q, drifted_q = poses.drifted_q;
   const SE3 pose_b = test::CamFromWorld({0.2, 0, 1.0}, 0.01);
-  const SE3 true_q = test::CamFromWorld({0.1, 0, 1.5}, 0.02);
-  const SE3 drifted_q = test::CamFromWorld({1.1, 0, 2.5}, 0.06);
   std::vector<int> of_a, of_b, of_q;
   AddSceneKeyframe(scene, &map, 0, pose_a, pose_a, 60, &of_a);
   AddSceneKeyframe(scene, &map, 1, pose_b, pose_b, 300, &of_b);
@@ -524,17 +549,8 @@ TEST(LoopCloser, CloseLoopKeepsTheVerifiedCandidateWithTheMostMatches) {
   LoopJob job;
   job.query = q;
   job.candidates = {a, b};
-  // Word matches stand in for the owner's precheck: query keypoint <-> candidate keypoint of
-  // the same scene point, where both have a map point.
-  for (const auto& [id, of] : {std::pair{a, &of_a}, std::pair{b, &of_b}}) {
-    const Keyframe& kf = *map.keyframe(id);
-    for (size_t i = 0; i < of_q.size(); ++i) {
-      if (of_q[i] < 0 || !map.keyframe(q)->points[i].valid()) continue;
-      for (size_t j = 0; j < of->size(); ++j)
-        if ((*of)[j] == of_q[i] && kf.points[j].valid())
-          job.word_matches[id].emplace_back(static_cast<int>(i), static_cast<int>(j));
-    }
-  }
+  job.word_matches[a] = SameScenePointMatches(map, q, of_q, a, of_a);
+  job.word_matches[b] = SameScenePointMatches(map, q, of_q, b, of_b);
   ASSERT_GE(job.word_matches[a].size(), 40u);
   ASSERT_GT(job.word_matches[b].size(), 2 * job.word_matches[a].size());
   job.map = std::make_shared<const Map>(map);
@@ -568,23 +584,16 @@ TEST(LoopCloser, ALoopThatJoinsTwoPartsOfTheMapNeedsMoreEvidence) {
   // matches close it.
   test::SyntheticScene scene(11);
   Map map;
-  const SE3 pose_a = test::CamFromWorld({0, 0, 0}, 0.0);
-  const SE3 true_q = test::CamFromWorld({0.1, 0, 1.5}, 0.02);
-  const SE3 drifted_q = test::CamFromWorld({1.1, 0, 2.5}, 0.06);
+  const PlaceAndQuery poses;
   std::vector<int> of_a, of_q;
-  AddSceneKeyframe(scene, &map, 0, pose_a, pose_a, 60, &of_a);
-  AddSceneKeyframe(scene, &map, 1, true_q, drifted_q, 1000, &of_q);
+  AddSceneKeyframe(scene, &map, 0, poses.a, poses.a, 60, &of_a);
+  AddSceneKeyframe(scene, &map, 1, poses.true_q, poses.drifted_q, 1000, &of_q);
   const KeyframeId a(0), q(1);
   LoopJob job;
   job.query = q;
   job.candidates = {a};
+  job.word_matches[a] = SameScenePointMatches(map, q, of_q, a, of_a);
   const Keyframe& ka = *map.keyframe(a);
-  for (size_t i = 0; i < of_q.size(); ++i) {
-    if (of_q[i] < 0 || !map.keyframe(q)->points[i].valid()) continue;
-    for (size_t j = 0; j < of_a.size(); ++j)
-      if (of_a[j] == of_q[i] && ka.points[j].valid())
-        job.word_matches[a].emplace_back(static_cast<int>(i), static_cast<int>(j));
-  }
   ASSERT_EQ(job.options.join_evidence_factor, 2.0);  // the default
   job.map = std::make_shared<const Map>(map);
   const LoopOutcome joining = LoopCloser::CloseLoop(job);
