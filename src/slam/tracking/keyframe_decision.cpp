@@ -35,10 +35,6 @@ KeyframeDecision ShouldInsertKeyframe(const KeyframeDecisionInput& in,
     d.reason = "no map";
     return d;
   }
-  if (in.recently_relocalised && in.keyframes_in_map > 1) {
-    d.reason = "recently relocalised";
-    return d;
-  }
   if (in.tracked_points <= opt.min_tracked_points) {
     d.reason = "too few tracked points";
     return d;
@@ -55,6 +51,14 @@ KeyframeDecision ShouldInsertKeyframe(const KeyframeDecisionInput& in,
                           in.untracked_close > opt.min_new_close;
   const bool weak = in.stereo && (in.tracked_points < opt.weak_tracking_ratio * reference);
   const bool few_vs_reference = in.tracked_points < ratio * reference;
+  // Right after a relocalisation no keyframe is made (ORB-SLAM's rule: the pose is new), unless
+  // in stereo the tracking weakens or close points are needed: relocalised at the edge of a map,
+  // its points leave the view within a few frames, and a keyframe from the frame's own depth is
+  // what keeps the run from being lost again.
+  if (in.recently_relocalised && in.keyframes_in_map > 1 && !weak && !need_close) {
+    d.reason = "recently relocalised";
+    return d;
+  }
   const bool low_quality = in.motion_quality < opt.min_motion_quality;
   const bool timeout = in.seconds_since_last_keyframe >= opt.max_interval_s;
   const bool turned =

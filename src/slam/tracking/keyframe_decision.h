@@ -19,6 +19,8 @@ struct KeyframeDecisionInput {
   double rotation_since_keyframe_rad = 0;  // angle between this frame's and the last keyframe's
                                            // orientation
   int keyframes_in_map = 0;
+  // Within TrackerOptions::relocalised_frames of a relocalisation: no keyframe, unless (stereo)
+  // tracking is weak or close points are needed.
   bool recently_relocalised = false;
   bool stereo = true;
 };

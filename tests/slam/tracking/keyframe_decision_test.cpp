@@ -80,6 +80,29 @@ TEST(KeyframeDecision, Table) {
          in->tracked_points = 200;
        },
        false, "recently relocalised"},
+      // Relocalised at the edge of a map: its points are leaving the view. In stereo a keyframe
+      // from the frame's own depth is made anyway; a monocular frame waits.
+      {"recently relocalised but weak",
+       [](KeyframeDecisionInput* in) {
+         in->recently_relocalised = true;
+         in->tracked_points = 100;
+       },
+       true, "weak tracking"},
+      {"recently relocalised but needs close points",
+       [](KeyframeDecisionInput* in) {
+         in->recently_relocalised = true;
+         in->tracked_points = 200;
+         in->tracked_close = 99;
+         in->untracked_close = 71;
+       },
+       true, "needs close points"},
+      {"monocular recently relocalised waits",
+       [](KeyframeDecisionInput* in) {
+         in->recently_relocalised = true;
+         in->stereo = false;
+         in->tracked_points = 100;
+       },
+       false, "recently relocalised"},
       {"first keyframes use ratio 0.4",
        [](KeyframeDecisionInput* in) {
          in->keyframes_in_map = 1;
