@@ -963,8 +963,9 @@ PipelineResult GraphRun::Collect() {
   out.loop_stats = slam_->loop_closer().stats();
   out.loop_database_keyframes = slam_->loop_closer().database().size();
   out.relocalisation_stats = slam_->relocalisation_stats();
+  const std::map<KeyframeId, int> parts = slam_->map().Parts();  // the map's parts at the end
   std::vector<int> tracked_parts;
-  out.tracked = slam_->RefinedTrajectory(&tracked_parts);
+  out.tracked = slam_->RefinedTrajectory(&parts, &tracked_parts);
   for (size_t i = 0; i < out.tracked.size(); ++i)
     out.map.frame_parts[out.tracked[i].frame_index] = tracked_parts[i];
   if (error_) {
@@ -996,7 +997,6 @@ PipelineResult GraphRun::Collect() {
   std::sort(keyframes.begin(), keyframes.end(),
             [](const Keyframe* a, const Keyframe* b) { return a->index < b->index; });
   std::map<KeyframeId, size_t> position_of;
-  const std::map<KeyframeId, int> parts = map.Parts();
   for (const Keyframe* kf : keyframes) {
     out.map.keyframe_parts.push_back(parts.at(kf->id));
     position_of.emplace(kf->id, out.map.keyframes.size());

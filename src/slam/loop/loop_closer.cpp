@@ -599,8 +599,10 @@ int JoinThreshold(int threshold, double factor) {
 // Geometric verification of one candidate; fills *match and returns true when it passes,
 // otherwise sets *why. A candidate in another part of the map than the query must pass the
 // thresholds times LoopClosingOptions::join_evidence_factor.
-bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& candidate,
-                     LoopMatch* match, std::string* why) {
+// parts: Map::Parts() of the job's map.
+bool VerifyCandidate(const LoopJob& job, const std::map<KeyframeId, int>& parts,
+                     const Keyframe& query, const Keyframe& candidate, LoopMatch* match,
+                     std::string* why) {
   const Map& map = *job.map;
   const LoopClosingOptions& o = job.options;
   const auto found = job.word_matches.find(candidate.id);
@@ -626,7 +628,6 @@ bool VerifyCandidate(const LoopJob& job, const Keyframe& query, const Keyframe& 
   so.fix_scale = job.fix_scale;
   const Sim3OptimizerResult refined = OptimizeSim3(camera, corr, ransac.cam1_from_cam2, so);
   match->sim3_inliers = refined.num_inliers;
-  const std::map<KeyframeId, int> parts = map.Parts();
   match->joins_parts = parts.at(query.id) != parts.at(candidate.id);
   const double factor = match->joins_parts ? o.join_evidence_factor : 1.0;
   const std::string joining = match->joins_parts ? " (joining two parts of the map)" : "";
@@ -750,13 +751,14 @@ LoopOutcome LoopCloser::CloseLoop(const LoopJob& job) {
   // and it may score higher in the bag of words.
   LoopMatch match;
   bool found = false;
+  const std::map<KeyframeId, int> map_parts = snapshot.Parts();  // the same for every candidate
   for (KeyframeId c : job.candidates) {
     const Keyframe* candidate = snapshot.keyframe(c);
     if (!candidate) continue;
     ++outcome.candidates_tried;
     LoopMatch m;
     std::string why;
-    if (!VerifyCandidate(job, *query, *candidate, &m, &why)) {
+    if (!VerifyCandidate(job, map_parts, *query, *candidate, &m, &why)) {
       if (!found) outcome.rejection = why;
       continue;
     }

@@ -204,8 +204,7 @@ void SlamSystem::NoteLoadedMapStart(const TrackingResult& result, int64_t frame_
     return;
   }
   if (++frames_before_loaded_map_ != kLostInLoadedMapWarnFrames) return;
-  const bool own_part = !options_.localize_only && mode_ == SlamMode::kStereo &&
-                        options_.tracker.reinitialise_after_lost_frames > 0;
+  const bool own_part = tracker_.StartsNewParts(mode_ == SlamMode::kStereo);
   Logger().warn(
       "the first {} frames of this run were not relocalised in the loaded map ({} keyframes{}): "
       "{}",
@@ -480,13 +479,10 @@ FrameOutput SlamSystem::ProcessFrame(int64_t frame_index, int64_t t_ns, const cv
   return out;
 }
 
-Trajectory SlamSystem::RefinedTrajectory(std::vector<int>* parts) const {
+Trajectory SlamSystem::RefinedTrajectory(const std::map<KeyframeId, int>* part_of,
+                                         std::vector<int>* parts) const {
   Trajectory trajectory;
-  std::map<KeyframeId, int> part_of;
-  if (parts) {
-    parts->clear();
-    part_of = map_.Parts();
-  }
+  if (parts) parts->clear();
   for (const FrameRecord& r : records_) {
     const auto ref_pose = map_.CamFromWorld(r.reference);
     if (!ref_pose) continue;
@@ -495,9 +491,9 @@ Trajectory SlamSystem::RefinedTrajectory(std::vector<int>* parts) const {
     p.frame_index = r.frame_index;
     p.world_from_cam = (r.cam_from_reference * *ref_pose).inverse();
     trajectory.push_back(p);
-    if (parts) {
-      const auto it = part_of.find(map_.ResolveKeyframe(r.reference));
-      parts->push_back(it == part_of.end() ? -1 : it->second);
+    if (part_of && parts) {
+      const auto it = part_of->find(map_.ResolveKeyframe(r.reference));
+      parts->push_back(it == part_of->end() ? -1 : it->second);
     }
   }
   return trajectory;

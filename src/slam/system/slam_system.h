@@ -183,9 +183,10 @@ class SlamSystem {
   // world_from_cam of every tracked frame so far, each expressed relative to its reference
   // keyframe as that keyframe stands now (so keyframe refinements carry over); frames that were
   // not tracked are left out.
-  // parts (optional): per pose, the Map::Parts() number of its reference keyframe (-1 where
-  // that keyframe resolves to none).
-  Trajectory RefinedTrajectory(std::vector<int>* parts = nullptr) const;
+  // With part_of (map().Parts()) and parts: per pose, the part of its reference keyframe (-1
+  // where that keyframe resolves to none).
+  Trajectory RefinedTrajectory(const std::map<KeyframeId, int>* part_of = nullptr,
+                               std::vector<int>* parts = nullptr) const;
 
  private:
   struct FrameRecord {

@@ -763,9 +763,7 @@ TrackingResult Tracker::Track(const FramePtr& frame_ptr, const Map& map, const P
 
 bool Tracker::Reinitialise(const FramePtr& frame_ptr, const Map& map, TrackingResult* result) {
   const Frame& frame = *frame_ptr;
-  if (options_.reinitialise_after_lost_frames <= 0 || localisation_mode_ ||
-      !frame.rig().IsStereo() || !loss_.valid)
-    return false;
+  if (!StartsNewParts(frame.rig().IsStereo()) || !loss_.valid) return false;
   // The last tracked frame where the map holds its reference now, moved on by its motion over
   // the time lost (the motion model's extrapolation over the whole gap); in a loaded map that no
   // frame of this run was found in, the map's origin.

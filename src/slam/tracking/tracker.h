@@ -184,6 +184,11 @@ class Tracker {
   void Reset();
   // Localisation mode: the map is fixed (see TrackerOptions::localisation_relocalise_below).
   void SetLocalisationMode(bool on) { localisation_mode_ = on; }
+  // Whether a lost stereo run starts new parts of the map
+  // (TrackerOptions::reinitialise_after_lost_frames; never in localisation mode or mono).
+  bool StartsNewParts(bool stereo) const {
+    return stereo && options_.reinitialise_after_lost_frames > 0 && !localisation_mode_;
+  }
 
   TrackingStatus status() const { return status_; }
   const TrackerOptions& options() const { return options_; }
